@@ -1,0 +1,87 @@
+"""The ``rigd`` command line.
+
+Each sub-command lives in its own module ``rigd/cli/<name>.py`` exposing::
+
+    HELP = "one line"
+    def add_arguments(parser: argparse.ArgumentParser) -> None: ...
+    def run(args: argparse.Namespace) -> int: ...
+
+and is registered once in :data:`COMMANDS`. Any :class:`rigd.errors.InputError` escaping a
+command becomes one line on stderr and exit status 2 (argparse uses 2 for bad arguments too).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from rigd import __version__
+from rigd.errors import InputError
+
+#: command name -> module (imported lazily so `rigd ctl` does not pay for scipy/numba).
+COMMANDS: dict[str, str] = {
+    "run": "rigd.cli.run",
+    "ctl": "rigd.cli.ctl",
+    "export": "rigd.cli.export",
+    "experiment": "rigd.cli.experiment",
+    "identify": "rigd.cli.identify",
+    "compare": "rigd.cli.compare",
+    "diagnose": "rigd.cli.diagnose",
+    "design": "rigd.cli.design",
+    "analyze-impact": "rigd.cli.analyze_impact",
+    "demo": "rigd.cli.demo",
+}
+
+
+def _available() -> dict[str, object]:
+    mods = {}
+    for name, modname in COMMANDS.items():
+        try:
+            mods[name] = importlib.import_module(modname)
+        except ModuleNotFoundError as exc:
+            if exc.name == modname:  # command not built yet
+                continue
+            raise
+    return mods
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="rigd", description="Rotor-gas bearing rig daemon "
+                                     "and modelling workflow.")
+    parser.add_argument("--version", action="version", version=f"rigd {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    names = [only] if only in COMMANDS else list(COMMANDS)
+    for name in names:
+        try:
+            mod = importlib.import_module(COMMANDS[name])
+        except ModuleNotFoundError as exc:
+            if exc.name == COMMANDS[name]:
+                continue
+            raise
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # Only import the module of the command asked for (fast `rigd ctl`).
+    only = argv[0] if argv and argv[0] in COMMANDS else None
+    parser = build_parser(only)
+    args = parser.parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except InputError as exc:
+        print(f"rigd {args.command}: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"rigd {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

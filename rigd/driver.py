@@ -1,0 +1,117 @@
+"""The driver interface and the driver registry (entry-point group ``rigd.drivers``).
+
+Two kinds of driver exist:
+
+* :class:`FastDriver` — exchanged with every cycle of the loop: ``read`` fills the input frame
+  (see :mod:`rigd.frame`), ``write`` applies the four valve drive voltages. Must not block for
+  longer than a fraction of the period; must not allocate per call.
+* :class:`SlowDriver` — polled in its own thread at ``poll_hz`` (10–100 Hz): Modbus pressure,
+  speed, regulator setpoints. The loop never waits for it; it reads the latest value.
+
+Drivers are found by name through the entry-point group ``rigd.drivers`` so that a third-party
+driver installs as an ordinary package::
+
+    [project.entry-points."rigd.drivers"]
+    mydaq = "mypkg.daq:MyDaqDriver"
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from importlib.metadata import entry_points
+from typing import Any, ClassVar
+
+import numpy as np
+
+from rigd.errors import InputError
+
+GROUP = "rigd.drivers"
+
+
+class Driver(ABC):
+    """Common part of every driver.
+
+    Parameters
+    ----------
+    options : dict
+        The driver's own section of the rig config (validated by the driver's ``Options``
+        pydantic model when it defines one).
+    fs : float
+        Loop rate, Hz.
+    """
+
+    kind: ClassVar[str] = "fast"
+    name: ClassVar[str] = "driver"
+
+    def __init__(self, options: dict[str, Any] | None = None, *, fs: float = 5000.0):
+        self.options = options or {}
+        self.fs = float(fs)
+
+    def open(self) -> None:  # noqa: B027 - optional hook
+        """Acquire the device (called once, before the loop starts)."""
+
+    def close(self) -> None:  # noqa: B027 - optional hook
+        """Release the device; must leave outputs in a safe state."""
+
+    def counters(self) -> dict[str, int]:
+        """Error/health counters for status reports (CRC errors, timeouts, reconnects...)."""
+        return {}
+
+
+class FastDriver(Driver):
+    """Per-cycle I/O: sensors in, valve drive voltages out."""
+
+    kind = "fast"
+
+    @abstractmethod
+    def read(self, frame_in: np.ndarray) -> None:
+        """Fill the ``IN_*`` slots this driver owns in ``frame_in`` (float64[N_IN]), in place."""
+
+    @abstractmethod
+    def write(self, drive: np.ndarray) -> None:
+        """Apply the drive voltages ``drive`` (float64[N_OUT], V) to the valves."""
+
+
+class SlowDriver(Driver):
+    """Slow channels polled in their own thread."""
+
+    kind = "slow"
+    poll_hz: float = 20.0
+
+    @abstractmethod
+    def poll(self) -> dict[str, float]:
+        """Read the slow channels; return ``{"omega_rpm": ..., "p_inj_bar": ...}`` etc.
+
+        Runs in the driver's own thread, may block up to the device timeout. Raise
+        :class:`rigd.errors.FaultError` when the device is unreachable.
+        """
+
+    def write_setpoints(self, **setpoints: float) -> None:  # noqa: B027 - optional
+        """Send setpoints (e.g. ``p_inj_bar``, ``omega_rpm``) to regulators, if supported."""
+        raise NotImplementedError(f"driver {self.name!r} takes no setpoints")
+
+
+def available_drivers() -> dict[str, str]:
+    """Names of installed drivers mapped to their ``module:Class`` targets."""
+    return {ep.name: ep.value for ep in entry_points(group=GROUP)}
+
+
+def driver_class(name: str) -> type[Driver]:
+    """Load the driver class registered under ``name``.
+
+    Raises
+    ------
+    InputError
+        No driver of that name is installed, or it cannot be imported.
+    """
+    for ep in entry_points(group=GROUP):
+        if ep.name == name:
+            try:
+                cls = ep.load()
+            except Exception as exc:  # a broken third-party package must not crash us
+                raise InputError(f"driver {name!r} ({ep.value}) failed to import: {exc}") from None
+            if not (isinstance(cls, type) and issubclass(cls, Driver)):
+                raise InputError(f"driver {name!r} ({ep.value}) is not a rigd.driver.Driver")
+            return cls
+    known = ", ".join(sorted(available_drivers())) or "none"
+    raise InputError(f"unknown driver {name!r} (installed: {known})")
