@@ -1,0 +1,100 @@
+"""A small blocking client for the control socket (used by ``rigd ctl`` and the load test)."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import socket
+from typing import Any
+
+from rigd.errors import InputError
+
+DEFAULT_SOCKET = "/run/rigd/rigd.sock"
+
+
+class ControlError(Exception):
+    """The daemon replied ``ok: false``; the message is the daemon's one line."""
+
+
+class ControlClient:
+    """Connect to the daemon's socket and send requests.
+
+    Parameters
+    ----------
+    path : str
+        Socket file (default :data:`DEFAULT_SOCKET`).
+    timeout : float
+        Seconds to wait for a reply (the daemon answers in milliseconds).
+    """
+
+    def __init__(self, path: str = DEFAULT_SOCKET, timeout: float = 10.0):
+        self.path = path
+        self.timeout = timeout
+        self._sock: socket.socket | None = None
+        self._buf = b""
+        self._ids = itertools.count(1)
+
+    def connect(self) -> "ControlClient":
+        s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        s.settimeout(self.timeout)
+        try:
+            s.connect(self.path)
+        except FileNotFoundError:
+            s.close()
+            raise InputError("no daemon socket here (is rigd running? see --socket)",
+                             self.path) from None
+        except PermissionError:
+            s.close()
+            raise InputError("permission denied (are you in the rigd group?)", self.path) from None
+        except OSError as exc:
+            s.close()
+            raise InputError(f"cannot connect: {exc.strerror or exc}", self.path) from None
+        self._sock = s
+        return self
+
+    def close(self) -> None:
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+
+    def __enter__(self):
+        return self.connect() if self._sock is None else self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def send_raw(self, data: bytes) -> None:
+        """Send raw bytes (for tests of malformed requests)."""
+        self._sock.sendall(data)
+
+    def read_reply(self) -> dict[str, Any]:
+        """Read one reply line."""
+        while b"\n" not in self._buf:
+            try:
+                chunk = self._sock.recv(65536)
+            except socket.timeout:
+                raise InputError(f"no reply within {self.timeout:g} s", self.path) from None
+            if not chunk:
+                raise InputError("daemon closed the connection", self.path)
+            self._buf += chunk
+        line, self._buf = self._buf.split(b"\n", 1)
+        return json.loads(line)
+
+    def request(self, cmd: str, **args: Any) -> dict[str, Any]:
+        """Send one request; return the whole reply object (``ok`` true or false)."""
+        if self._sock is None:
+            self.connect()
+        rid = next(self._ids)
+        self._sock.sendall((json.dumps({"id": rid, "cmd": cmd, **args}) + "\n").encode())
+        reply = self.read_reply()
+        if reply.get("id") != rid:
+            raise InputError(f"reply id {reply.get('id')!r} does not match request {rid}",
+                             self.path)
+        return reply
+
+    def call(self, cmd: str, **args: Any) -> Any:
+        """Send one request; return its ``result`` or raise :class:`ControlError`."""
+        reply = self.request(cmd, **args)
+        if not reply.get("ok"):
+            raise ControlError(reply.get("error", "error"))
+        return reply.get("result")

@@ -1,0 +1,100 @@
+"""sd_notify(3) without a dependency: tell systemd READY, STATUS, WATCHDOG and STOPPING.
+
+The daemon runs as ``Type=notify``: systemd passes the path of a Unix *datagram* socket in
+``NOTIFY_SOCKET`` (a file path, or an abstract-namespace name written with a leading ``@``)
+and, when ``WatchdogSec=`` is set, the watchdog period in ``WATCHDOG_USEC`` (µs) and the pid
+it applies to in ``WATCHDOG_PID``. The daemon must send ``WATCHDOG=1`` more often than that
+period; :class:`Notifier` recommends half of it (:attr:`Notifier.watchdog_interval_s`).
+
+Without ``NOTIFY_SOCKET`` (not under systemd, or ``--no-notify``) every call is a no-op.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+
+
+class Notifier:
+    """Send ``sd_notify`` datagrams.
+
+    Parameters
+    ----------
+    address : str, optional
+        Socket address; default ``$NOTIFY_SOCKET``. ``@name`` means the abstract namespace.
+    environ : mapping, optional
+        Where to read ``NOTIFY_SOCKET``/``WATCHDOG_USEC``/``WATCHDOG_PID`` (default
+        ``os.environ``).
+    """
+
+    def __init__(self, address: str | None = None, environ=None):
+        env = os.environ if environ is None else environ
+        self.address = address if address is not None else env.get("NOTIFY_SOCKET") or None
+        usec = env.get("WATCHDOG_USEC")
+        pid = env.get("WATCHDOG_PID")
+        try:
+            usec_i = int(usec) if usec else 0
+            if pid and int(pid) != os.getpid():
+                usec_i = 0  # the watchdog is meant for another process
+        except ValueError:
+            usec_i = 0
+        #: Watchdog period requested by systemd, s (0 = no watchdog).
+        self.watchdog_s = usec_i / 1e6
+        self._sock: socket.socket | None = None
+        self.sent = 0
+        self.errors = 0
+
+    @property
+    def enabled(self) -> bool:
+        """True when there is a socket to notify."""
+        return bool(self.address)
+
+    @property
+    def watchdog_interval_s(self) -> float:
+        """Interval at which to send ``WATCHDOG=1``: half of ``WATCHDOG_USEC``, s (0 = off)."""
+        return self.watchdog_s / 2.0
+
+    def notify(self, *fields: str) -> bool:
+        """Send ``fields`` (``"READY=1"``, ``"STATUS=..."``) as one datagram; True if sent.
+
+        Never raises: a missing or broken notify socket must not take the daemon down.
+        """
+        if not self.address:
+            return False
+        addr = self.address
+        if addr.startswith("@"):
+            addr = "\0" + addr[1:]
+        msg = "\n".join(f.replace("\n", " ") for f in fields).encode("utf-8", "replace")
+        try:
+            if self._sock is None:
+                self._sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM | socket.SOCK_CLOEXEC)
+            self._sock.sendto(msg, addr)
+            self.sent += 1
+            return True
+        except OSError:
+            self.errors += 1
+            return False
+
+    def ready(self, status: str | None = None) -> bool:
+        """``READY=1`` (plus ``STATUS=``, and ``MAINPID=`` for forking helpers)."""
+        f = ["READY=1", f"MAINPID={os.getpid()}"]
+        if status:
+            f.append(f"STATUS={status}")
+        return self.notify(*f)
+
+    def status(self, text: str) -> bool:
+        """``STATUS=text``: shown by ``systemctl status``."""
+        return self.notify(f"STATUS={text}")
+
+    def watchdog(self) -> bool:
+        """``WATCHDOG=1``: keep-alive ping."""
+        return self.notify("WATCHDOG=1")
+
+    def stopping(self, status: str | None = None) -> bool:
+        """``STOPPING=1``: the daemon is shutting down."""
+        return self.notify("STOPPING=1", *([f"STATUS={status}"] if status else []))
+
+    def close(self) -> None:
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None

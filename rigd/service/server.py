@@ -1,0 +1,269 @@
+"""The control-socket server: a Unix stream socket speaking JSON lines, in its own thread.
+
+One thread multiplexes every client with :mod:`selectors` (non-blocking sockets), so a slow,
+silent or hostile client can never block another one or the loop:
+
+* request lines longer than ``max_line`` bytes are refused with an error reply and the client
+  is disconnected (its buffer is bounded);
+* a client that does not read its replies is disconnected once ``max_pending`` bytes of
+  replies are waiting;
+* beyond ``max_clients`` connections, new ones get one error line and are closed;
+* any exception while handling a request becomes an error reply to that client only.
+
+The socket file is created with mode ``0660`` (owner and group only; see docs/service.md for
+the ``rigd`` group). A stale socket file left by a crashed daemon is replaced; a live one
+(another daemon answering) is refused.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import selectors
+import socket
+import stat
+import threading
+from pathlib import Path
+from typing import Callable
+
+from rigd.errors import InputError
+from rigd.service import protocol
+
+
+class _Client:
+    __slots__ = ("sock", "rbuf", "wbuf", "closing")
+
+    def __init__(self, sock: socket.socket):
+        self.sock = sock
+        self.rbuf = bytearray()
+        self.wbuf = bytearray()
+        self.closing = False
+
+
+class ControlServer:
+    """Serve ``handle(line) -> reply`` on a Unix socket in a background thread.
+
+    Parameters
+    ----------
+    path : str or Path
+        Socket file.
+    handle : callable
+        ``bytes -> bytes``: one request line (without ``\\n``) to one reply line; must not
+        raise (see :meth:`rigd.service.protocol.Dispatcher.handle_line`).
+    mode : int
+        Permissions of the socket file (default 0o660).
+    max_line, max_clients, max_pending : int
+        Bounds described in the module docstring.
+    """
+
+    def __init__(self, path: str | Path, handle: Callable[[bytes], bytes], *, mode: int = 0o660,
+                 max_line: int = protocol.MAX_LINE, max_clients: int = 64,
+                 max_pending: int = 1 << 20):
+        self.path = str(path)
+        self.handle = handle
+        self.mode = mode
+        self.max_line = max_line
+        self.max_clients = max_clients
+        self.max_pending = max_pending
+        self._sel = selectors.DefaultSelector()
+        self._lsock: socket.socket | None = None
+        self._thread: threading.Thread | None = None
+        self._stop_r, self._stop_w = -1, -1
+        self._clients: dict[int, _Client] = {}
+        self.stats = {"connections": 0, "requests": 0, "dropped_clients": 0,
+                      "too_long": 0, "refused_clients": 0}
+
+    # --- life cycle ---------------------------------------------------------------------
+    def start(self) -> "ControlServer":
+        """Bind, set the mode, and start serving. InputError if the path is unusable."""
+        self._prepare_path()
+        ls = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM | socket.SOCK_CLOEXEC)
+        old = os.umask(0o777 & ~self.mode)  # never world-accessible, not even for an instant
+        try:
+            ls.bind(self.path)
+        except OSError as exc:
+            ls.close()
+            raise InputError(f"cannot bind control socket: {exc.strerror}", self.path) from None
+        finally:
+            os.umask(old)
+        os.chmod(self.path, self.mode)
+        ls.listen(64)
+        ls.setblocking(False)
+        self._lsock = ls
+        self._stop_r, self._stop_w = os.pipe()
+        self._sel.register(ls, selectors.EVENT_READ, None)
+        self._sel.register(self._stop_r, selectors.EVENT_READ, "stop")
+        self._thread = threading.Thread(target=self._serve, name="rigd-ctl", daemon=True)
+        self._thread.start()
+        return self
+
+    def _prepare_path(self) -> None:
+        p = Path(self.path)
+        if len(os.fsencode(self.path)) > 107:
+            raise InputError("socket path too long (Unix sockets allow 107 bytes)", self.path)
+        if not p.parent.is_dir():
+            raise InputError("socket directory does not exist", str(p.parent))
+        try:
+            st = os.lstat(self.path)
+        except FileNotFoundError:
+            return
+        if not stat.S_ISSOCK(st.st_mode):
+            raise InputError("exists and is not a socket; refusing to replace it", self.path)
+        probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            probe.settimeout(0.5)
+            probe.connect(self.path)
+        except OSError:
+            os.unlink(self.path)  # stale socket of a dead daemon
+            return
+        finally:
+            probe.close()
+        raise InputError("another daemon is listening on this socket", self.path)
+
+    def stop(self) -> None:
+        """Stop serving, close every client and remove the socket file."""
+        if self._thread is None:
+            return
+        try:
+            os.write(self._stop_w, b"x")
+        except OSError:
+            pass
+        self._thread.join(5.0)
+        self._thread = None
+        for c in list(self._clients.values()):
+            self._close(c)
+        try:
+            self._sel.unregister(self._lsock)
+        except (KeyError, ValueError):
+            pass
+        self._lsock.close()
+        self._sel.close()
+        os.close(self._stop_r)
+        os.close(self._stop_w)
+        try:
+            os.unlink(self.path)
+        except FileNotFoundError:
+            pass
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.stop()
+
+    @property
+    def n_clients(self) -> int:
+        return len(self._clients)
+
+    # --- the serving thread -------------------------------------------------------------
+    def _serve(self) -> None:
+        while True:
+            for key, events in self._sel.select():
+                if key.data == "stop":
+                    return
+                if key.data is None:
+                    self._accept()
+                    continue
+                client: _Client = key.data
+                try:
+                    if events & selectors.EVENT_READ and not client.closing:
+                        self._read(client)
+                    if events & selectors.EVENT_WRITE:
+                        self._flush(client)
+                except OSError:
+                    self._close(client)
+
+    def _accept(self) -> None:
+        try:
+            sock, _ = self._lsock.accept()
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError as exc:  # EMFILE etc.: keep serving the others
+            if exc.errno in (errno.EMFILE, errno.ENFILE):
+                self.stats["refused_clients"] += 1
+            return
+        self.stats["connections"] += 1
+        if len(self._clients) >= self.max_clients:
+            self.stats["refused_clients"] += 1
+            try:
+                sock.setblocking(False)
+                sock.send(protocol.error(None, f"too many clients (max {self.max_clients})"))
+            except OSError:
+                pass
+            sock.close()
+            return
+        sock.setblocking(False)
+        c = _Client(sock)
+        self._clients[sock.fileno()] = c
+        self._sel.register(sock, selectors.EVENT_READ, c)
+
+    def _read(self, c: _Client) -> None:
+        try:
+            data = c.sock.recv(65536)
+        except (BlockingIOError, InterruptedError):
+            return
+        if not data:
+            c.closing = True
+            if not c.wbuf:
+                self._close(c)
+            else:
+                self._want_write(c)
+            return
+        c.rbuf += data
+        while True:
+            nl = c.rbuf.find(b"\n")
+            if nl < 0:
+                break
+            line = bytes(c.rbuf[:nl]).strip()
+            del c.rbuf[:nl + 1]
+            if nl > self.max_line:
+                self._too_long(c)
+                return
+            if not line:
+                continue
+            self.stats["requests"] += 1
+            c.wbuf += self.handle(line)
+        if len(c.rbuf) > self.max_line:
+            self._too_long(c)
+            return
+        if len(c.wbuf) > self.max_pending:
+            self.stats["dropped_clients"] += 1
+            self._close(c)
+            return
+        if c.wbuf:
+            self._flush(c)
+
+    def _too_long(self, c: _Client) -> None:
+        self.stats["too_long"] += 1
+        c.rbuf.clear()
+        c.wbuf += protocol.error(None, f"request line longer than {self.max_line} bytes; "
+                                       "closing the connection")
+        c.closing = True
+        self._flush(c)
+
+    def _flush(self, c: _Client) -> None:
+        while c.wbuf:
+            try:
+                n = c.sock.send(c.wbuf)
+            except (BlockingIOError, InterruptedError):
+                break
+            del c.wbuf[:n]
+        if c.wbuf:
+            self._want_write(c)
+        elif c.closing:
+            self._close(c)
+        else:
+            self._sel.modify(c.sock, selectors.EVENT_READ, c)
+
+    def _want_write(self, c: _Client) -> None:
+        self._sel.modify(c.sock, selectors.EVENT_READ | selectors.EVENT_WRITE, c)
+
+    def _close(self, c: _Client) -> None:
+        fd = c.sock.fileno()
+        if fd >= 0:
+            try:
+                self._sel.unregister(c.sock)
+            except (KeyError, ValueError):
+                pass
+            self._clients.pop(fd, None)
+        c.sock.close()

@@ -1,0 +1,49 @@
+"""A test double of the *loop* (rigd.loop.ControlLoop command API), not of service code."""
+
+import threading
+
+from rigd.errors import InputError
+
+
+class FakeLoop:
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.calls = []
+        self.enabled = False
+        self.op = (0.0, 4.0)
+        self.fault = 0
+
+    def _log(self, *c):
+        with self.lock:
+            self.calls.append(c)
+
+    def status(self):
+        return {"running": True, "cycle": len(self.calls), "controller_enabled": self.enabled,
+                "omega_rpm": self.op[0], "p_inj_bar": self.op[1], "fault": self.fault,
+                "nan_field": float("nan")}
+
+    def timing(self):
+        return {"compute_us": {"p50": 1.0, "p99": 2.0, "p99.9": 3.0, "max": 4.0},
+                "overruns": 0, "rt_miss_fraction": 0.0}
+
+    def faults(self):
+        return [{"code": 3, "name": "sensor_nan", "seq": 10, "latched": True}] if self.fault else []
+
+    def reset_fault(self):
+        self._log("reset_fault")
+        self.fault = 0
+
+    def enable_controller(self, on):
+        self._log("enable_controller", on)
+        self.enabled = bool(on)
+
+    def load_controller(self, path):
+        self._log("load_controller", path)
+        if not path.endswith(".yaml"):
+            raise InputError("not a controller file", path)
+
+    def set_operating_point(self, omega_rpm, p_inj_bar):
+        self._log("set_operating_point", omega_rpm, p_inj_bar)
+        if omega_rpm == 13.0:
+            raise RuntimeError("boom")  # a bug in the loop: must become an error reply
+        self.op = (omega_rpm, p_inj_bar)

@@ -1,0 +1,178 @@
+"""Control socket: protocol, server and client against a test double of the loop."""
+
+import json
+import os
+import socket
+import stat
+import threading
+
+import pytest
+
+from rigd.errors import InputError
+from rigd.service.client import ControlClient, ControlError
+from rigd.service.protocol import Dispatcher, parse_request, RequestError
+from rigd.service.server import ControlServer
+
+from fakeloop import FakeLoop  # noqa: E402  (tests/service on sys.path via rootdir conftest)
+
+
+@pytest.fixture()
+def served(tmp_path):
+    loop = FakeLoop()
+    disp = Dispatcher(loop, info=lambda: {"pid": os.getpid()})
+    srv = ControlServer(tmp_path / "rigd.sock", disp.handle_line, max_line=4096, max_clients=8)
+    with srv:
+        yield srv, loop, disp
+
+
+def _raw(path, data, n=1):
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    s.settimeout(5)
+    s.connect(str(path))
+    s.sendall(data)
+    buf = b""
+    while buf.count(b"\n") < n:
+        chunk = s.recv(65536)
+        if not chunk:
+            break
+        buf += chunk
+    s.close()
+    return [json.loads(x) for x in buf.splitlines()]
+
+
+def test_commands_reach_the_loop(served):
+    srv, loop, _ = served
+    assert stat.S_IMODE(os.stat(srv.path).st_mode) == 0o660
+    with ControlClient(srv.path) as c:
+        assert c.call("ping")["pid"] == os.getpid()
+        assert c.call("controller.enable") == {"enabled": True}
+        assert c.call("operating_point.set", omega_rpm=3000, p_inj_bar=4.5)["omega_rpm"] == 3000
+        st = c.call("status")
+        assert st["controller_enabled"] is True and st["omega_rpm"] == 3000
+        assert st["nan_field"] is None  # strict JSON on the wire
+        assert c.call("timing")["compute_us"]["p99"] == 2.0
+        loop.fault = 3
+        assert c.call("faults")["faults"][0]["name"] == "sensor_nan"
+        c.call("fault.reset")
+        assert loop.fault == 0
+        c.call("controller.load", path="/x/k.yaml")
+    assert ("enable_controller", True) in loop.calls
+    assert ("set_operating_point", 3000.0, 4.5) in loop.calls
+    assert ("load_controller", "/x/k.yaml") in loop.calls
+
+
+@pytest.mark.parametrize("line, needle", [
+    (b"this is not json\n", "not JSON"),
+    (b"[1, 2]\n", "JSON object"),
+    (b'{"id": 1}\n', "no 'cmd'"),
+    (b'{"id": 1, "cmd": "self_destruct"}\n', "unknown command"),
+    (b'{"id": 1, "cmd": "ping", "extra": 1}\n', "unknown argument"),
+    (b'{"id": 1, "cmd": "operating_point.set", "omega_rpm": "fast", "p_inj_bar": 4}\n',
+     "omega_rpm"),
+    (b'{"id": 1, "cmd": "operating_point.set", "omega_rpm": NaN, "p_inj_bar": 4}\n',
+     "omega_rpm"),
+    (b'{"id": 1, "cmd": "operating_point.set", "omega_rpm": -1, "p_inj_bar": 4}\n',
+     "greater than or equal"),
+    (b'{"id": 1, "cmd": "controller.load"}\n', "path"),
+    (b'{"id": 1, "cmd": "controller.load", "path": "relative.yaml"}\n', "absolute"),
+    (b'{"id": 1, "cmd": "controller.load", "path": "/etc/passwd"}\n', "not a controller"),
+    (b'{"id": 1, "cmd": "operating_point.set", "omega_rpm": 13, "p_inj_bar": 4}\n',
+     "internal error: RuntimeError: boom"),
+    (b'{"id": 1, "cmd": "experiment.start", "path": "/x.yaml"}\n', "not available"),
+    (b"\xff\xfe\n", "not UTF-8"),
+    (b"[" * 100000 + b"\n", "longer than"),
+])
+def test_malformed_requests_get_one_error_line(served, line, needle):
+    srv, _, _ = served
+    (reply,) = _raw(srv.path, line)
+    assert reply["ok"] is False and needle in reply["error"]
+    assert "\n" not in reply["error"]
+    # and the server still answers
+    with ControlClient(srv.path) as c:
+        assert c.call("ping")["pong"] is True
+
+
+def test_error_reply_keeps_id_and_client_error(served):
+    srv, _, _ = served
+    with ControlClient(srv.path) as c:
+        r = c.request("operating_point.set", omega_rpm=1)
+        assert r["ok"] is False and r["id"] == 1 and "p_inj_bar" in r["error"]
+        with pytest.raises(ControlError, match="unknown command"):
+            c.call("nope")
+
+
+def test_pipelined_and_partial_lines(served):
+    srv, _, _ = served
+    reqs = b"".join(json.dumps({"id": i, "cmd": "ping"}).encode() + b"\n" for i in range(50))
+    replies = _raw(srv.path, reqs, n=50)
+    assert [r["id"] for r in replies] == list(range(50))
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    s.connect(srv.path)
+    s.settimeout(5)
+    for b in b'{"id": "x", "cmd"': s.sendall(bytes([b]))  # noqa: E701
+    s.sendall(b': "ping"}\n')
+    assert json.loads(s.recv(4096))["id"] == "x"
+    s.close()
+
+
+def test_many_clients_and_a_silent_one(served):
+    srv, loop, _ = served
+    silent = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    silent.connect(srv.path)
+    silent.sendall(b'{"id": 1, "cmd": "ping"')  # never finishes its line
+    errors = []
+
+    def worker(k):
+        try:
+            with ControlClient(srv.path, timeout=10) as c:
+                for i in range(40):
+                    r = c.call("operating_point.set", omega_rpm=float(k), p_inj_bar=4.0)
+                    assert r["omega_rpm"] == float(k)
+        except Exception as exc:  # collected and asserted below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=worker, args=(k,)) for k in range(6)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(30)
+    silent.close()
+    assert errors == []
+    assert sum(1 for c in loop.calls if c[0] == "set_operating_point") == 240
+
+
+def test_client_limit(served):
+    srv, _, _ = served
+    socks = []
+    for _ in range(8):
+        s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        s.connect(srv.path)
+        socks.append(s)
+    with ControlClient(srv.path, timeout=5) as c:
+        c._sock.sendall(b'{"cmd":"ping"}\n')
+        r = c.read_reply()
+    assert r["ok"] is False and "too many clients" in r["error"]
+    for s in socks:
+        s.close()
+
+
+def test_stale_socket_replaced_live_refused(tmp_path):
+    path = tmp_path / "rigd.sock"
+    dead = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    dead.bind(str(path))
+    dead.close()  # file left behind, nobody listening
+    disp = Dispatcher(FakeLoop())
+    with ControlServer(path, disp.handle_line):
+        with pytest.raises(InputError, match="another daemon"):
+            ControlServer(path, disp.handle_line).start()
+    assert not path.exists()
+    path.write_text("not a socket")
+    with pytest.raises(InputError, match="not a socket"):
+        ControlServer(path, disp.handle_line).start()
+
+
+def test_parse_request_unit():
+    rid, cmd, args = parse_request(b'{"id": 5, "cmd": "experiment.start", "path": "/a.yaml"}')
+    assert (rid, cmd, args.path) == (5, "experiment.start", "/a.yaml")
+    with pytest.raises(RequestError, match="exactly one"):
+        parse_request(b'{"cmd": "experiment.start"}')
