@@ -1,0 +1,127 @@
+"""``rigd ctl``: talk to the running daemon through its control socket.
+
+Examples::
+
+    rigd ctl status
+    rigd ctl --socket /tmp/rigd.sock timing --json
+    rigd ctl load controllers/k_4bar.yaml && rigd ctl enable
+    rigd ctl op 3000 4.5
+    rigd ctl start config/experiments/prbs.yaml
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+from rigd.errors import InputError
+
+HELP = "control the running daemon (status, timing, faults, enable/disable K∞, experiments)"
+
+#: sub-command -> (socket command, help)
+_SIMPLE = {
+    "ping": ("ping", "is the daemon alive?"),
+    "status": ("status", "loop state"),
+    "timing": ("timing", "cycle timing statistics"),
+    "faults": ("faults", "latched and past faults"),
+    "reset": ("fault.reset", "reset the latched fault"),
+    "enable": ("controller.enable", "enable K∞ (bumpless)"),
+    "disable": ("controller.disable", "disable K∞ (bumpless)"),
+    "stop": ("experiment.stop", "stop the running experiment"),
+    "experiment": ("experiment.status", "state of the current/last experiment"),
+}
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--socket", default=os.environ.get("RIGD_SOCKET", "/run/rigd/rigd.sock"),
+                   help="control socket (default $RIGD_SOCKET or /run/rigd/rigd.sock)")
+    p.add_argument("--timeout", type=float, default=10.0, help="reply timeout, s")
+    sub = p.add_subparsers(dest="ctl_command", metavar="COMMAND", required=True)
+    for name, (_, h) in _SIMPLE.items():
+        s = sub.add_parser(name, help=h, description=h)
+        s.add_argument("--json", action="store_true", help="print the raw JSON result")
+    s = sub.add_parser("load", help="load a controller YAML (validated by the daemon)")
+    s.add_argument("file")
+    s.add_argument("--json", action="store_true")
+    s = sub.add_parser("start", help="start an experiment from its YAML")
+    s.add_argument("experiment")
+    s.add_argument("--run-dir", help="output folder (default: the daemon's runs folder)")
+    s.add_argument("--json", action="store_true")
+    s = sub.add_parser("op", help="set the operating point: shaft speed Ω and pressure P_I")
+    s.add_argument("omega_rpm", type=float, metavar="OMEGA_RPM")
+    s.add_argument("p_inj_bar", type=float, metavar="P_INJ_BAR")
+    s.add_argument("--json", action="store_true")
+
+
+def _request(args: argparse.Namespace) -> tuple[str, dict]:
+    c = args.ctl_command
+    if c in _SIMPLE:
+        return _SIMPLE[c][0], {}
+    if c == "load":
+        return "controller.load", {"path": os.path.abspath(args.file)}
+    if c == "start":
+        req = {"path": os.path.abspath(args.experiment)}
+        if args.run_dir:
+            req["run_dir"] = os.path.abspath(args.run_dir)
+        return "experiment.start", req
+    if c == "op":
+        return "operating_point.set", {"omega_rpm": args.omega_rpm, "p_inj_bar": args.p_inj_bar}
+    raise InputError(f"unknown command {c!r}")  # pragma: no cover - argparse guards
+
+
+def format_human(value, indent: int = 0) -> str:
+    """Readable ``key: value`` lines for nested dicts/lists."""
+    pad = "  " * indent
+    if isinstance(value, dict):
+        if not value:
+            return pad + "(none)"
+        lines = []
+        for k, v in value.items():
+            if isinstance(v, (dict, list)) and v:
+                lines.append(f"{pad}{k}:")
+                lines.append(format_human(v, indent + 1))
+            else:
+                lines.append(f"{pad}{k}: {_scalar(v)}")
+        return "\n".join(lines)
+    if isinstance(value, list):
+        if not value:
+            return pad + "(none)"
+        out = []
+        for item in value:
+            if isinstance(item, dict):
+                out.append(pad + "- " + ", ".join(f"{k}={_scalar(v)}" for k, v in item.items()))
+            else:
+                out.append(f"{pad}- {_scalar(item)}")
+        return "\n".join(out)
+    return pad + _scalar(value)
+
+
+def _scalar(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    if v is None:
+        return "-"
+    if isinstance(v, (dict, list)):
+        return json.dumps(v)
+    return str(v)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rigd.service.client import ControlClient
+
+    cmd, req = _request(args)
+    with ControlClient(args.socket, timeout=args.timeout) as client:
+        reply = client.request(cmd, **req)
+    if not reply.get("ok"):
+        raise InputError(reply.get("error", "refused"), "daemon")
+    result = reply.get("result")
+    if args.json:
+        print(json.dumps(result, indent=None, separators=(",", ":")))
+    elif args.ctl_command == "ping":
+        print(f"rigd alive (pid {result.get('pid', '?')}, version {result.get('version', '?')})")
+    else:
+        print(format_human(result))
+    sys.stdout.flush()
+    return 0
