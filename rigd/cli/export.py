@@ -1,0 +1,80 @@
+"""``rigd export``: write a record as an interchange CSV, or convert a plain CSV into one.
+
+    rigd export REC.h5 --csv OUT.csv [--columns e_x,e_y,...]
+    rigd export --from-csv RAW.csv --fs 10000000/16384 --inputs V1 --outputs V2 -o OUT.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from rigd.errors import InputError
+
+HELP = "export a recording (HDF5 or CSV) to the interchange CSV, or convert a plain CSV"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("record", nargs="?", help="recording to export (HDF5 or interchange CSV)")
+    p.add_argument("--csv", metavar="OUT", help="output interchange CSV")
+    p.add_argument("--columns", help="comma-separated channels to export (default: all)")
+    g = p.add_argument_group("converting a plain CSV (no rig-data metadata, e.g. Silverbox)")
+    g.add_argument("--from-csv", metavar="RAW", help="plain CSV: header row + numbers "
+                   "(quoted names and trailing commas accepted)")
+    g.add_argument("--fs", help="sample rate, Hz (a number or a ratio such as 10000000/16384)")
+    g.add_argument("--inputs", help="comma-separated input (excitation) columns")
+    g.add_argument("--outputs", help="comma-separated output (response) columns")
+    g.add_argument("--omega-rpm", type=float, help="shaft speed, rpm (rotor data)")
+    g.add_argument("--p-inj-bar", type=float, help="injection pressure, bar (rotor data)")
+    g.add_argument("--kind", help="record kind (prbs, runout, impact, free)")
+    g.add_argument("-o", "--out", metavar="OUT", help="output interchange CSV (same as --csv)")
+
+
+def parse_fs(text: str) -> float:
+    """``"610.35"`` or ``"10000000/16384"`` -> Hz; InputError on anything else."""
+    try:
+        if "/" in text:
+            a, b = text.split("/", 1)
+            v = float(a) / float(b)
+        else:
+            v = float(text)
+    except (ValueError, ZeroDivisionError):
+        raise InputError(f"not a sample rate: {text!r} (a number of Hz or a ratio a/b)",
+                         "--fs") from None
+    if not (math.isfinite(v) and v > 0):
+        raise InputError(f"sample rate must be positive and finite, got {text!r}", "--fs")
+    return v
+
+
+def _split(v: str | None) -> list[str] | None:
+    return None if v is None else [s.strip() for s in v.split(",") if s.strip()]
+
+
+def run(args: argparse.Namespace) -> int:
+    from rigd.data.export import convert_raw_csv, export_csv
+
+    out = args.out or args.csv
+    if args.csv and args.out and args.csv != args.out:
+        raise InputError("give the output once (--csv or -o)", "arguments")
+    if not out:
+        raise InputError("no output file: give --csv OUT (or -o OUT)", "arguments")
+    if args.from_csv:
+        if args.record:
+            raise InputError("give either a recording or --from-csv RAW, not both", "arguments")
+        if args.fs is None:
+            raise InputError("--from-csv needs --fs (the plain file does not say its sample "
+                             "rate)", "arguments")
+        meta = {k: v for k, v in (("omega_rpm", args.omega_rpm), ("p_inj_bar", args.p_inj_bar),
+                                  ("kind", args.kind)) if v is not None}
+        n = convert_raw_csv(args.from_csv, out, fs=parse_fs(args.fs), inputs=_split(args.inputs),
+                            outputs=_split(args.outputs), meta=meta)
+    else:
+        if not args.record:
+            raise InputError("no recording given (or use --from-csv RAW)", "arguments")
+        for opt in ("fs", "inputs", "outputs", "omega_rpm", "p_inj_bar", "kind"):
+            if getattr(args, opt) is not None:
+                raise InputError(f"--{opt.replace('_', '-')} applies only with --from-csv",
+                                 "arguments")
+        n = export_csv(args.record, out, columns=_split(args.columns))
+    print(f"wrote {out} ({n} rows)")
+    return 0
