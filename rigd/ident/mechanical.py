@@ -1,0 +1,241 @@
+"""Mechanical grey-box structures: bearing (Eqs. 5-7), actuator (Eqs. 8-10), generic n-DOF.
+
+All three are the mass-normalised model of Eqs. 4-6,
+
+    p̈ + D ṗ + K p = B u,    x = [p, ṗ],    p = C x + d,    ẋ = A x + 𝓑 u + 𝓑_d d,
+
+with D ≜ 𝓜⁻¹(𝓓 − Ω𝓖), K ≜ 𝓜⁻¹𝓚, B ≜ 𝓜⁻¹𝓑_p (Eq. 6) and the disturbance gain 𝓑_d = [0; B_d].
+They differ only in which entries are free:
+
+* :func:`bearing_structure` — 𝔐_b, all of D, K, B, B_d (2×2) and x0 (4): 20 parameters;
+* :func:`actuator_structure` — 𝔐_a, diagonal (decoupled second-order valves, Eq. 8):
+  k_a, b_a, d_a, b_{d,a} per axis and x_{a0} (4): 12 parameters (Eq. 10);
+* :func:`generic_structure` — any n outputs, nu inputs (records from other rigs).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rigd.ident.iddata import IdData
+from rigd.ident.initial import mechanical_initial
+from rigd.ident.simulate import (Hooks, mechanical_abc, predict_mechanical,
+                                 simulate_mechanical)
+from rigd.ident.structure import Structure
+
+
+class MechanicalStructure(Structure):
+    """p̈ + D ṗ + K p = B u with free entries given by boolean masks.
+
+    Parameters
+    ----------
+    kind : str
+        ``"bearing"``, ``"actuator"`` or ``"generic"`` (stored in model files).
+    mask_K, mask_D, mask_Bd : ndarray (n, n) of bool
+    mask_B : ndarray (n, nu) of bool
+    prefix : str
+        Parameter name prefix per group, e.g. ``""`` -> ``k_xy``, ``"a_"`` -> ``k_a_xx``.
+    out_labels, in_labels : list of str
+        Axis labels used in names (``x``, ``y`` or ``1``, ``2`` ...).
+    input_names, output_names : list of str
+        Channel names (for the StateSpace and reports).
+    """
+
+    def __init__(self, kind, mask_K, mask_D, mask_B, mask_Bd, prefix="", out_labels=None,
+                 in_labels=None, input_names=None, output_names=None, x0_name="x0_"):
+        self.kind = kind
+        self.mask_K = np.asarray(mask_K, bool)
+        self.mask_D = np.asarray(mask_D, bool)
+        self.mask_B = np.asarray(mask_B, bool)
+        self.mask_Bd = np.asarray(mask_Bd, bool)
+        self.n = self.mask_K.shape[0]
+        self.nu = self.mask_B.shape[1]
+        ol = out_labels or [str(i + 1) for i in range(self.n)]
+        il = in_labels or [str(i + 1) for i in range(self.nu)]
+        self.input_names = list(input_names or [f"u{i + 1}" for i in range(self.nu)])
+        self.output_names = list(output_names or [f"y{i + 1}" for i in range(self.n)])
+        names = []
+        self._idx = {}
+        for grp, mask, cl in (("d", self.mask_D, ol), ("k", self.mask_K, ol),
+                              ("b", self.mask_B, il), ("bd", self.mask_Bd, ol)):
+            ii, jj = np.nonzero(mask)
+            self._idx[grp] = (len(names), ii, jj)
+            names += [f"{grp}_{prefix}{ol[i]}{cl[j]}" if len(ol[i]) == 1 and len(cl[j]) == 1
+                      else f"{grp}_{prefix}{ol[i]}_{cl[j]}" for i, j in zip(ii, jj)]
+        self._x0 = len(names)
+        names += [f"{x0_name}{i + 1}" for i in range(2 * self.n)]
+        self.names = names
+        self.x0_index = list(range(self._x0, self._x0 + 2 * self.n))
+        self.effects = []
+
+    # --- packing -------------------------------------------------------------------
+    def unpack(self, theta):
+        """(K, D, B, Bd, x0) from theta."""
+        theta = np.asarray(theta, float)
+        n, nu = self.n, self.nu
+        out = {}
+        for grp, shape in (("d", (n, n)), ("k", (n, n)), ("b", (n, nu)), ("bd", (n, n))):
+            s, ii, jj = self._idx[grp]
+            M = np.zeros(shape)
+            M[ii, jj] = theta[s:s + len(ii)]
+            out[grp] = M
+        return out["k"], out["d"], out["b"], out["bd"], theta[self._x0:self._x0 + 2 * n].copy()
+
+    def pack(self, K, D, B, Bd=None, x0=None):
+        """theta from matrices (entries outside the masks are ignored)."""
+        n = self.n
+        Bd = np.zeros((n, n)) if Bd is None else Bd
+        x0 = np.zeros(2 * n) if x0 is None else x0
+        theta = np.zeros(self.npar)
+        for grp, M in (("d", D), ("k", K), ("b", B), ("bd", Bd)):
+            s, ii, jj = self._idx[grp]
+            theta[s:s + len(ii)] = np.asarray(M, float)[ii, jj]
+        theta[self._x0:] = x0
+        return theta
+
+    def group_slices(self):
+        """name -> (start, stop) of each parameter group in theta."""
+        out = {g: (s, s + len(ii)) for g, (s, ii, _) in self._idx.items()}
+        out["x0"] = (self._x0, self._x0 + 2 * self.n)
+        return out
+
+    # --- Structure API ---------------------------------------------------------------
+    def theta0(self, data: IdData) -> np.ndarray:
+        K, D, B = mechanical_initial(data.u, data.y, data.fs, self.mask_K, self.mask_D,
+                                     self.mask_B)
+        x0 = np.zeros(2 * self.n)
+        x0[:self.n] = data.y[0]
+        return self.pack(K, D, B, np.zeros((self.n, self.n)), x0)
+
+    def scale(self, theta):
+        K, D, B, Bd, x0 = self.unpack(theta)
+        wmax = np.sqrt(max(np.max(np.abs(K)), 1e-6))
+        sc = np.empty(self.npar)
+        g = self.group_slices()
+        sc[slice(*g["k"])] = max(np.max(np.abs(K)), 1e-6)
+        sc[slice(*g["d"])] = max(np.max(np.abs(D)), 0.02 * wmax)
+        sc[slice(*g["b"])] = max(np.max(np.abs(B)), 1e-9)
+        sc[slice(*g["bd"])] = max(np.max(np.abs(Bd)), wmax)
+        xs = max(np.max(np.abs(x0[:self.n])), 1e-9)
+        sc[self._x0:self._x0 + self.n] = xs
+        sc[self._x0 + self.n:] = xs * wmax
+        return sc
+
+    def simulate(self, theta, data, hooks: Hooks | None = None):
+        K, D, B, Bd, x0 = self.unpack(theta)
+        return simulate_mechanical(K, D, B, x0, data.u, data.fs, hooks)
+
+    def predict(self, theta, data, hooks: Hooks | None = None):
+        K, D, B, Bd, x0 = self.unpack(theta)
+        return predict_mechanical(K, D, B, Bd, x0, data.u, data.y, data.fs, hooks)
+
+    def ss(self, theta):
+        """Continuous StateSpace u -> p (states [p, ṗ]); python-control."""
+        import control
+
+        K, D, B, _, _ = self.unpack(theta)
+        A, Bc, C = mechanical_abc(K, D, B)
+        n = self.n
+        return control.ss(A, Bc, C, np.zeros((n, self.nu)), inputs=self.input_names,
+                          outputs=self.output_names,
+                          states=[f"p{i + 1}" for i in range(n)] + [f"v{i + 1}" for i in range(n)],
+                          name=self.kind)
+
+    @property
+    def ny(self) -> int:
+        return self.n
+
+    def continuous(self, theta):
+        """(A, B, C, D, x0) of the continuous model (for state-level effects, rigd.effects)."""
+        K, D, B, _, x0 = self.unpack(theta)
+        A, Bc, C = mechanical_abc(K, D, B)
+        return A, Bc, C, np.zeros((self.n, self.nu)), x0
+
+    def modes(self, theta):
+        """Modes of A: list of dicts with f_n (Hz), zeta (-), or real poles (rad/s)."""
+        K, D, _, _, _ = self.unpack(theta)
+        A, _, _ = mechanical_abc(K, D, np.zeros((self.n, 1)))
+        lam = np.linalg.eigvals(A)
+        out = []
+        for l in sorted(lam[lam.imag > 1e-9], key=abs):
+            out.append({"f_n_hz": float(abs(l) / (2 * np.pi)), "zeta": float(-l.real / abs(l))})
+        real = np.sort(lam[np.abs(lam.imag) <= 1e-9].real)
+        for l in real:
+            out.append({"pole_rad_s": float(l)})
+        return out
+
+    def readouts(self, theta):
+        K, D, B, _, _ = self.unpack(theta)
+        try:
+            G0 = np.linalg.solve(K, B)
+        except np.linalg.LinAlgError:
+            G0 = np.full((self.n, self.nu), np.nan)
+        return {"modes": self.modes(theta),
+                "static_gain": G0.tolist()}
+
+    def spec(self):
+        d = {"kind": self.kind, "inputs": self.input_names, "outputs": self.output_names}
+        if self.kind == "generic":
+            d["n"] = self.n
+            d["nu"] = self.nu
+        return d
+
+
+class ActuatorStructure(MechanicalStructure):
+    """𝔐_a (Eqs. 8-10): decoupled second-order valves, u_j = κ_j p1 p2 /((s+p1)(s+p2)) r_j.
+
+    Per axis: ü + d_a u̇ + k_a u = b_a r, so k_a = p1 p2, d_a = p1 + p2, b_a = κ k_a.
+    """
+
+    def readouts(self, theta):
+        K, D, B, _, _ = self.unpack(theta)
+        out = {"axes": {}}
+        for i, ax in enumerate(("x", "y")[:self.n]):
+            k, d, b = K[i, i], D[i, i], B[i, i]
+            roots = np.roots([1.0, d, k])
+            poles = sorted((-roots).tolist(), key=lambda z: abs(z))
+            poles = [float(p.real) if abs(complex(p).imag) < 1e-9 else complex(p) for p in poles]
+            ent = {"gain": float(b / k) if k != 0 else float("nan"),
+                   "f_n_hz": float(np.sqrt(abs(k)) / (2 * np.pi)),
+                   "zeta": float(d / (2 * np.sqrt(abs(k)))) if k != 0 else float("nan")}
+            if all(isinstance(p, float) for p in poles):
+                ent["poles_rad_s"] = poles
+            else:
+                ent["poles_rad_s"] = [str(p) for p in poles]
+            out["axes"][ax] = ent
+        return out
+
+
+def bearing_structure() -> MechanicalStructure:
+    """𝔐_b (Eqs. 5-7): u = [u_x, u_y] (V) -> p = [e_x, e_y] (µm), 20 parameters."""
+    full = np.ones((2, 2), bool)
+    return MechanicalStructure("bearing", full, full, full, full, "", ["x", "y"], ["x", "y"],
+                               ["u_x", "u_y"], ["e_x", "e_y"], x0_name="x0_")
+
+
+def actuator_structure() -> ActuatorStructure:
+    """𝔐_a (Eqs. 8-10): r = [r_x, r_y] (V) -> u = [u_x, u_y] (V), 12 parameters."""
+    eye = np.eye(2, dtype=bool)
+    return ActuatorStructure("actuator", eye, eye, eye, eye, "a_", ["x", "y"], ["x", "y"],
+                             ["r_x", "r_y"], ["u_x", "u_y"], x0_name="xa0_")
+
+
+def generic_structure(inputs: list[str], outputs: list[str]) -> MechanicalStructure:
+    """n-DOF M p̈ + D ṗ + K p = B u (mass-normalised) for records from other rigs."""
+    n, nu = len(outputs), len(inputs)
+    return MechanicalStructure("generic", np.ones((n, n), bool), np.ones((n, n), bool),
+                               np.ones((n, nu), bool), np.ones((n, n), bool), "", None, None,
+                               inputs, outputs)
+
+
+def structure_for(submodel: str, data: IdData | None = None, spec: dict | None = None):
+    """Base structure of a sub-model (``actuator``, ``bearing``, ``generic``)."""
+    if submodel == "actuator":
+        return actuator_structure()
+    if submodel == "bearing":
+        return bearing_structure()
+    if submodel == "generic":
+        if spec is not None:
+            return generic_structure(list(spec["inputs"]), list(spec["outputs"]))
+        return generic_structure(data.input_names, data.output_names)
+    raise ValueError(f"unknown sub-model {submodel!r}")

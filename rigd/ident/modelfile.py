@@ -1,0 +1,235 @@
+"""Model files: identified sub-models as one YAML file, written atomically.
+
+Layout (``rigd_model: 1``)::
+
+    rigd_model: 1
+    created: 2026-11-22T03:40:00Z
+    fs_hz: 5000.0
+    data: {path: prbs.csv, sha256: "..."}
+    operating_point: {omega_rpm: 0.0, p_inj_bar: 4.0}
+    prefilters: {runout: ..., offsets: {samples: 2000, values: {...}}, median: {...}}
+    split: {estimation: [0, 20000], validation: [20000, 30000]}
+    submodels:
+      bearing:
+        structure: {kind: bearing, inputs: [u_x, u_y], outputs: [e_x, e_y], effects: []}
+        method: pem
+        parameters: {d_xx: {value: 34.5, std: 0.01}, ...}
+        fit_percent: {estimation: [98.1, 97.9], validation: [98.0, 97.8]}
+        readouts: {modes: [{f_n_hz: 110.5, zeta: 0.05}, ...], static_gain: [[...]]}
+      actuator: {...}
+
+:func:`load_model` rebuilds each sub-model's structure (re-applying effects through
+``rigd.effects.REGISTRY``) and theta; :meth:`ModelFile.ss` gives python-control StateSpace
+objects and :meth:`ModelFile.plant` the cascade G_p = G_bear·G_act.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import Field
+
+from rigd.configio import StrictModel, dump_yaml, read_yaml, validate
+from rigd.errors import InputError
+from rigd.ident.mechanical import structure_for
+
+FORMAT = 1
+
+
+def sha256_file(path: str | Path) -> str:
+    """``sha256:<hex>`` of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return "sha256:" + h.hexdigest()
+
+
+# --- schema ---------------------------------------------------------------------------
+class ParamEntry(StrictModel):
+    value: float
+    std: float | None = None
+
+
+class StructureSpec(StrictModel):
+    kind: str
+    inputs: list[str]
+    outputs: list[str]
+    n: int | None = None
+    nu: int | None = None
+    effects: list[str] = Field(default_factory=list)
+
+
+class SubmodelEntry(StrictModel):
+    structure: StructureSpec
+    method: str = "pem"
+    parameters: dict[str, ParamEntry]
+    fit_percent: dict[str, Any] = Field(default_factory=dict)
+    readouts: dict[str, Any] = Field(default_factory=dict)
+    residual: dict[str, Any] = Field(default_factory=dict)
+
+
+class ModelFileSchema(StrictModel):
+    rigd_model: int
+    created: str | None = None
+    fs_hz: float = Field(gt=0)
+    data: dict[str, Any] = Field(default_factory=dict)
+    operating_point: dict[str, Any] = Field(default_factory=dict)
+    prefilters: dict[str, Any] = Field(default_factory=dict)
+    split: dict[str, Any] = Field(default_factory=dict)
+    submodels: dict[str, SubmodelEntry]
+
+
+# --- in memory ------------------------------------------------------------------------
+@dataclass
+class Submodel:
+    """One identified sub-model: structure, parameters and what was measured about it."""
+
+    name: str
+    structure: Any
+    theta: np.ndarray
+    std: np.ndarray
+    method: str = "pem"
+    fit_percent: dict[str, Any] = field(default_factory=dict)
+    readouts: dict[str, Any] = field(default_factory=dict)
+    residual: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.structure.names, self.theta)}
+
+    def ss(self):
+        """Continuous python-control StateSpace of the (linear part of the) sub-model."""
+        st = getattr(self.structure, "base", self.structure)
+        while hasattr(st, "base"):
+            st = st.base
+        return st.ss(np.asarray(self.theta)[:len(st.names)])
+
+
+@dataclass
+class ModelFile:
+    """A model file in memory (see module docstring)."""
+
+    fs: float
+    submodels: dict[str, Submodel]
+    operating_point: dict[str, Any] = field(default_factory=dict)
+    prefilters: dict[str, Any] = field(default_factory=dict)
+    data: dict[str, Any] = field(default_factory=dict)
+    split: dict[str, Any] = field(default_factory=dict)
+    created: str | None = None
+    source: str = "<memory>"
+
+    def ss(self, name: str):
+        """StateSpace of sub-model ``name``; InputError if the file has no such sub-model."""
+        if name not in self.submodels:
+            raise InputError(f"model has no {name!r} sub-model (has: "
+                             f"{', '.join(self.submodels)})", self.source)
+        return self.submodels[name].ss()
+
+    def plant(self):
+        """G_p(s) = G_bear(s)·G_act(s): r = [r_x, r_y] -> p = [e_x, e_y] (needs both)."""
+        return self.ss("bearing") * self.ss("actuator")
+
+    def to_dict(self) -> dict[str, Any]:
+        subs = {}
+        for name, sm in self.submodels.items():
+            spec = dict(sm.structure.spec()) if hasattr(sm.structure, "spec") else {}
+            base = sm.structure
+            while hasattr(base, "base"):
+                base = base.base
+            spec = dict(base.spec())
+            spec["effects"] = list(getattr(sm.structure, "effects", []))
+            subs[name] = {
+                "structure": spec,
+                "method": sm.method,
+                "parameters": {n: {"value": float(v), "std": float(s)}
+                               for n, v, s in zip(sm.structure.names, sm.theta, sm.std)},
+                "fit_percent": _plain(sm.fit_percent),
+                "readouts": _plain(sm.readouts),
+                "residual": _plain(sm.residual),
+            }
+        return {"rigd_model": FORMAT,
+                "created": self.created or _dt.datetime.now(_dt.timezone.utc).strftime(
+                    "%Y-%m-%dT%H:%M:%SZ"),
+                "fs_hz": float(self.fs), "data": _plain(self.data),
+                "operating_point": _plain(self.operating_point),
+                "prefilters": _plain(self.prefilters), "split": _plain(self.split),
+                "submodels": subs}
+
+    def save(self, path: str | Path) -> Path:
+        """Write atomically (temporary file + rename)."""
+        dump_yaml(path, self.to_dict())
+        return Path(path)
+
+
+def _plain(x):
+    """numpy -> plain Python for YAML."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _plain(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        return float(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, complex):
+        return str(x)
+    return x
+
+
+def rebuild_structure(spec: StructureSpec | dict, where: str = "<model>"):
+    """The structure a spec describes, with its effects re-applied from the registry."""
+    if isinstance(spec, dict):
+        spec = StructureSpec.model_validate(spec)
+    if spec.kind not in ("actuator", "bearing", "generic"):
+        raise InputError(f"unknown structure kind {spec.kind!r}", where)
+    st = structure_for(spec.kind, spec=spec.model_dump())
+    if spec.effects:
+        st = apply_effects(st, spec.effects, where)
+    return st
+
+
+def apply_effects(structure, names: list[str], where: str | None = None):
+    """``structure`` extended by the named effects of ``rigd.effects.REGISTRY``."""
+    try:
+        from rigd.effects import REGISTRY
+    except ImportError:  # pragma: no cover - effects package not built
+        REGISTRY = {}
+    unknown = [n for n in names if n not in REGISTRY]
+    if unknown:
+        raise InputError(f"unknown effect(s) {', '.join(unknown)} (known: "
+                         f"{', '.join(sorted(REGISTRY)) or 'none'})", where)
+    for n in names:
+        structure = REGISTRY[n].extend(structure)
+    return structure
+
+
+def load_model(path: str | Path) -> ModelFile:
+    """Read a model file; any problem -> InputError naming the file, line and key."""
+    loaded = read_yaml(path)
+    doc = validate(loaded, ModelFileSchema)
+    if doc.rigd_model != FORMAT:
+        raise InputError(f"unsupported model file version {doc.rigd_model} (this rigd reads "
+                         f"{FORMAT})", str(path))
+    subs = {}
+    for name, e in doc.submodels.items():
+        where = f"{path}:{loaded.line_of(('submodels', name)) or ''}: submodels.{name}"
+        st = rebuild_structure(e.structure, where)
+        missing = [n for n in st.names if n not in e.parameters]
+        if missing:
+            raise InputError(f"parameter(s) {', '.join(missing)} missing", where)
+        theta = np.array([e.parameters[n].value for n in st.names])
+        std = np.array([e.parameters[n].std or 0.0 for n in st.names])
+        if not np.all(np.isfinite(theta)):
+            raise InputError("non-finite parameter value", where)
+        subs[name] = Submodel(name, st, theta, std, e.method, e.fit_percent, e.readouts,
+                              e.residual)
+    return ModelFile(doc.fs_hz, subs, doc.operating_point, doc.prefilters, doc.data,
+                     doc.split, doc.created, str(path))
