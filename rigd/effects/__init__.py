@@ -1,0 +1,52 @@
+"""Physical effects a grey-box model may leave out: one module per effect, one registry.
+
+``REGISTRY`` maps each canonical name (``../shared/DESIGN.md``) to an :class:`Effect`
+instance. A new effect is one new module with an :class:`Effect` subclass, registered below::
+
+    from rigd.effects import REGISTRY, extend
+    REGISTRY["cubic_stiffness"].extend(structure)     # one effect
+    extend(structure, ["delay", "runout"])            # several (state-level ones first)
+"""
+
+from __future__ import annotations
+
+from typing import Any, Iterable
+
+from rigd.effects.actuator_dynamics import ActuatorDynamics
+from rigd.effects.base import CannotReveal, Context, Effect, ExtendedStructure, Finding
+from rigd.effects.creep import Creep
+from rigd.effects.cross_coupling import CrossCoupling
+from rigd.effects.cubic_stiffness import CubicStiffness
+from rigd.effects.delay import Delay
+from rigd.effects.extra_mode import ExtraMode
+from rigd.effects.hysteresis import Hysteresis
+from rigd.effects.runout import Runout
+from rigd.errors import InputError
+
+#: canonical name -> effect (the one place a new effect is registered)
+REGISTRY: dict[str, Effect] = {e.name: e for e in (
+    Runout(), Delay(), ActuatorDynamics(), Hysteresis(), Creep(), CubicStiffness(),
+    ExtraMode(), CrossCoupling(),
+)}
+
+_ORDER = {"state": 0, "input": 1, "output": 2}
+
+
+def get(name: str) -> Effect:
+    """The registered effect ``name``; InputError listing the known names otherwise."""
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        raise InputError(f"unknown effect {name!r} (known: {', '.join(REGISTRY)})") from None
+
+
+def extend(structure: Any, names: Iterable[str]) -> Any:
+    """``structure`` extended by several effects (state-level first, output-level last)."""
+    effects = sorted((get(n) for n in names), key=lambda e: _ORDER.get(e.level, 1))
+    for e in effects:
+        structure = e.extend(structure)
+    return structure
+
+
+__all__ = ["REGISTRY", "Effect", "Finding", "CannotReveal", "Context", "ExtendedStructure",
+           "get", "extend"]

@@ -1,0 +1,97 @@
+"""Small signal helpers shared by the effect modules (all causal, float64, (n,) arrays)."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from scipy import signal
+
+
+def derivative(x: np.ndarray, fs: float) -> np.ndarray:
+    """Time derivative (units/s) by central differences along axis 0."""
+    return np.gradient(np.asarray(x, float), 1.0 / fs, axis=0)
+
+
+def lag1(x: np.ndarray, tau: float, fs: float) -> np.ndarray:
+    """First-order lag 1/(tau s + 1), exact for a piecewise-linear input, starting at rest
+    on x[0]; tau = 0 returns x."""
+    x = np.asarray(x, float)
+    if tau <= 0:
+        return x.copy()
+    dt = 1.0 / fs
+    a = np.exp(-dt / tau)
+    c = (tau / dt) * (1.0 - a)
+    b0, b1 = 1.0 - c, c - a
+    zi = signal.lfiltic([b0, b1], [1.0, -a], y=[x[0]], x=[x[0]])
+    return signal.lfilter([b0, b1], [1.0, -a], x, zi=zi)[0]
+
+
+def shift(x: np.ndarray, d: float) -> np.ndarray:
+    """x delayed by d >= 0 samples (linear interpolation, held at x[0] before the start)."""
+    x = np.asarray(x, float)
+    if d <= 0:
+        return x.copy()
+    n = x.shape[0]
+    t = np.arange(n) - d
+    return np.interp(t, np.arange(n), x, left=x[0])
+
+
+@numba.njit(cache=True)
+def play(x: np.ndarray, w: float) -> np.ndarray:
+    """Play (backlash) operator of width w: the elementary hysteron of Prandtl-Ishlinskii."""
+    y = np.empty_like(x)
+    h = 0.5 * w
+    prev = x[0]
+    for k in range(x.shape[0]):
+        v = x[k]
+        if v - prev > h:
+            prev = v - h
+        elif prev - v > h:
+            prev = v + h
+        y[k] = prev
+    return y
+
+
+def resonator(x: np.ndarray, f_hz: float, zeta: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Responses of a unit-DC-gain mode w^2/(s^2 + 2 zeta w s + w^2) and of s/w times it
+    (its velocity, same units), discretised by Tustin pre-warped at f_hz."""
+    w = 2 * np.pi * f_hz
+    num_d = [0, 0, w * w]
+    num_v = [0, w, 0]
+    den = [1, 2 * zeta * w, w * w]
+    fw = min(f_hz, 0.45 * fs)
+    bd, ad = signal.bilinear(num_d, den, fs=fs) if fw <= 0 else _prewarped(num_d, den, fs, fw)
+    bv, av = _prewarped(num_v, den, fs, fw)
+    return signal.lfilter(bd, ad, x), signal.lfilter(bv, av, x)
+
+
+def _prewarped(num, den, fs: float, f_hz: float):
+    w = 2 * np.pi * f_hz
+    k = w / np.tan(w / (2 * fs))  # s -> k (z-1)/(z+1)
+    return signal.bilinear(num, den, fs=k / 2)
+
+
+def band_power_share(x: np.ndarray, fs: float, f_lo: float, f_hi: float) -> float:
+    """Share of the (mean-removed) signal power between f_lo and f_hi, Hz."""
+    x = np.asarray(x, float) - np.mean(x)
+    n = x.shape[0]
+    if n < 8 or not np.any(x):
+        return 0.0
+    f, p = signal.welch(x, fs=fs, nperseg=min(n, 4096))
+    tot = np.sum(p)
+    return float(np.sum(p[(f >= f_lo) & (f <= f_hi)]) / tot) if tot > 0 else 0.0
+
+
+def n_levels(x: np.ndarray, tol: float = 0.02) -> int:
+    """Number of distinct levels that hold >= 2 % of the samples (clusters within tol of the
+    signal range): 2 for a two-level PRBS, many for noise or multi-level sequences."""
+    x = np.asarray(x, float)
+    span = np.ptp(x)
+    if span == 0:
+        return 1
+    q = np.round((x - x.min()) / (tol * span)).astype(np.int64)
+    counts = np.bincount(q)
+    share = counts / x.shape[0]
+    if np.sum(share[share >= 0.02]) < 0.9:  # spread out: a continuum of levels
+        return int(1 / tol)
+    return int(np.sum(share >= 0.02))

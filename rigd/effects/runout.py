@@ -1,0 +1,87 @@
+"""``runout``: mass unbalance and surface run-out, locked to the shaft angle φ.
+
+Signature: residual coherent with cos/sin(k·φ), k = 1, 2 (per output). Extension: an additive
+output term Σ_k a_ik cos(kφ) + b_ik sin(kφ) — the run-out filter F_r(φ) of the paper's §4.4
+identified together with the model instead of from a separate run-out record.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rigd.effects.base import CannotReveal, Context, Effect, dims, get_phi
+
+HARMONICS = (1, 2)
+
+
+def harmonics(phi: np.ndarray) -> list[np.ndarray]:
+    """[cos φ, sin φ, cos 2φ, sin 2φ]."""
+    out = []
+    for k in HARMONICS:
+        out += [np.cos(k * phi), np.sin(k * phi)]
+    return out
+
+
+class Runout(Effect):
+    name = "runout"
+    level = "output"
+    submodels = ("bearing", "generic")
+    physics = "mass unbalance or surface run-out locked to the shaft angle"
+
+    def reveal(self, ctx: Context) -> CannotReveal | None:
+        phi = ctx.phi
+        if phi is None:
+            return CannotReveal(self.name, "the record carries no shaft angle phi",
+                                "record the encoder angle phi at shaft speed > 0",
+                                ctx.submodel)
+        turns = np.sum(np.abs(np.diff(np.unwrap(phi)))) / (2 * np.pi)
+        if ctx.omega_hz <= 0 or turns < 3:
+            return CannotReveal(self.name, f"the shaft turned {turns:.1f} times (Ω = "
+                                f"{60 * ctx.omega_hz:.0f} rpm): no angle-locked response",
+                                "re-run at Ω > 0 (e.g. 3000 rpm) or add a run-out record "
+                                "(--runout)", ctx.submodel)
+        return None
+
+    def regressors(self, ctx: Context) -> list[np.ndarray]:
+        regs = []
+        for h in harmonics(ctx.phi):
+            for i in range(ctx.ny):
+                g = np.zeros((ctx.n, ctx.ny))
+                g[:, i] = h
+                regs.append(g)
+        return regs
+
+    def explain(self, ctx, sig):
+        b = sig.beta.reshape(len(HARMONICS), 2, ctx.ny)  # (k, cos/sin, output)
+        amp = np.hypot(b[:, 0], b[:, 1])  # (k, ny)
+        k, i = np.unravel_index(np.argmax(amp), amp.shape)
+        order = HARMONICS[k]
+        ev = {"order": int(order), "amplitude": float(amp[k, i]), "output": ctx.label(i),
+              "frequency_hz": float(order * ctx.omega_hz),
+              "amplitudes": {f"{HARMONICS[a]}x": {ctx.label(j): float(amp[a, j])
+                                                  for j in range(ctx.ny)}
+                             for a in range(len(HARMONICS))}}
+        unit = " µm" if ctx.submodel == "bearing" else ""
+        return (f"{amp[k, i]:.3g}{unit} on {ctx.label(i)} at {order}× shaft speed "
+                f"({order * ctx.omega_hz:.1f} Hz), locked to the encoder angle: "
+                f"{'mass unbalance or run-out' if order == 1 else 'run-out (out-of-roundness)'}"
+                f"; it explains {100 * sig.score:.0f} % of the residual", ev)
+
+    # --- extension -------------------------------------------------------------------
+    def param_names(self, base):
+        ny, _ = dims(base)
+        return [f"runout_{ab}{k}_{i}" for k in HARMONICS for ab in ("a", "b")
+                for i in range(ny)]
+
+    def warm_start(self, ctx, sig):
+        return np.asarray(sig.beta, float)
+
+    def simulate_with(self, sim, theta_e, data, base):
+        y = sim(data)
+        phi = get_phi(data)
+        if phi is None:
+            return y
+        ny = y.shape[1]
+        c = np.asarray(theta_e).reshape(len(HARMONICS) * 2, ny)
+        H = np.column_stack(harmonics(phi))  # (n, 2K)
+        return y + H @ c
