@@ -1,0 +1,156 @@
+"""Kernel parameter and state arrays of the simulated plant, built from its options.
+
+:func:`param_block` turns (options, Ω, P_I, f_s) into the active-parameter block of
+:mod:`rigd_drivers.sim_kernel` (exact ZOH/FOH discretisations included);
+:func:`rest_state` gives the plant at rest under a constant drive.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg as la
+
+from rigd_drivers import sim_kernel as k
+from rigd_drivers import sim_physics as phys
+from rigd_drivers.sim_options import PlantOptions
+
+
+def zoh(A: np.ndarray, B: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretisation: x+ = Φx + Γu."""
+    n, m = B.shape
+    E = la.expm(np.block([[A, B], [np.zeros((m, n + m))]]) * T)
+    return E[:n, :n], E[:n, n:]
+
+
+def foh(A: np.ndarray, B: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact first-order-hold (input linear between samples) discretisation.
+
+    Returns Φ, G0, G1 with ``x_{k+1} = Φ x_k + G0 w_k + G1 w_{k+1}``.
+    """
+    n, m = B.shape
+    Z = np.zeros
+    big = np.block([[A * T, B * T, Z((n, m))],
+                    [Z((m, n + m)), np.eye(m)],
+                    [Z((m, n + 2 * m))]])
+    E = la.expm(big)
+    Phi, Ga, Gb = E[:n, :n], E[:n, n:n + m], E[:n, n + m:]
+    return Phi, Ga - Gb, Gb
+
+
+def bearing_augmented(opts: PlantOptions, omega_rpm: float, p_inj_bar: float):
+    """Continuous (A, B_w, C) of bearing + optional extra mode, w = [u_x, u_y, f_x, f_y]."""
+    A4, Bu, Bf = phys.bearing_state_matrices(omega_rpm, p_inj_bar)
+    A = np.zeros((k.NX, k.NX))
+    B = np.zeros((k.NX, k.NW))
+    C = np.zeros((2, k.NX))
+    A[:4, :4] = A4
+    B[:4, :2] = Bu
+    B[:4, 2:] = Bf
+    C[0, 0] = C[1, 1] = 1.0
+    em = opts.effects.extra_mode
+    w = 2 * math.pi * em.f_hz
+    A[4, 5] = 1.0
+    A[5, 4] = -w * w
+    A[5, 5] = -2 * em.zeta * w
+    if em.enabled:
+        B[5, 0] = w * w * em.input_um_per_v[0]
+        B[5, 1] = w * w * em.input_um_per_v[1]
+        C[0, 4] = em.output[0]
+        C[1, 4] = em.output[1]
+    return A, B, C
+
+
+def param_block(opts: PlantOptions, omega_rpm: float, p_inj_bar: float,
+                fs: float) -> np.ndarray:
+    """The active parameter block (float64[NA]) for the kernel at (Ω, P_I)."""
+    T = 1.0 / fs
+    b = np.zeros(k.NA)
+    A, B, C = bearing_augmented(opts, omega_rpm, p_inj_bar)
+    Phi, G0, G1 = foh(A, B, T)
+    b[k.A_PHI:k.A_PHI + k.NX * k.NX] = Phi.ravel()
+    b[k.A_G0:k.A_G0 + k.NX * k.NW] = G0.ravel()
+    b[k.A_G1:k.A_G1 + k.NX * k.NW] = G1.ravel()
+    n_sub = opts.substeps
+    Phi, G0, G1 = foh(A, B, T / n_sub)
+    b[k.A_SPHI:k.A_SPHI + k.NX * k.NX] = Phi.ravel()
+    b[k.A_SG0:k.A_SG0 + k.NX * k.NW] = G0.ravel()
+    b[k.A_SG1:k.A_SG1 + k.NX * k.NW] = G1.ravel()
+    b[k.A_C:k.A_C + 2 * k.NX] = C.ravel()
+    b[k.A_NSUB] = n_sub
+    for i, v in enumerate(phys.valve_params(opts.valves.f_scale)):
+        w = v.omega
+        Av = np.array([[0.0, 1.0], [-w * w, -2 * v.zeta * w]])
+        Bv = np.array([[0.0], [v.gain * w * w]])
+        Pv, Gv = zoh(Av, Bv, T)
+        b[k.A_VPHI + 4 * i:k.A_VPHI + 4 * i + 4] = Pv.ravel()
+        b[k.A_VGAM + 2 * i:k.A_VGAM + 2 * i + 2] = Gv.ravel()
+        b[k.A_VOFF + i] = v.offset_v
+    ef = opts.effects
+    if ef.cubic_stiffness.enabled:
+        bm = phys.bearing_matrices(omega_rpm, p_inj_bar)
+        k_mean = 1e-6 * float(np.mean(np.diag(bm.K)))          # N/µm
+        b[k.A_K3] = ef.cubic_stiffness.ratio_at_gap * k_mean / phys.GAP_UM ** 2
+    if ef.delay.enabled:
+        b[k.A_DELAY] = ef.delay.samples
+    if ef.hysteresis.enabled:
+        h = ef.hysteresis
+        b[k.A_HYST_ON] = 1.0
+        b[k.A_HYST_ALPHA] = h.alpha
+        b[k.A_HYST_B] = h.alpha / (2.0 * h.h_max_v)
+        b[k.A_HYST_HMAX] = h.h_max_v
+    if ef.creep.enabled:
+        b[k.A_CREEP_ON] = 1.0
+        for j in range(2):
+            b[k.A_CREEP_A + j] = math.exp(-T / ef.creep.tau_s[j])
+            b[k.A_CREEP_F + j] = ef.creep.fraction[j]
+    if ef.runout.enabled:
+        r = ef.runout
+        b[k.A_RO_ON] = 1.0
+        b[k.A_RO:k.A_RO + 8] = [r.x_um[0], math.radians(r.x_phase_deg[0]),
+                                r.x_um[1], math.radians(r.x_phase_deg[1]),
+                                r.y_um[0], math.radians(r.y_phase_deg[0]),
+                                r.y_um[1], math.radians(r.y_phase_deg[1])]
+        w_rad = omega_rpm * 2 * math.pi / 60.0
+        b[k.A_UNB] = r.unbalance_g_mm * 1e-6 * w_rad ** 2          # N
+        b[k.A_UNB + 1] = math.radians(r.unbalance_phase_deg)
+    b[k.A_NOISE_E] = opts.noise.e_um
+    b[k.A_NOISE_Y] = opts.noise.y_p_v
+    b[k.A_SEED] = float(opts.seed)
+    b[k.A_OMEGA_RAD] = omega_rpm * 2 * math.pi / 60.0
+    b[k.A_OMEGA_RPM] = omega_rpm
+    b[k.A_PINJ] = p_inj_bar
+    b[k.A_T] = T
+    return b
+
+
+def rest_state(opts: PlantOptions, block: np.ndarray, omega_rpm: float, p_inj_bar: float,
+               drive_v: float) -> np.ndarray:
+    """State of the plant at rest with every valve held at ``drive_v`` (V) for a long time."""
+    s = np.zeros(k.N_STATE)
+    ef = opts.effects
+    creep = sum(ef.creep.fraction) if ef.creep.enabled else 0.0
+    y = np.zeros(4)
+    for i, v in enumerate(phys.valve_params(opts.valves.f_scale)):
+        s[k.S_XV + 2 * i] = v.gain * drive_v * (1.0 + creep)
+        y[i] = s[k.S_XV + 2 * i] + v.offset_v
+        s[k.S_VPREV + i] = drive_v
+        if ef.creep.enabled:
+            s[k.S_CREEP + 2 * i] = ef.creep.fraction[0] * drive_v
+            s[k.S_CREEP + 2 * i + 1] = ef.creep.fraction[1] * drive_v
+    u = np.array([y[1] - y[3], y[0] - y[2]])
+    s[k.S_UBUF:k.S_UBUF + 2 * k.DMAX] = np.tile(u, k.DMAX)
+    s[k.S_W:k.S_W + 2] = u
+    # bearing equilibrium: K_id p + F_id·k3|p|²p = B_id u (fixed point; tiny correction)
+    bm = phys.bearing_matrices(omega_rpm, p_inj_bar)
+    k3 = block[k.A_K3]
+    rhs = bm.B_id @ u
+    p = np.linalg.solve(bm.K_id, rhs)
+    for _ in range(50):
+        p = np.linalg.solve(bm.K_id, rhs + bm.F_id @ (-k3 * (p @ p) * p))
+    s[k.S_X:k.S_X + 2] = p
+    A, B, _ = bearing_augmented(opts, omega_rpm, p_inj_bar)
+    if B[5, 0] != 0.0 or B[5, 1] != 0.0:
+        s[k.S_X + 4] = -(B[5, :2] @ u) / A[5, 4]
+    return s
