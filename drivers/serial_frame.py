@@ -1,0 +1,257 @@
+"""Fast driver for the microcontroller front-end on a serial link (pyserial).
+
+Protocol: :mod:`rigd_drivers.serial_protocol` (specification in docs/service.md). Each
+``read`` takes the bytes waiting on the port without blocking, decodes every complete frame
+into a small FIFO (numba, no allocation) and hands the *oldest* one to the loop, so that every
+sample reaches the recording in order while the link jitters. Each ``write`` sends one drive
+frame without blocking.
+
+Health reaches the loop through ``frame_in[IN_STATUS]`` (0 = healthy; the supervisor latches
+a fault on any bit) and ``frame_in[IN_SEQ]`` (the device sample counter: a repeated value is a
+stale frame). Bits 0–7 are the device's own status bits (``DEV_*``); the driver adds:
+
+======  ==================  ==========================================================
+bit     name                set when
+======  ==================  ==========================================================
+8       ``DRV_TIMEOUT``     no frame for ``timeout_ms`` (set while it lasts)
+9       ``DRV_DISCONNECT``  the port is gone (EIO/HUP); reconnecting in a thread
+10      ``DRV_CRC``         a frame with a bad CRC was seen since the last read
+11      ``DRV_GAP``         the device sequence skipped, or the FIFO overflowed
+======  ==================  ==========================================================
+
+CRC errors, gaps, timeouts, disconnects and reconnects are counted (:meth:`counters`).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from typing import ClassVar
+
+import numpy as np
+from pydantic import Field
+
+from rigd.configio import StrictModel
+from rigd.driver import FastDriver
+from rigd.errors import FaultError
+from rigd.frame import (IN_E_X, IN_E_Y, IN_F_X, IN_F_Y, IN_PHI, IN_SEQ, IN_STATUS, IN_YP1,
+                        IN_YP2, IN_YP3, IN_YP4)
+from rigd_drivers import serial_protocol as sp
+
+DRV_TIMEOUT = 1 << 8
+DRV_DISCONNECT = 1 << 9
+DRV_CRC = 1 << 10
+DRV_GAP = 1 << 11
+
+
+class SerialFrameOptions(StrictModel):
+    """``drivers.serial`` section of the rig config."""
+
+    port: str = Field(description="serial device, e.g. /dev/serial/by-id/usb-rigd-frontend")
+    baudrate: int = Field(2_000_000, gt=0, description="UART rate (ignored by USB CDC-ACM)")
+    timeout_ms: float = Field(5.0, gt=0, description="no frame this long -> timeout fault, ms")
+    reconnect_s: float = Field(0.5, gt=0, description="retry period after a disconnect, s")
+    backlog: int = Field(8, ge=2, le=1024, description="decoded frames buffered, frames")
+    fault_on_crc: bool = Field(True, description="a CRC error sets DRV_CRC (-> fault)")
+    fault_on_gap: bool = Field(True, description="a sequence gap sets DRV_GAP (-> fault)")
+
+
+class SerialFrameDriver(FastDriver):
+    """Sensors in and valve drive out over the front-end's serial frame protocol."""
+
+    name = "serial"
+    Options: ClassVar[type[StrictModel]] = SerialFrameOptions
+
+    def __init__(self, options=None, *, fs: float = 5000.0):
+        super().__init__(options, fs=fs)
+        opts = options if isinstance(options, SerialFrameOptions) else \
+            SerialFrameOptions.model_validate(options or {})
+        self.opts = opts
+        self._rx = np.zeros(8192, np.uint8)
+        self._rxmv = memoryview(self._rx)
+        self._state = np.zeros(sp.N_STATE, np.int64)
+        self._fifo = np.zeros((opts.backlog, sp.N_ROW))
+        self._row = np.zeros(sp.N_ROW)
+        self._tx = np.zeros(sp.DRIVE_FRAME, np.uint8)
+        self._txmv = memoryview(self._tx)
+        self._ser = None
+        self._fd = -1
+        self._tx_seq = 0
+        self._last_rx = 0.0
+        self._timeout_s = opts.timeout_ms / 1000.0
+        self._in_timeout = False
+        self._dev_status = 0
+        self._reconnecting = threading.Lock()
+        self._closed = True
+        self.n_timeouts = 0
+        self.n_disconnects = 0
+        self.n_reconnects = 0
+        self.n_tx_overflow = 0
+        self._reset_rx()
+
+    # --- device ------------------------------------------------------------------------
+    def _reset_rx(self) -> None:
+        self._state[sp.C_RXLEN] = 0
+        self._state[sp.C_HEAD] = 0
+        self._state[sp.C_COUNT] = 0
+        self._state[sp.C_LASTSEQ] = -1
+        self._state[sp.C_EVENTS] = 0
+
+    def _open_port(self):
+        import serial
+
+        ser = serial.Serial(self.opts.port, self.opts.baudrate, timeout=0, write_timeout=0,
+                            exclusive=True)
+        try:
+            ser.reset_input_buffer()
+        except Exception:  # noqa: BLE001 - not all ports support it
+            pass
+        return ser
+
+    def open(self) -> None:
+        """Open the port; :class:`FaultError` if it cannot be opened."""
+        try:
+            ser = self._open_port()
+        except Exception as exc:  # serial.SerialException, OSError
+            raise FaultError(f"serial driver: cannot open {self.opts.port}: {exc}") from None
+        self._closed = False
+        self._attach(ser)
+        # warm the compiled kernels outside the cycle
+        sp.ingest_sensor(self._rx, self._state, self._fifo)
+        sp.encode_drive(self._tx, 0, False, np.zeros(4))
+
+    def _attach(self, ser) -> None:
+        self._reset_rx()
+        self._dev_status = 0
+        self._ser = ser
+        self._last_rx = time.monotonic()
+        self._in_timeout = False
+        self._fd = ser.fileno()  # published last: read()/write() start using the port now
+
+    def close(self) -> None:
+        """Tell the device to hold its safe voltage (outputs disabled), then release the port."""
+        self._closed = True
+        fd = self._fd
+        if fd >= 0:
+            n = sp.encode_drive(self._tx, self._tx_seq, False, np.zeros(4))
+            for _ in range(3):
+                try:
+                    os.write(fd, self._txmv[:n])
+                except OSError:
+                    break
+        self._fd = -1
+        if self._ser is not None:
+            try:
+                self._ser.close()
+            except Exception:  # noqa: BLE001
+                pass
+            self._ser = None
+
+    def _lost(self) -> None:
+        """The port failed: drop it and reconnect in a background thread."""
+        if self._fd < 0:
+            return
+        self._fd = -1
+        self.n_disconnects += 1
+        ser, self._ser = self._ser, None
+        try:
+            ser.close()
+        except Exception:  # noqa: BLE001
+            pass
+        if not self._closed and self._reconnecting.acquire(blocking=False):
+            threading.Thread(target=self._reconnect, name="serial-reconnect", daemon=True).start()
+
+    def _reconnect(self) -> None:
+        try:
+            while not self._closed:
+                time.sleep(self.opts.reconnect_s)
+                try:
+                    ser = self._open_port()
+                except Exception:  # noqa: BLE001 - still unplugged
+                    continue
+                if self._closed:
+                    ser.close()
+                    return
+                self._attach(ser)
+                self.n_reconnects += 1
+                return
+        finally:
+            self._reconnecting.release()
+
+    @property
+    def connected(self) -> bool:
+        return self._fd >= 0
+
+    # --- per cycle ---------------------------------------------------------------------
+    def read(self, frame_in: np.ndarray) -> None:
+        fd = self._fd
+        status = 0
+        if fd < 0:
+            frame_in[IN_STATUS] = DRV_DISCONNECT | DRV_TIMEOUT
+            return
+        st = self._state
+        try:
+            # VMIN=VTIME=0: returns 0 at once when nothing is waiting. A vanished pty or
+            # USB device raises EIO here or in write() (which runs every cycle).
+            n = os.readv(fd, (self._rxmv[st[sp.C_RXLEN]:],))
+        except (BlockingIOError, InterruptedError):
+            n = 0
+        except OSError:
+            self._lost()
+            frame_in[IN_STATUS] = DRV_DISCONNECT | DRV_TIMEOUT
+            return
+        if n:
+            st[sp.C_RXLEN] += n
+            sp.ingest_sensor(self._rx, st, self._fifo)
+        ev = st[sp.C_EVENTS]
+        if ev:
+            st[sp.C_EVENTS] = 0
+            if ev & sp.EV_CRC and self.opts.fault_on_crc:
+                status |= DRV_CRC
+            if ev & (sp.EV_GAP | sp.EV_OVERFLOW) and self.opts.fault_on_gap:
+                status |= DRV_GAP
+        row = self._row
+        if sp.pop_sensor(st, self._fifo, row):
+            self._last_rx = time.monotonic()
+            self._in_timeout = False
+            frame_in[IN_E_X] = row[sp.R_EX]
+            frame_in[IN_E_Y] = row[sp.R_EY]
+            frame_in[IN_YP1] = row[sp.R_YP1]
+            frame_in[IN_YP2] = row[sp.R_YP2]
+            frame_in[IN_YP3] = row[sp.R_YP3]
+            frame_in[IN_YP4] = row[sp.R_YP4]
+            frame_in[IN_PHI] = row[sp.R_PHI]
+            frame_in[IN_F_X] = row[sp.R_FX]
+            frame_in[IN_F_Y] = row[sp.R_FY]
+            frame_in[IN_SEQ] = row[sp.R_SEQ]
+            self._dev_status = int(row[sp.R_STATUS]) & 0xFF
+        elif time.monotonic() - self._last_rx > self._timeout_s:
+            if not self._in_timeout:
+                self._in_timeout = True
+                self.n_timeouts += 1
+            status |= DRV_TIMEOUT
+        frame_in[IN_STATUS] = status | self._dev_status  # device bits of the latest frame
+
+    def write(self, drive: np.ndarray) -> None:
+        fd = self._fd
+        if fd < 0:
+            return
+        self._tx_seq += 1
+        n = sp.encode_drive(self._tx, self._tx_seq, True, drive)
+        try:
+            w = os.write(fd, self._txmv[:n])
+            if w < n:
+                self.n_tx_overflow += 1
+        except (BlockingIOError, InterruptedError):
+            self.n_tx_overflow += 1
+        except OSError:
+            self._lost()
+
+    def counters(self) -> dict[str, int]:
+        st = self._state
+        c = {name: int(st[i]) for i, name in sp.COUNTER_NAMES.items()}
+        c.update(timeouts=self.n_timeouts, disconnects=self.n_disconnects,
+                 reconnects=self.n_reconnects, tx_overflow=self.n_tx_overflow,
+                 connected=int(self.connected))
+        return c

@@ -1,0 +1,145 @@
+"""Serial frame driver against the front-end emulator on a pseudo-terminal pair, at 5 kHz."""
+
+import struct
+import time
+
+import numpy as np
+import pytest
+
+from rigd.errors import FaultError
+from rigd.frame import IN_E_X, IN_PHI, IN_SEQ, IN_STATUS, IN_YP2, N_IN
+from rigd_drivers import serial_protocol as sp
+from rigd_drivers.frontend_emulator import FrontendEmulator
+from rigd_drivers.serial_frame import (DRV_CRC, DRV_DISCONNECT, DRV_GAP, DRV_TIMEOUT,
+                                       SerialFrameDriver)
+
+
+def test_wire_format_pinned():
+    assert sp.crc16(np.frombuffer(b"123456789", np.uint8), 0, 9) == 0x29B1
+    buf = np.zeros(30, np.uint8)
+    sp.encode_sensor(buf, 0x01020304, 0x0002, 1.23, -2.5, 5.0, 10.0, 0.0, 7.5, np.pi, 12.3, -4.0)
+    body = struct.pack("<BBIHhhHHHHHhh", 0x01, 24, 0x01020304, 2, 123, -250, 5000, 10000, 0,
+                       7500, 32768, 123, -40)
+    crc = sp.crc16(np.frombuffer(body, np.uint8), 0, len(body))
+    assert buf.tobytes() == b"\xa5\x5a" + body + struct.pack("<H", crc)
+    d = np.zeros(20, np.uint8)
+    sp.encode_drive(d, 9, True, np.array([-1.0, 5.0, 12.0, np.nan]))
+    assert d.tobytes()[:18] == b"\xa5\x5a\x02\x0e" + struct.pack("<IH4H", 9, 1, 0, 5000, 10000, 0)
+    out = np.zeros(6)
+    assert sp.decode_drive(d, 0, out) == 1 and out[3] == 5.0
+    d[12] ^= 1
+    assert sp.decode_drive(d, 0, out) == 0
+
+
+def _drain(drv, frame, seqs, statuses):
+    while True:
+        before = frame[IN_SEQ]
+        drv.read(frame)
+        statuses.append(int(frame[IN_STATUS]))
+        if frame[IN_SEQ] == before:
+            return
+        seqs.append(int(frame[IN_SEQ]))
+
+
+def _run(drv, frame, seconds, drive=None):
+    seqs, statuses = [], []
+    t_end = time.monotonic() + seconds
+    drive = np.array([5.0, 6.0, 5.0, 4.0]) if drive is None else drive
+    while time.monotonic() < t_end:
+        _drain(drv, frame, seqs, statuses)
+        drv.write(drive)
+        time.sleep(0.0003)
+    return seqs, statuses
+
+
+@pytest.fixture()
+def link(tmp_path):
+    emu = FrontendEmulator(str(tmp_path / "frontend"), fs=5000.0).start()
+    drv = SerialFrameDriver({"port": emu.port, "backlog": 256, "timeout_ms": 20,
+                             "reconnect_s": 0.05})
+    drv.open()
+    yield emu, drv, np.zeros(N_IN)
+    drv.close()
+    emu.stop()
+
+
+def test_full_rate_stream_and_drive(link):
+    emu, drv, frame = link
+    seqs, statuses = _run(drv, frame, 2.0)
+    assert len(seqs) > 0.9 * 2.0 * 5000
+    assert np.all(np.diff(seqs) == 1), "every frame, in order"
+    c = drv.counters()
+    assert c["crc_errors"] == 0 and c["gaps"] == 0 and c["overflow_dropped"] == 0
+    assert c["frames"] >= len(seqs)
+    assert emu.drive_frames > 1000 and not emu.holding
+    np.testing.assert_allclose(emu.applied, [5.0, 6.0, 5.0, 4.0])
+    # the emulated valves followed the drive: u_x = y_p2 - y_p4 = 2 V -> e_x ≈ 3 µm
+    assert frame[IN_YP2] == pytest.approx(6.0, abs=0.01)
+    assert frame[IN_E_X] == pytest.approx(3.0, abs=0.25)
+    assert 0.0 <= frame[IN_PHI] < 2 * np.pi
+
+
+def test_crc_gap_timeout_encoder_flagged_and_counted(link):
+    emu, drv, frame = link
+    _run(drv, frame, 0.2)
+    assert drv.counters()["crc_errors"] == 0
+    emu.corrupt = 3
+    before, st = _run(drv, frame, 0.2)
+    assert drv.counters()["crc_errors"] == 3 and any(s & DRV_CRC for s in st)
+    emu.skip = 5
+    seqs, st = _run(drv, frame, 0.2)
+    c = drv.counters()
+    assert c["gap_frames"] == 5 + 3 and c["gaps"] == 2  # the 3 corrupted frames were gaps too
+    assert any(s & DRV_GAP for s in st) and 6 in np.diff(before[-1:] + seqs)
+    emu.paused = True
+    _, st = _run(drv, frame, 0.2)
+    assert st[-1] & DRV_TIMEOUT and drv.counters()["timeouts"] == 1
+    emu.paused = False
+    emu.encoder_lost = True
+    _, st = _run(drv, frame, 0.2)
+    assert st[-1] & sp.DEV_ENCODER_LOST and not st[-1] & DRV_TIMEOUT
+    emu.encoder_lost = False
+    _, st = _run(drv, frame, 0.1)
+    assert st[-1] == 0
+
+
+def test_disconnect_then_reconnect(link):
+    emu, drv, frame = link
+    _run(drv, frame, 0.2)
+    emu.unplug()
+    _, st = _run(drv, frame, 0.2)
+    assert st[-1] & DRV_DISCONNECT and drv.counters()["disconnects"] == 1
+    assert not drv.connected
+    emu.replug()
+    deadline = time.monotonic() + 5
+    while not drv.connected and time.monotonic() < deadline:
+        _run(drv, frame, 0.05)
+    seqs, st = _run(drv, frame, 0.3)
+    c = drv.counters()
+    assert c["reconnects"] == 1 and drv.connected
+    assert len(seqs) > 500 and st[-1] == 0 and np.all(np.diff(seqs) == 1)
+
+
+def test_close_puts_device_in_safe_hold(link):
+    emu, drv, frame = link
+    _run(drv, frame, 0.1, drive=np.array([9.0, 9.0, 1.0, 1.0]))
+    assert not emu.holding
+    drv.close()
+    time.sleep(0.05)
+    assert emu.holding and np.all(emu.applied == 5.0)
+
+
+def test_device_holds_when_host_goes_silent(link):
+    emu, drv, frame = link
+    _run(drv, frame, 0.1, drive=np.array([9.0, 9.0, 1.0, 1.0]))
+    time.sleep(0.05)  # host silent for 50 ms > hold_timeout
+    assert emu.holding and np.all(emu.applied == 5.0)
+    seqs, st = [], []
+    _drain(drv, frame, seqs, st)
+    assert any(s & sp.DEV_HOST_TIMEOUT for s in st)
+
+
+def test_open_missing_port_is_a_fault(tmp_path):
+    drv = SerialFrameDriver({"port": str(tmp_path / "nope")})
+    with pytest.raises(FaultError, match="cannot open"):
+        drv.open()
