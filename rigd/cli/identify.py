@@ -1,0 +1,164 @@
+"""``rigd identify``: grey-box actuator / bearing / generic models by the prediction-error method.
+
+    rigd identify DATA [--runout RUNOUT] [--model auto|actuator|bearing|both|generic]
+                  [-o MODEL.yaml] [--json] [--add NAME[,NAME...]] [--init MODEL.yaml]
+    rigd identify RUN_DIR [-o G_BEAR.yaml] [--jobs N]      # operating range of a sweep
+
+The first 2/3 of the record are used for estimation, the last 1/3 for validation (``--split``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from rigd.errors import InputError
+
+HELP = "identify grey-box actuator/bearing models (PEM) from a record or a sweep run directory"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("data", help="record (HDF5 or interchange CSV) or a sweep run directory")
+    p.add_argument("--runout", metavar="RUNOUT", help="run-out record at the same operating "
+                   "point (needs phi) for the run-out filter F_r(phi)")
+    p.add_argument("--model", default="auto",
+                   choices=["auto", "actuator", "bearing", "both", "generic"],
+                   help="sub-model(s) to identify (default: all the record's columns allow)")
+    p.add_argument("-o", "--out", metavar="MODEL.yaml", help="write the model file here")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--add", metavar="NAMES", help="comma-separated effects to add to the "
+                   "structure (rigd.effects.REGISTRY names)")
+    p.add_argument("--init", metavar="MODEL.yaml", help="start from a previous model's "
+                   "parameters (default: automatic initial guess)")
+    p.add_argument("--method", choices=["pem", "oe"], default="pem",
+                   help="prediction error (one-step predictor, default) or output error")
+    p.add_argument("--split", type=float, default=2.0 / 3.0,
+                   help="fraction of samples for estimation; the rest validates (default 2/3)")
+    p.add_argument("--no-offsets", action="store_true", help="do not subtract offsets")
+    p.add_argument("--no-median", action="store_true", help="no median filter on e_x, e_y")
+    p.add_argument("--no-runout-filter", action="store_true",
+                   help="do not apply the run-out filter even with --runout")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="parallel processes for a run directory (default: all cores)")
+    g = p.add_argument_group("plain CSV without rig-data metadata (e.g. Silverbox)")
+    g.add_argument("--fs", help="sample rate, Hz (number or ratio, e.g. 10000000/16384)")
+    g.add_argument("--inputs", help="comma-separated input columns")
+    g.add_argument("--outputs", help="comma-separated output columns")
+
+
+def load_data(path: str, fs: str | None = None, inputs: str | None = None,
+              outputs: str | None = None):
+    """Load a record through ``rigd.data.io.load_record`` (plain CSV if ``fs`` is given)."""
+    from rigd.data.io import load_record
+
+    if fs is None:
+        if inputs or outputs:
+            raise InputError("--inputs/--outputs are for plain CSV files and need --fs")
+        return load_record(path)
+    from rigd.cli.export import parse_fs
+
+    split = (lambda v: [c.strip() for c in v.split(",") if c.strip()] if v else None)
+    return load_record(path, fs=parse_fs(fs), inputs=split(inputs), outputs=split(outputs))
+
+
+def parse_effects(text: str | None) -> list[str]:
+    """Effect names from ``--add``; unknown names -> InputError listing the known ones."""
+    if not text:
+        return []
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    try:
+        from rigd.effects import REGISTRY
+    except ImportError:  # pragma: no cover
+        REGISTRY = {}
+    unknown = [n for n in names if n not in REGISTRY]
+    if unknown:
+        raise InputError(f"unknown effect(s) {', '.join(unknown)} (known: "
+                         f"{', '.join(sorted(REGISTRY)) or 'none'})", "--add")
+    return names
+
+
+def prefilter_options(args):
+    from rigd.ident.prefilter import PrefilterOptions
+
+    return PrefilterOptions(offsets=not args.no_offsets, median=not args.no_median,
+                            runout=not args.no_runout_filter)
+
+
+def summary_json(model, effects: list[str]) -> dict:
+    """The ``--json`` object of ../shared/DESIGN.md for a model file."""
+    subs = model.submodels
+    if len(subs) == 1:
+        (name, sm), = subs.items()
+        fp = sm.fit_percent["validation_mean"]
+        params = sm.parameters
+        std = {n: float(s) for n, s in zip(sm.structure.names, sm.std)}
+        ro = sm.readouts
+    else:
+        fp = {n: sm.fit_percent["validation_mean"] for n, sm in subs.items()}
+        params = {n: sm.parameters for n, sm in subs.items()}
+        std = {n: {p: float(s) for p, s in zip(sm.structure.names, sm.std)}
+               for n, sm in subs.items()}
+        ro = {n: sm.readouts for n, sm in subs.items()}
+    from rigd.ident.modelfile import _plain
+
+    return {"fit_percent": fp, "parameters": params, "effects": effects,
+            "std": std, "readouts": _plain(ro),
+            "fit_percent_per_output": {n: sm.fit_percent for n, sm in subs.items()},
+            "split": model.split, "operating_point": model.operating_point}
+
+
+def _print_human(model, out) -> None:
+    for name, sm in model.submodels.items():
+        fp = sm.fit_percent
+        print(f"[{name}] {sm.method.upper()} fit (validation, last "
+              f"{100 * (1 - model.split.get('fraction', 2 / 3)):.0f} %): "
+              + ", ".join(f"{o} {v:.2f} %" for o, v in zip(fp["outputs"], fp["validation"]))
+              + "   (estimation: " + ", ".join(f"{v:.2f} %" for v in fp["estimation"]) + ")",
+              file=out)
+        for n, v, s in zip(sm.structure.names, sm.theta, sm.std):
+            print(f"  {n:>16s} = {v: .6g} ± {s:.2g}", file=out)
+        ro = sm.readouts
+        for m in ro.get("modes", []):
+            if "f_n_hz" in m:
+                print(f"  mode: f_n = {m['f_n_hz']:.2f} Hz, zeta = {m['zeta']:.4f}", file=out)
+        for ax, e in ro.get("axes", {}).items():
+            print(f"  valve {ax}: gain {e['gain']:.4g}, poles {e['poles_rad_s']} rad/s", file=out)
+        if "static_gain" in ro:
+            print(f"  static gain: {ro['static_gain']}", file=out)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rigd.ident.modelfile import load_model, sha256_file
+
+    effects = parse_effects(args.add)
+    if Path(args.data).is_dir():
+        from rigd.ident.oprange import identify_sweep
+
+        res = identify_sweep(args.data, out=args.out, jobs=args.jobs, method=args.method,
+                             options=prefilter_options(args), split=args.split)
+        if args.json:
+            json.dump(res.summary(), sys.stdout)
+            print()
+        else:
+            print(res.text())
+        return 0
+    from rigd.ident.workflow import identify_record
+
+    record = load_data(args.data, args.fs, args.inputs, args.outputs)
+    runout = load_data(args.runout) if args.runout else None
+    init = load_model(args.init) if args.init else None
+    model = identify_record(record, args.model, runout=runout, options=prefilter_options(args),
+                            method=args.method, init=init, effects=effects, split=args.split,
+                            data_hash=sha256_file(args.data))
+    if args.out:
+        model.save(args.out)
+    if args.json:
+        json.dump(summary_json(model, effects), sys.stdout)
+        print()
+    else:
+        _print_human(model, sys.stdout)
+        if args.out:
+            print(f"model written to {args.out}")
+    return 0

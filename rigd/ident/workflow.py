@@ -1,0 +1,203 @@
+"""From a record to identified sub-models: prefilter, split, fit, validate (Sec. 4.4-4.5).
+
+:func:`identify_record` is what ``rigd identify`` runs on one record:
+
+1. prefilter (run-out F_r(φ), offsets, median 3 — :mod:`rigd.ident.prefilter`);
+2. split: the first ``split`` (default 2/3) of the samples are the *estimation* part, the rest
+   the *validation* part;
+3. fit each asked sub-model by PEM (or OE) on the estimation part, from a previous model file's
+   parameters if given, else from the automatic initial guess;
+4. validate: the model is simulated over the whole record from its estimated initial state
+   (inputs only, no measured outputs used) and the fit 100·(1 − NRMSE) is computed on the
+   validation part (and on the estimation part).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from rigd.data.record import Record
+from rigd.errors import InputError
+from rigd.ident.iddata import IdData, channels_for, from_record
+from rigd.ident.mechanical import structure_for
+from rigd.ident.modelfile import ModelFile, Submodel, apply_effects
+from rigd.ident.pem import fit, fit_percent
+from rigd.ident.prefilter import PrefilterOptions, apply_prefilters
+
+DEFAULT_SPLIT = 2.0 / 3.0
+
+
+def available_submodels(record: Record) -> list[str]:
+    """Sub-models whose columns the record has (``generic`` for generic records)."""
+    if record.is_generic:
+        return ["generic"]
+    out = []
+    for sm in ("actuator", "bearing"):
+        ins, outs = channels_for(record, sm)
+        if record.has(*ins, *outs):
+            out.append(sm)
+    return out
+
+
+def resolve_submodels(record: Record, asked: str = "auto") -> list[str]:
+    """``auto`` | ``actuator`` | ``bearing`` | ``both`` | ``generic`` -> list of sub-models."""
+    if asked == "auto":
+        got = available_submodels(record)
+        if not got:
+            raise InputError("record has neither actuator (r_x, r_y, u_x, u_y) nor bearing "
+                             "(u_x, u_y, e_x, e_y) columns, nor inputs/outputs metadata "
+                             f"(columns: {', '.join(record.columns)})", record.source)
+        return got
+    if asked == "both":
+        return ["actuator", "bearing"]
+    if asked in ("actuator", "bearing", "generic"):
+        return [asked]
+    raise InputError(f"unknown model {asked!r} (use actuator, bearing, both, generic or auto)")
+
+
+def prepare(record: Record, submodel: str, options: PrefilterOptions | None = None,
+            runout: Record | None = None) -> tuple[IdData, dict]:
+    """Prefiltered :class:`IdData` of one sub-model and the prefilter report."""
+    ins, outs = channels_for(record, submodel)
+    from_record(record, submodel)  # column / length checks before filtering
+    filt, rep = apply_prefilters(record, ins, outs, options, runout)
+    return from_record(filt, submodel), rep
+
+
+def estimate_x0(structure, theta: np.ndarray, data: IdData) -> np.ndarray:
+    """theta with the initial-state entries re-estimated on ``data`` by least squares.
+
+    The free response is linear in x0 for the mechanical structures, so one simulation per
+    state gives the regressors.
+    """
+    base = structure
+    while hasattr(base, "base"):
+        base = base.base
+    idx = list(getattr(base, "x0_index", []))
+    if not idx:
+        return np.asarray(theta, float)
+    th = np.array(theta, float)
+    th[idx] = 0.0
+    y0 = np.asarray(structure.simulate(th, data))
+    cols = []
+    for i in idx:
+        t1 = th.copy()
+        t1[i] = 1.0
+        cols.append((np.asarray(structure.simulate(t1, data)) - y0).ravel())
+    A = np.column_stack(cols)
+    sol = np.linalg.lstsq(A, (data.y - y0).ravel(), rcond=None)[0]
+    th[idx] = sol
+    return th
+
+
+def residual_stats(y: np.ndarray, yhat: np.ndarray, names: list[str]) -> dict[str, Any]:
+    """Per-output residual statistics: mean, std, rms, max |ε|, lag-1 autocorrelation."""
+    out = {}
+    for i, nm in enumerate(names):
+        e = y[:, i] - yhat[:, i]
+        ec = e - e.mean()
+        den = float(ec @ ec)
+        r1 = float(ec[1:] @ ec[:-1] / den) if den > 0 else 0.0
+        out[nm] = {"mean": float(e.mean()), "std": float(e.std()),
+                   "rms": float(np.sqrt(np.mean(e ** 2))), "max_abs": float(np.abs(e).max()),
+                   "autocorr_lag1": r1}
+    return out
+
+
+def _start_values(structure, init: ModelFile | None, name: str, data: IdData):
+    if init is None or name not in init.submodels:
+        return None
+    prev = init.submodels[name].parameters
+    th = np.asarray(structure.theta0(data), float) if any(
+        n not in prev for n in structure.names) else np.zeros(len(structure.names))
+    for i, n in enumerate(structure.names):
+        if n in prev:
+            th[i] = prev[n]
+    return th
+
+
+def identify_record(record: Record, submodels: list[str] | str = "auto", *,
+                    runout: Record | None = None, options: PrefilterOptions | None = None,
+                    method: str = "pem", init: ModelFile | None = None,
+                    effects: list[str] | None = None, split: float = DEFAULT_SPLIT,
+                    data_hash: str | None = None) -> ModelFile:
+    """Identify the asked sub-models of ``record``; returns a :class:`ModelFile`.
+
+    Parameters
+    ----------
+    record : Record
+    submodels : list of str or str
+        Sub-models or one of ``auto``/``both``/``actuator``/``bearing``/``generic``.
+    runout : Record, optional
+        Run-out record at the same operating point (needs ``phi``).
+    options : PrefilterOptions, optional
+    method : {"pem", "oe"}
+    init : ModelFile, optional
+        Previous model: its parameters are the start values.
+    effects : list of str, optional
+        Effects from ``rigd.effects.REGISTRY`` to add to every sub-model they concern.
+    split : float
+        Fraction of samples used for estimation (rest: validation).
+    data_hash : str, optional
+        ``sha256:...`` of the data file.
+    """
+    if isinstance(submodels, str):
+        submodels = resolve_submodels(record, submodels)
+    if not 0.2 <= split <= 0.95:
+        raise InputError(f"split must be within 0.2..0.95 (got {split})")
+    effects = list(effects or [])
+    subs: dict[str, Submodel] = {}
+    prefilter_reports = {}
+    split_info = {}
+    for sm in submodels:
+        data, rep = prepare(record, sm, options, runout)
+        prefilter_reports[sm] = rep
+        k = int(round(data.n * split))
+        est = data.slice(0, k)
+        base = structure_for(sm, data)
+        th0 = _start_values(base, init, sm, est)
+        res = fit(base, est, method=method, theta0=th0)
+        structure, theta, std, used = base, res.theta, res.std, res.method
+        applied = _effects_for(effects, sm)
+        if applied:
+            structure = apply_effects(base, applied, record.source)
+            th_ext = _start_values(structure, init, sm, est)
+            if th_ext is None:
+                th_ext = np.asarray(structure.theta0(est), float)
+                th_ext[:len(base.names)] = res.theta
+            res = fit(structure, est, method=method, theta0=th_ext)
+            theta, std, used = res.theta, res.std, res.method
+        ysim = np.asarray(structure.simulate(theta, data))
+        fe = fit_percent(data.y[:k], ysim[:k])
+        fv = fit_percent(data.y[k:], ysim[k:])
+        readouts = structure.readouts(theta) if hasattr(structure, "readouts") else {}
+        subs[sm] = Submodel(sm, structure, theta, std, used,
+                            {"estimation": fe.tolist(), "validation": fv.tolist(),
+                             "validation_mean": float(np.mean(fv)),
+                             "outputs": data.output_names},
+                            readouts, residual_stats(data.y[k:], ysim[k:], data.output_names))
+        subs[sm].residual["iterations"] = {"nfev": res.nfev, "status": res.status}
+        split_info = {"estimation": [0, k], "validation": [k, data.n], "fraction": split}
+    return ModelFile(record.fs, subs,
+                     {"omega_rpm": record.omega_rpm, "p_inj_bar": record.p_inj_bar},
+                     prefilter_reports, {"path": record.source, "sha256": data_hash,
+                                         "n_samples": record.n}, split_info)
+
+
+def _effects_for(effects: list[str], submodel: str) -> list[str]:
+    """Those of ``effects`` that concern ``submodel`` (all of them if unknown)."""
+    if not effects:
+        return []
+    try:
+        from rigd.effects import REGISTRY
+    except ImportError:  # pragma: no cover
+        return effects
+    out = []
+    for n in effects:
+        eff = REGISTRY.get(n)
+        subs = getattr(eff, "submodels", None) if eff is not None else None
+        if eff is None or subs is None or submodel in subs:
+            out.append(n)
+    return out
