@@ -52,6 +52,20 @@ class CubicStiffness(Effect):
         ny, _ = dims(base)
         return [f"k3_{i + 1}" for i in range(ny)]
 
+    def theta0_effect(self, base, data):
+        """A small stiffening (1 % of the linear force at one std of the output) as the start,
+        so the fit has a scale for k3: 0.01 (2π f_peak)² / var(y)."""
+        from scipy import signal as sg
+
+        y = np.asarray(data.outputs, float)
+        fs = float(data.fs)
+        out = []
+        for i in range(y.shape[1]):
+            f, p = sg.welch(y[:, i] - y[:, i].mean(), fs=fs, nperseg=min(len(y), 1024))
+            fp = max(f[int(np.argmax(p[1:])) + 1], fs / len(y))
+            out.append(0.01 * (2 * np.pi * fp) ** 2 / max(np.var(y[:, i]), 1e-300))
+        return np.asarray(out)
+
     def warm_start(self, ctx, sig):
         return -np.asarray(sig.beta, float)
 

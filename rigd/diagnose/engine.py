@@ -1,0 +1,333 @@
+"""The diagnosis: fit the base model, test every catalogue effect, refit, rank, report.
+
+For one sub-model (``actuator`` r→u, ``bearing`` u→e, ``generic``):
+
+1. fit the base grey-box structure by output error on the estimation part and simulate the
+   whole record; the residual is measurement − simulation;
+2. for every effect of the catalogue that concerns the sub-model: ``reveal`` (can this record
+   show it? if not: why, and which experiment would) and the signature regression (share of
+   the validation residual energy its first-order signature explains, F test);
+3. refit the base structure extended by each revealable effect (warm-started from the
+   signature) and measure the validation fit; ``score`` = share of the base model's
+   validation error energy the effect removes;
+4. an effect is *significant* when its signature is (share ≥ its ``min_score``, p < 1e-3)
+   and its refit lowers the validation error energy by at least ``MIN_REFIT_GAIN``;
+5. what is left in the residual of the best model (narrow spectral peaks, amplitude
+   dependence) and matches no significant effect is reported as *unexplained*, with where.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from rigd.diagnose import residual as R
+from rigd.effects import REGISTRY
+from rigd.effects.base import CannotReveal, Context, Finding
+
+#: share of validation error energy a refit must remove for significance
+MIN_REFIT_GAIN = 0.10
+#: significance level of the signature F test
+P_LEVEL = 1e-3
+#: longest stretch analysed (samples); longer records are analysed on a window
+MAX_SAMPLES = 40_000
+
+
+def fit_percent(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
+    """Per-output fit, 100·(1 − ‖y − ŷ‖/‖y − ȳ‖) (%)."""
+    num = np.linalg.norm(y - yhat, axis=0)
+    den = np.linalg.norm(y - y.mean(axis=0), axis=0)
+    return 100.0 * (1.0 - num / np.maximum(den, 1e-300))
+
+
+@dataclass
+class Refit:
+    structure: Any
+    theta: np.ndarray
+    yhat: np.ndarray
+    fit_percent: float
+    seconds: float
+
+
+@dataclass
+class SubDiagnosis:
+    """Diagnosis of one sub-model."""
+
+    submodel: str
+    fit_percent: float
+    findings: list[Finding]
+    cannot_reveal: list[CannotReveal]
+    unexplained: list[dict]
+    ctx: Context
+    tests: dict[str, Any] = field(default_factory=dict)
+    refits: dict[str, Refit] = field(default_factory=dict)
+    window: tuple[int, int] = (0, 0)
+
+
+def _fit(structure, data, theta0=None, max_nfev=None):
+    from rigd.ident.pem import fit
+
+    return fit(structure, data, method="oe", theta0=theta0, max_nfev=max_nfev)
+
+
+def model_resonances(structure, theta) -> list[float]:
+    """Resonance frequencies (Hz) of the base model's linear part."""
+    try:
+        if hasattr(structure, "continuous"):
+            A = structure.continuous(theta)[0]
+        else:
+            A = np.asarray(structure.ss(theta).A)
+        lam = np.linalg.eigvals(A)
+        fr = sorted({round(float(abs(l) / (2 * np.pi)), 3) for l in lam if l.imag > 1e-9})
+        return fr
+    except Exception:  # noqa: BLE001 - a structure without a linear part has no resonances
+        return []
+
+
+def _val_err(ctx: Context, yhat: np.ndarray) -> float:
+    w = 1.0 / np.maximum(np.std(ctx.y[ctx.est], axis=0), 1e-300)
+    e = (ctx.y[ctx.val] - yhat[ctx.val]) * w
+    return float(np.sum(e ** 2))
+
+
+def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
+                  val: slice | None = None, effects: list[str] | None = None,
+                  refit: bool = True, max_nfev: int | None = None) -> SubDiagnosis:
+    """Diagnose one sub-model on identification data (``rigd.ident.iddata.IdData``).
+
+    Parameters
+    ----------
+    data : IdData
+        Prefiltered data of the whole (analysed) record.
+    submodel : str
+        ``actuator``, ``bearing`` or ``generic``.
+    structure : Structure, optional
+        Base structure (default: ``rigd.ident.mechanical.structure_for(submodel)``).
+    est, val : slice, optional
+        Estimation and validation parts (default: first 2/3, last 1/3).
+    effects : list of str, optional
+        Effects to test (default: every registered effect concerning the sub-model).
+    refit : bool
+        Refit each revealable effect (``fit_percent_with``); off: signature only.
+    """
+    from rigd.ident.mechanical import structure_for
+
+    n = data.n
+    if est is None or val is None:
+        k = int(round(2 * n / 3))
+        est, val = slice(0, k), slice(k, n)
+    structure = structure or structure_for(submodel, data)
+    data_est = data.slice(est.start, est.stop)
+    base = _fit(structure, data_est, max_nfev=max_nfev)
+    theta = base.theta
+    yhat = np.asarray(structure.simulate(theta, data), float)
+    omega_hz = float(getattr(data, "meta", {}).get("omega_rpm", 0.0) or 0.0) / 60.0
+    ctx = Context(submodel, data, structure, theta, yhat, est, val, omega_hz,
+                  model_resonances(structure, theta), list(data.input_names),
+                  list(data.output_names))
+    fp_base = float(np.mean(fit_percent(ctx.y[val], yhat[val])))
+    err_base = _val_err(ctx, yhat)
+
+    findings: list[Finding] = []
+    cannot: list[CannotReveal] = []
+    refits: dict[str, Refit] = {}
+    names = effects or [n for n, e in REGISTRY.items() if submodel in e.submodels]
+    for name in names:
+        eff = REGISTRY[name]
+        why = eff.reveal(ctx)
+        if why is not None:
+            why.submodel = submodel
+            cannot.append(why)
+            continue
+        sig = eff.signature(ctx)
+        text, ev = eff.explain(ctx, sig)
+        sig_ok = sig.score >= eff.min_score and sig.f_p < P_LEVEL
+        f = Finding(name, sig.score, False, text, submodel, sig.score, fp_base,
+                    dict(ev, signature_p=sig.f_p, signature_k=sig.k))
+        if refit and (sig.score > 0.005 or sig_ok):
+            t0 = time.perf_counter()
+            ext = eff.extend(structure)
+            ws = eff.warm_start(ctx, sig)
+            te = ws if ws is not None else eff.theta0_effect(structure, data_est)
+            th0 = np.concatenate([theta, np.asarray(te, float)])
+            lo, hi = ext.bounds()
+            th0 = np.clip(th0, np.where(np.isfinite(lo), lo, -np.inf),
+                          np.where(np.isfinite(hi), hi, np.inf))
+            try:
+                res = _fit(ext, data_est, theta0=th0, max_nfev=max_nfev)
+                th = res.theta
+                yw = np.asarray(ext.simulate(th, data), float)
+            except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+                th, yw = th0, np.asarray(ext.simulate(th0, data), float)
+            if not np.all(np.isfinite(yw)):
+                yw = yhat
+            fw = float(np.mean(fit_percent(ctx.y[val], yw[val])))
+            refits[name] = Refit(ext, th, yw, fw, time.perf_counter() - t0)
+            gain = max(0.0, 1.0 - _val_err(ctx, yw) / err_base) if err_base > 0 else 0.0
+            f.fit_percent_with = fw
+            f.score = gain
+            f.significant = bool(sig_ok and gain >= MIN_REFIT_GAIN)
+            f.evidence["refit_seconds"] = refits[name].seconds
+        else:
+            f.significant = False
+            f.evidence["refit"] = "not refitted: no signature in the residual"
+        findings.append(f)
+    findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
+    sd = SubDiagnosis(submodel, fp_base, findings, cannot, [], ctx, {}, refits,
+                      (0, data.n))
+    _tests_and_unexplained(sd)
+    return sd
+
+
+def _tests_and_unexplained(sd: SubDiagnosis) -> None:
+    """Whiteness / cross-correlation tests and structure left unexplained."""
+    ctx = sd.ctx
+    v = ctx.val
+    r = ctx.residual[v]
+    tests = {"whiteness": {}, "cross_correlation": {}}
+    for i in range(ctx.ny):
+        w = R.whiteness(r[:, i])
+        tests["whiteness"][ctx.label(i)] = {"passed": w.passed, "outside": w.outside}
+        for j in range(ctx.nu):
+            c = R.cross_correlation(r[:, i], ctx.u[v, j])
+            tests["cross_correlation"][f"{ctx.label(i)}~{ctx.label(j, 'in')}"] = {
+                "passed": c.passed, "outside": c.outside}
+    sd.tests = tests
+    # the best model found: the top significant refit, else the base
+    top = next((f for f in sd.findings if f.significant), None)
+    yb = sd.refits[top.effect].yhat if top is not None and top.effect in sd.refits else ctx.yhat
+    rb = (ctx.y - yb)[v]
+    sig = {f.effect for f in sd.findings if f.significant}
+    unexplained = []
+    for pk in R.spectral_peaks(rb, ctx.fs):
+        fpk = pk["frequency_hz"]
+        near_res = any(abs(fpk - fr) < 0.1 * fr for fr in ctx.resonances_hz)
+        if ctx.omega_hz > 0 and any(abs(fpk - k * ctx.omega_hz) < 0.03 * ctx.omega_hz + 0.5
+                                    for k in (1, 2)) and "runout" in sig:
+            continue
+        unexplained.append({
+            "where": {"frequency_hz": round(fpk, 2)},
+            "share_of_residual": round(pk["share"], 3),
+            "text": (f"structure left in the residual at {fpk:.1f} Hz "
+                     f"({100 * pk['share']:.0f} % of the residual power"
+                     f"{', near a model resonance' if near_res else ''}), "
+                     "not explained by any known effect")})
+    a = np.abs(yb[v] - yb[v].mean(axis=0)).max(axis=1)
+    edges, rms = R.by_amplitude(rb, a, 4)
+    if rms[0] > 0 and rms[-1] / rms[0] > 2.5 and "cubic_stiffness" not in sig:
+        unexplained.append({
+            "where": {"amplitude_range": [round(float(edges[-2]), 6), round(float(edges[-1]), 6)]},
+            "ratio": round(float(rms[-1] / rms[0]), 2),
+            "text": (f"the error is {rms[-1] / rms[0]:.1f}× larger at large amplitude "
+                     f"(|y| in {edges[-2]:.3g}..{edges[-1]:.3g}) than at small; no catalogue "
+                     "effect explains it")})
+    sd.unexplained = unexplained
+
+
+# --------------------------------------------------------------------------------------
+# records
+# --------------------------------------------------------------------------------------
+@dataclass
+class Diagnosis:
+    """Diagnosis of a record: one :class:`SubDiagnosis` per sub-model examined."""
+
+    parts: list[SubDiagnosis]
+    source: str = ""
+    notes: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        multi = len(self.parts) > 1
+        if multi:
+            fp: Any = {p.submodel: round(p.fit_percent, 3) for p in self.parts}
+        else:
+            fp = round(self.parts[0].fit_percent, 3)
+        findings = [f for p in self.parts for f in p.findings]
+        findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
+        return {
+            "fit_percent": fp,
+            "findings": [f.to_json(True) for f in findings],
+            "cannot_reveal": [c.to_json(True) for p in self.parts for c in p.cannot_reveal],
+            "unexplained": [dict(u, submodel=p.submodel) for p in self.parts
+                            for u in p.unexplained],
+            "tests": {p.submodel: p.tests for p in self.parts},
+            "analysed_samples": {p.submodel: list(p.window) for p in self.parts},
+            "notes": list(self.notes),
+        }
+
+
+def submodels_of(record) -> list[str]:
+    """Sub-models a record supports: generic, or actuator and/or bearing."""
+    if record.is_generic:
+        return ["generic"]
+    out = []
+    if record.has("r_x", "r_y", "u_x", "u_y"):
+        out.append("actuator")
+    if record.has("u_x", "u_y", "e_x", "e_y"):
+        out.append("bearing")
+    return out
+
+
+def half_sample_advance(u: np.ndarray) -> np.ndarray:
+    """Inputs advanced by half a sample, (u[k] + u[k+1]) / 2.
+
+    The base simulators hold the input constant over a sample (ZOH), right for commanded,
+    piecewise-constant references but half a sample late for band-limited *measured* inputs
+    (valve positions, the Silverbox voltage); simulating with the averaged input is the
+    trapezoidal first-order-hold equivalent.
+    """
+    u = np.asarray(u, float)
+    out = u.copy()
+    out[:-1] = 0.5 * (u[:-1] + u[1:])
+    return out
+
+
+#: input hold per sub-model: measured (band-limited) inputs -> "foh", commanded -> "zoh"
+DEFAULT_HOLD = {"actuator": "zoh", "bearing": "foh", "generic": "foh"}
+
+
+def diagnose_record(record, runout=None, submodels: list[str] | None = None,
+                    est: slice | None = None, val: slice | None = None,
+                    effects: list[str] | None = None, refit: bool = True,
+                    max_samples: int = MAX_SAMPLES, prefilter: bool = True,
+                    hold: str = "auto") -> Diagnosis:
+    """Diagnose a :class:`rigd.data.Record` (prefilters of §4.4, then each sub-model).
+
+    ``hold``: ``zoh`` (inputs held over a sample), ``foh`` (band-limited inputs, see
+    :func:`half_sample_advance`) or ``auto`` (:data:`DEFAULT_HOLD`).
+    """
+    from rigd.errors import InputError
+    from rigd.ident.iddata import channels_for, from_record
+    from rigd.ident.prefilter import PrefilterOptions, apply_prefilters
+
+    subs = submodels or submodels_of(record)
+    if not subs:
+        raise InputError("record has neither inputs/outputs metadata nor the rotor columns "
+                         "r_x, r_y, u_x, u_y (actuator) or u_x, u_y, e_x, e_y (bearing)",
+                         record.source)
+    notes = []
+    n = record.n
+    window = (0, n)
+    if est is None and val is None and n > max_samples:
+        a = (n - max_samples) // 2
+        window = (a, a + max_samples)
+        notes.append(f"long record: analysed samples {window[0]}..{window[1]} of {n}")
+        record = record.slice(*window)
+    parts = []
+    for sub in subs:
+        ins, outs = channels_for(record, sub)
+        rec = record
+        if prefilter:
+            opts = PrefilterOptions(median=False)
+            rec, _ = apply_prefilters(record, ins, outs, opts, runout)
+        data = from_record(rec, sub)
+        h = DEFAULT_HOLD.get(sub, "zoh") if hold == "auto" else hold
+        if h == "foh":
+            data = data.with_inputs(half_sample_advance(data.inputs))
+            notes.append(f"{sub}: inputs treated as band-limited (first-order hold)")
+        sd = diagnose_data(data, sub, est=est, val=val, effects=effects, refit=refit)
+        sd.window = window
+        parts.append(sd)
+    return Diagnosis(parts, record.source, notes)
