@@ -1,0 +1,81 @@
+"""Modbus slow driver against a real pymodbus server on loopback, incl. stop and come back."""
+
+import time
+
+import numpy as np
+import pytest
+
+from rigd.configio import load_model
+from rigd.errors import FaultError, InputError
+from rigd.frame import IN_OMEGA, IN_P_INJ, N_IN
+from rigd_drivers.modbus import ModbusDriver, ModbusOptions, float_to_regs, regs_to_float
+
+from modbus_server import PlcServer, free_port
+
+
+def _wait(pred, timeout=5.0):
+    t = time.monotonic() + timeout
+    while time.monotonic() < t:
+        if pred():
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def test_float_words():
+    for order in ("big", "little"):
+        assert regs_to_float(float_to_regs(4.25, order), order) == 4.25
+    assert float_to_regs(1.0, "big") == [0x3F80, 0]
+
+
+def test_poll_setpoints_stop_and_come_back():
+    plc = PlcServer(p_inj_bar=4.5, omega_rpm=2500.0).start()
+    drv = ModbusDriver({"host": "127.0.0.1", "port": plc.port, "poll_hz": 50,
+                        "timeout_s": 0.1, "reconnect_s": 0.1, "failures_to_fault": 2})
+    drv.open()
+    try:
+        assert _wait(lambda: drv.latest().ok)
+        frame = np.zeros(N_IN)
+        assert drv.fill(frame)
+        assert frame[IN_P_INJ] == pytest.approx(4.5) and frame[IN_OMEGA] == 2500.0
+        plc.values["omega_rpm"] = 4000.0
+        assert _wait(lambda: drv.latest().omega_rpm == 4000.0)
+        drv.write_setpoints(p_inj_bar=5.5, omega_rpm=3300.0)
+        assert _wait(lambda: plc.setpoints == {"p_inj_bar": 5.5, "omega_rpm": 3300.0})
+        # the PLC dies: a fault after 2 failed polls, last values kept, reading never blocks
+        plc.stop()
+        assert _wait(lambda: not drv.latest().ok)
+        s = drv.latest()
+        assert "modbus" in s.error and s.omega_rpm == 4000.0
+        t0 = time.perf_counter()
+        for _ in range(1000):
+            drv.fill(frame)
+        assert drv.counters()["faults"] == 1
+        assert time.perf_counter() - t0 < 1.0  # sanity only: 1000 non-blocking reads
+        # a device status word != 0 is a fault too
+        plc2 = PlcServer(port=plc.port, p_inj_bar=6.0, omega_rpm=1000.0, status=0).start()
+        assert _wait(lambda: drv.latest().ok and drv.latest().p_inj_bar == 6.0)
+        assert drv.counters()["reconnects"] == 1
+        plc2.values["status"] = 0x0004
+        assert _wait(lambda: not drv.latest().ok)
+        assert "0x0004" in drv.latest().error
+        plc2.stop()
+    finally:
+        drv.close()
+
+
+def test_poll_raises_fault_when_nobody_listens():
+    drv = ModbusDriver({"host": "127.0.0.1", "port": free_port(), "timeout_s": 0.1})
+    with pytest.raises(FaultError, match="cannot connect"):
+        drv.poll()
+
+
+def test_options_validation(tmp_path):
+    p = tmp_path / "mb.yaml"
+    p.write_text("transport: rtu\nbaudrate: 9600\n")
+    with pytest.raises(InputError, match="needs 'device'"):
+        load_model(p, ModbusOptions)
+    p.write_text("transport: tcp\nhost: plc\npoll_hz: 500\n")
+    with pytest.raises(InputError, match=r"mb.yaml:3: poll_hz"):
+        load_model(p, ModbusOptions)
+    assert ModbusOptions(transport="rtu", device="/dev/ttyUSB0").parity == "E"
