@@ -76,6 +76,7 @@ A_OMEGA_RAD = _take(1)
 A_OMEGA_RPM = _take(1)
 A_PINJ = _take(1)
 A_T = _take(1)                # loop period, s
+A_NX = _take(1)               # bearing states in use: 4, or 6 with the extra mode
 NA = _n
 
 # --- params header and blocks --------------------------------------------------------------
@@ -179,10 +180,11 @@ def _hyst(h, dv, alpha, b, hmax):
 def _foh(state, params, src, dst, off_phi, off_g0, off_g1, wa0, wa1, wa2, wa3,
          wb0, wb1, wb2, wb3):
     """state[dst:dst+NX] = Φ·state[src:] + G0·wa + G1·wb (one FOH interval)."""
-    for i in range(NX):
+    nx = int(params[ACT + A_NX])
+    for i in range(nx):
         acc = 0.0
         r = ACT + off_phi + i * NX
-        for j in range(NX):
+        for j in range(nx):
             acc += params[r + j] * state[src + j]
         g0 = ACT + off_g0 + i * NW
         g1 = ACT + off_g1 + i * NW
@@ -199,7 +201,8 @@ def _sense(state, params, frame_in):
     P = ACT
     ex = 0.0
     ey = 0.0
-    for j in range(NX):
+    nx = int(params[P + A_NX])
+    for j in range(nx):
         ex += params[P + A_C + j] * state[S_X + j]
         ey += params[P + A_C + NX + j] * state[S_X + j]
     if params[P + A_RO_ON] != 0.0:

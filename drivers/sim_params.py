@@ -122,6 +122,7 @@ def param_block(opts: PlantOptions, omega_rpm: float, p_inj_bar: float,
     b[k.A_OMEGA_RPM] = omega_rpm
     b[k.A_PINJ] = p_inj_bar
     b[k.A_T] = T
+    b[k.A_NX] = 6 if opts.effects.extra_mode.enabled else 4
     return b
 
 
