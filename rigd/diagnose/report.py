@@ -1,0 +1,111 @@
+"""The diagnosis report page: base fit, where the model fails, ranked findings with their
+evidence, and before/after comparisons for the top findings."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rigd.diagnose import residual as R
+from rigd.report import Report
+
+
+def write_report(diag, out: str | Path) -> Path:
+    """Write ``index.html`` and figures for a :class:`rigd.diagnose.engine.Diagnosis`."""
+    rep = Report(out, f"Diagnosis of {Path(diag.source).name}")
+    for note in diag.notes:
+        rep.text(note)
+    for sd in diag.parts:
+        _part(rep, sd)
+    return rep.write()
+
+
+def _part(rep: Report, sd) -> None:
+    ctx = sd.ctx
+    sub = sd.submodel
+    rep.heading(f"{sub} model: validation fit {sd.fit_percent:.1f} %")
+    rows = [[f.effect, "yes" if f.significant else "no", f"{f.score:.2f}",
+             f"{f.signature_score:.2f}",
+             "" if f.fit_percent_with is None else f"{f.fit_percent_with:.1f}", f.explanation]
+            for f in sd.findings]
+    rep.table(["effect", "significant", "score", "signature", "fit with it %", "evidence"], rows)
+    for c in sd.cannot_reveal:
+        rep.text(f"Cannot tell {c.effect}: {c.why}. Experiment: {c.experiment}.")
+    for u in sd.unexplained:
+        rep.text(f"Unexplained: {u['text']}.")
+    v = ctx.val
+    t = np.arange(ctx.n) / ctx.fs
+    r = ctx.residual
+    # time: measured vs simulated, residual, RMS by segment
+    fig, ax = rep.figure(f"{sub}_time", "Measured and simulated output (validation part), "
+                         "residual, and residual RMS by segment of the whole record", nrows=3)
+    ax[0].plot(t[v], ctx.y[v, 0], lw=0.6, label=f"measured {ctx.label(0)}")
+    ax[0].plot(t[v], ctx.yhat[v, 0], lw=0.6, label="base model")
+    ax[0].legend(loc="upper right")
+    ax[1].plot(t[v], r[v], lw=0.5)
+    ax[1].set_ylabel("residual")
+    seg = R.by_segment(r, 20)
+    ax[2].bar(np.arange(20), seg)
+    ax[2].set_xlabel("segment (1/20 of the record)")
+    ax[2].set_ylabel("residual RMS")
+    # frequency
+    f, prr, pyy = R.spectra(r[v], ctx.y[v], ctx.fs)
+    fig, ax = rep.figure(f"{sub}_spectrum", "Residual spectrum against the measured output's; "
+                         "dashed: model resonances")
+    ax.semilogy(f, np.atleast_2d(pyy.T).T.sum(axis=1), label="measured output")
+    ax.semilogy(f, np.atleast_2d(prr.T).T.sum(axis=1), label="residual (base)")
+    top = next((x for x in sd.findings if x.significant), None)
+    if top is not None and top.effect in sd.refits:
+        rw = (ctx.y - sd.refits[top.effect].yhat)[v]
+        _, pw, _ = R.spectra(rw, ctx.y[v], ctx.fs)
+        ax.semilogy(f, np.atleast_2d(pw.T).T.sum(axis=1), label=f"residual with {top.effect}")
+    for fr in ctx.resonances_hz:
+        ax.axvline(fr, ls="--", c="k", lw=0.8)
+    ax.set_xlabel("Hz")
+    ax.legend()
+    # amplitude and direction
+    a = np.abs(ctx.yhat[v] - ctx.yhat[v].mean(axis=0)).max(axis=1)
+    edges, rms = R.by_amplitude(r[v], a, 8)
+    fig, ax = rep.figure(f"{sub}_amplitude", "Residual RMS against amplitude, and mean "
+                         "residual by direction of input motion", ncols=2)
+    ax[0].plot(0.5 * (edges[1:] + edges[:-1]), rms, "o-")
+    ax[0].set_xlabel("|model output|")
+    ax[0].set_ylabel("residual RMS")
+    d = R.by_direction(r[v], ctx.u[v, 0])
+    ax[1].bar(["rising", "falling", "holding"], [float(np.mean(d[k])) for k in
+                                                  ("rising", "falling", "holding")])
+    ax[1].set_title(f"by direction of {ctx.label(0, 'in')}")
+    # angle
+    if ctx.phi is not None:
+        cen, mean = R.by_angle(r, ctx.phi)
+        fig = rep.figure(f"{sub}_polar", "Mean residual against shaft angle",
+                         subplot_kw={"projection": "polar"})[0]
+        axp = fig.axes[0]
+        for i in range(ctx.ny):
+            axp.plot(np.r_[cen, cen[0]], np.r_[mean[:, i], mean[0, i]], label=ctx.label(i))
+        axp.legend()
+    # correlation tests
+    fig, ax = rep.figure(f"{sub}_resid", "Whiteness and residual–input cross-correlation "
+                         "with 99 % bounds (as MATLAB resid)", ncols=2)
+    w = R.whiteness(r[v, 0])
+    ax[0].stem(w.lags, w.rho)
+    ax[0].axhline(w.bound, c="r", ls="--")
+    ax[0].axhline(-w.bound, c="r", ls="--")
+    ax[0].set_title(f"autocorrelation of {ctx.label(0)} residual")
+    c = R.cross_correlation(r[v, 0], ctx.u[v, 0])
+    ax[1].stem(c.lags, c.rho)
+    ax[1].axhline(c.bound, c="r", ls="--")
+    ax[1].axhline(-c.bound, c="r", ls="--")
+    ax[1].set_title(f"{ctx.label(0)} residual vs {ctx.label(0, 'in')}")
+    # before/after for top findings
+    for fnd in [x for x in sd.findings if x.significant][:3]:
+        ref = sd.refits.get(fnd.effect)
+        if ref is None:
+            continue
+        fig, ax = rep.figure(f"{sub}_with_{fnd.effect}",
+                             f"Adding {fnd.effect}: fit {sd.fit_percent:.1f} % -> "
+                             f"{ref.fit_percent:.1f} %")
+        ax.plot(t[v], ctx.residual[v, 0], lw=0.5, label="residual, base model")
+        ax.plot(t[v], (ctx.y - ref.yhat)[v, 0], lw=0.5, label=f"residual with {fnd.effect}")
+        ax.legend()
