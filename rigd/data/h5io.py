@@ -47,6 +47,20 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def _decode_attr(v: Any) -> Any:
+    """Undo the recorder's attribute encoding: ``"null"`` -> None, JSON lists/dicts."""
+    if v == "null":
+        return None
+    if isinstance(v, str) and v[:1] in "[{":
+        import json
+
+        try:
+            return json.loads(v)
+        except ValueError:
+            return v
+    return v
+
+
 @dataclass
 class Recording:
     """An open HDF5 recording: channel names, metadata and the frames dataset."""
@@ -123,7 +137,11 @@ def open_recording(path: str | Path) -> Iterator[Recording]:
         if len(set(names)) != len(names):
             raise InputError("duplicate channel names in /frames", spath)
         units = [str(u) for u in _plain(ds.attrs.get("units", [""] * len(names)))]
-        meta = {k: _plain(v) for k, v in f.attrs.items()}
+        meta = {k: _decode_attr(_plain(v)) for k, v in f.attrs.items()}
+        for k in ("omega_rpm", "p_inj_bar"):
+            v = meta.get(k)
+            if isinstance(v, float) and not np.isfinite(v):
+                del meta[k]          # the recorder writes NaN for "not known"
         if "fs" not in meta:
             raise InputError("no 'fs' attribute (sample rate) on the file", spath)
         try:

@@ -1,0 +1,173 @@
+"""Run directories and their ``manifest.json``.
+
+Every experiment run writes into a NEW directory (never reused, nothing overwritten)::
+
+    RUN_DIR/
+      manifest.json                     # rewritten atomically after every point
+      p000_w0_p4_prbs.h5                # one or more records per operating point
+      p001_w3000_p4_impact_k0_r0.h5 ...
+
+``manifest.json`` (format ``rigd_manifest: 1``)::
+
+    {"rigd_manifest": 1, "experiment": {"name", "kind", "source", "spec", "spec_sha256"},
+     "status": "running" | "complete" | "interrupted" | "failed",
+     "started": ISO, "finished": ISO | null, "host": str, "mode": "lockstep" | "realtime",
+     "software": {"rigd_version", "python", "numpy", "h5py"},
+     "config": {"path": str | null, "sha256": str | null}, "fs_hz": float,
+     "points": [{"index", "omega_rpm", "p_inj_bar", "status": "done" | "missing" | "failed"
+                 | "not_settled" | "running", "files": [names], "error": str | null,
+                 "started", "finished"}],
+     "files": [{"path", "point", "kind", "omega_rpm", "p_inj_bar", "n_frames",
+                "controller_on", "repeat", ...}],
+     "missing": [point indices not completed], "message": str}
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import os
+import platform
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rigd import __version__
+from rigd.errors import InputError
+from rigd.fileio import atomic_write_text
+
+MANIFEST = "manifest.json"
+
+
+def now_iso() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
+
+
+def sha256_text(text: str | bytes | None) -> str | None:
+    if text is None:
+        return None
+    if isinstance(text, str):
+        text = text.encode("utf-8")
+    return "sha256:" + hashlib.sha256(text).hexdigest()
+
+
+def software() -> dict[str, str]:
+    import h5py
+    import numpy
+
+    return {"rigd_version": __version__, "python": platform.python_version(),
+            "numpy": numpy.__version__, "h5py": h5py.__version__}
+
+
+def new_run_dir(out: str | Path | None, name: str, root: str | Path = "runs") -> Path:
+    """Create a new, empty run directory.
+
+    ``out`` given: it must not exist (or be an empty directory). Otherwise
+    ``root/<UTC time>-<name>`` with a ``-2``, ``-3``... suffix if taken. ``os.mkdir`` is
+    atomic, so two runs never share a directory.
+    """
+    if out is not None:
+        p = Path(out)
+        if p.exists():
+            if not p.is_dir():
+                raise InputError("exists and is not a directory", str(p))
+            if any(p.iterdir()):
+                raise InputError("run directory exists and is not empty: nothing is ever "
+                                 "overwritten, choose a new one", str(p))
+            return p
+        p.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            p.mkdir()
+        except FileExistsError:
+            raise InputError("run directory appeared meanwhile; choose a new one",
+                             str(p)) from None
+        return p
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    safe = re.sub(r"[^A-Za-z0-9_.\-]+", "_", name)[:60] or "run"
+    for i in range(1, 10000):
+        p = root / (f"{stamp}-{safe}" + (f"-{i}" if i > 1 else ""))
+        try:
+            p.mkdir()
+            return p
+        except FileExistsError:
+            continue
+    raise InputError("cannot create a new run directory", str(root))  # pragma: no cover
+
+
+@dataclass
+class Manifest:
+    """The manifest of one run, kept in memory and written after every change."""
+
+    run_dir: Path
+    experiment: dict[str, Any]
+    mode: str
+    fs_hz: float
+    config: dict[str, Any] = field(default_factory=lambda: {"path": None, "sha256": None})
+    points: list[dict[str, Any]] = field(default_factory=list)
+    files: list[dict[str, Any]] = field(default_factory=list)
+    status: str = "running"
+    started: str = field(default_factory=now_iso)
+    finished: str | None = None
+    message: str = ""
+
+    @property
+    def path(self) -> Path:
+        return self.run_dir / MANIFEST
+
+    @property
+    def missing(self) -> list[int]:
+        return [p["index"] for p in self.points if p["status"] != "done"]
+
+    def add_point(self, omega_rpm: float | None, p_inj_bar: float | None) -> dict[str, Any]:
+        pt = {"index": len(self.points), "omega_rpm": omega_rpm, "p_inj_bar": p_inj_bar,
+              "status": "missing", "files": [], "error": None, "started": None,
+              "finished": None}
+        self.points.append(pt)
+        return pt
+
+    def add_file(self, point: dict[str, Any], path: Path, **info: Any) -> None:
+        rel = os.path.relpath(path, self.run_dir)
+        point["files"].append(rel)
+        self.files.append({"path": rel, "point": point["index"], **info})
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "rigd_manifest": 1,
+            "experiment": self.experiment,
+            "status": self.status,
+            "started": self.started,
+            "finished": self.finished,
+            "host": platform.node(),
+            "mode": self.mode,
+            "software": software(),
+            "config": self.config,
+            "fs_hz": self.fs_hz,
+            "points": self.points,
+            "files": self.files,
+            "missing": self.missing,
+            "message": self.message,
+        }
+
+    def write(self) -> None:
+        """Write ``manifest.json`` atomically (never a half-written manifest)."""
+        atomic_write_text(self.path, json.dumps(self.to_dict(), indent=2, default=str) + "\n")
+
+
+def read_manifest(run_dir: str | Path) -> dict[str, Any]:
+    """Load a run directory's manifest (InputError if missing or not a manifest)."""
+    p = Path(run_dir)
+    if p.is_dir():
+        p = p / MANIFEST
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("no manifest.json (not a run directory)", str(p)) from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"unreadable manifest: {exc}", str(p)) from None
+    if not isinstance(data, dict) or data.get("rigd_manifest") != 1:
+        raise InputError("not a rigd manifest (rigd_manifest: 1 missing)", str(p))
+    return data

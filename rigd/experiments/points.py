@@ -1,0 +1,232 @@
+"""One experiment at one operating point: plays it on the loop and writes its record(s).
+
+Records are written to ``<name>.h5.part`` by the loop's recorder and renamed to ``<name>.h5``
+only when the segment completed: an interrupted point leaves no file behind.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from rigd.errors import InputError
+from rigd.experiments import signals
+from rigd.experiments.schemas import (ChirpSpec, ImpactSpec, MultilevelSpec, MultisineSpec,
+                                      PrbsSpec, RunoutSpec)
+
+
+class PointFailed(Exception):
+    """The point could not be recorded (no hammer hit, not settled, ...): one line."""
+
+
+def _n(seconds: float, fs: float) -> int:
+    return int(round(seconds * fs))
+
+
+def loop_fs(loop: Any) -> float:
+    """The loop rate, Hz."""
+    fs = getattr(loop, "fs", None) or getattr(loop, "fs_hz", None)
+    if fs is None:
+        fs = loop.status().get("fs_hz")
+    return float(fs)
+
+
+def sim_plant(loop: Any) -> Any | None:
+    """The simulated plant driver of an in-process loop (has ``impact``), or None."""
+    for name in ("fast", "plant", "driver", "fast_driver"):
+        d = getattr(loop, name, None)
+        if d is not None and callable(getattr(d, "impact", None)):
+            return d
+    return None
+
+
+def check_against_rate(spec: Any, fs: float, where: str) -> None:
+    """Refuse requests the loop rate cannot honour (before anything runs)."""
+    nyq = fs / 2.0
+    if isinstance(spec, (PrbsSpec, MultilevelSpec)) and spec.min_hold_s is not None:
+        if spec.min_hold_s < 1.0 / fs * 0.5:
+            raise InputError(f"min_hold_s {spec.min_hold_s} is shorter than one loop period "
+                             f"(1/{fs:g} s)", f"{where}: min_hold_s")
+    if isinstance(spec, MultisineSpec):
+        if spec.f_max_hz >= nyq:
+            raise InputError(f"f_max_hz must be below the Nyquist frequency {nyq:g} Hz",
+                             f"{where}: f_max_hz")
+        _, k = signals.multisine_lines(fs, spec.period_s, spec.f_min_hz, spec.f_max_hz,
+                                       spec.lines)
+        if k.size == 0:
+            raise InputError("no frequency line of the grid 1/period_s falls in "
+                             "[f_min_hz, f_max_hz]", f"{where}: period_s")
+    if isinstance(spec, ChirpSpec) and max(spec.f0_hz, spec.f1_hz) >= nyq:
+        raise InputError(f"chirp frequencies must be below the Nyquist frequency {nyq:g} Hz",
+                         f"{where}: f1_hz")
+    if isinstance(spec, ImpactSpec) and spec.pulse_s < 1.0 / fs:
+        raise InputError(f"pulse_s shorter than one loop period (1/{fs:g} s)",
+                         f"{where}: pulse_s")
+
+
+def excitation(spec: Any, fs: float) -> np.ndarray:
+    """The (n, 2) excitation of an excitation-kind spec (quiet lead-in included)."""
+    common = {"axes": tuple(spec.axes), "lead_in_s": spec.lead_in_s}
+    if isinstance(spec, PrbsSpec):
+        return signals.prbs(fs, spec.duration_s, spec.amplitude_v,
+                            switch_probability=spec.switch_probability,
+                            min_hold_s=spec.min_hold_s, seed=spec.seed, **common)
+    if isinstance(spec, MultilevelSpec):
+        return signals.multilevel(fs, spec.duration_s, spec.amplitude_v, levels=spec.levels,
+                                  switch_probability=spec.switch_probability,
+                                  min_hold_s=spec.min_hold_s, seed=spec.seed, **common)
+    if isinstance(spec, MultisineSpec):
+        return signals.multisine(fs, spec.amplitude_v, period_s=spec.period_s,
+                                 periods=spec.periods, f_min_hz=spec.f_min_hz,
+                                 f_max_hz=spec.f_max_hz, lines=spec.lines, seed=spec.seed,
+                                 **common)
+    if isinstance(spec, ChirpSpec):
+        return signals.chirp(fs, spec.duration_s, spec.amplitude_v, f0_hz=spec.f0_hz,
+                             f1_hz=spec.f1_hz, method=spec.method, **common)
+    raise TypeError(f"not an excitation spec: {type(spec).__name__}")  # pragma: no cover
+
+
+def segments(spec: Any) -> int:
+    """How many recorded segments a point spec produces (for progress)."""
+    if isinstance(spec, ImpactSpec):
+        return len(spec.controller) * spec.repeats
+    return 1
+
+
+class PointRunner:
+    """Runs one point spec on ``loop`` and registers its files in the manifest."""
+
+    def __init__(self, loop: Any, manifest: Any, fs: float, base_meta: dict[str, Any],
+                 tick: Callable[[str], None], should_stop: Callable[[], bool]):
+        self.loop = loop
+        self.manifest = manifest
+        self.fs = fs
+        self.base_meta = base_meta
+        self.tick = tick
+        self.should_stop = should_stop
+        self._part: Path | None = None
+
+    # -- recording with .part + rename ---------------------------------------------------
+    def _record(self, path: Path, meta: dict[str, Any], exc: np.ndarray, *, controller_on: bool,
+                events=()) -> Any:
+        from rigd.loop.recorder import RecordSpec
+
+        part = path.with_name(path.name + ".part")
+        self._part = part
+        res = self.loop.run_segment(exc, record=RecordSpec(str(part), meta), events=list(events),
+                                    controller_on=controller_on)
+        os.replace(part, path)
+        self._part = None
+        return res
+
+    def discard_partial(self) -> None:
+        """Remove the half-recorded file of an interrupted segment."""
+        if self._part is not None:
+            try:
+                self._part.unlink()
+            except FileNotFoundError:
+                pass
+            self._part = None
+
+    def _meta(self, spec: Any, point: dict[str, Any], **extra: Any) -> dict[str, Any]:
+        m = dict(self.base_meta)
+        m.update({"kind": spec.kind, "omega_rpm": point["omega_rpm"],
+                  "p_inj_bar": point["p_inj_bar"], "point": point["index"]})
+        m.update(extra)
+        return m
+
+    def _n_frames(self, res: Any, default: int) -> int:
+        n = getattr(res, "n_frames", None)
+        return int(n) if n is not None else default
+
+    def run(self, spec: Any, point: dict[str, Any], stem: str) -> None:
+        rd = self.manifest.run_dir
+        if isinstance(spec, ImpactSpec):
+            self._impact(spec, point, stem)
+            return
+        if isinstance(spec, RunoutSpec):
+            omega = point["omega_rpm"]
+            if not omega or omega <= 0:
+                raise PointFailed("runout needs a turning shaft (omega_rpm > 0)")
+            n = _n(spec.duration_s(omega), self.fs)
+            exc = np.zeros((n, 2))
+            ctrl = spec.controller
+            extra = {"revolutions": spec.revolutions, "controller_on": ctrl}
+        else:
+            exc = excitation(spec, self.fs)
+            ctrl = spec.controller
+            extra = {"signal": spec.model_dump_json(exclude={"operating_point", "name",
+                                                             "description"}),
+                     "lead_in_samples": _n(spec.lead_in_s, self.fs), "controller_on": ctrl}
+        path = rd / f"{stem}_{spec.kind}.h5"
+        res = self._record(path, self._meta(spec, point, **extra), exc, controller_on=ctrl)
+        self.manifest.add_file(point, path, kind=spec.kind, omega_rpm=point["omega_rpm"],
+                               p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
+                               n_frames=self._n_frames(res, len(exc)))
+        self.tick(f"{spec.kind} point {point['index']}")
+
+    # -- impacts ---------------------------------------------------------------------------
+    def _impact(self, spec: ImpactSpec, point: dict[str, Any], stem: str) -> None:
+        rd = self.manifest.run_dir
+        n_pre, n_post = _n(spec.pre_s, self.fs), _n(spec.post_s, self.fs)
+        plant = sim_plant(self.loop) if spec.trigger == "sim" else None
+        if spec.trigger == "sim" and plant is None:
+            raise PointFailed("trigger 'sim' needs the simulated plant's hammer; on a real rig "
+                              "use trigger: operator")
+        for ctrl in spec.controller:
+            for r in range(spec.repeats):
+                if self.should_stop():
+                    return
+                if spec.spacing_s > 0:  # let the previous response decay, unrecorded
+                    self.loop.run_segment(np.zeros((_n(spec.spacing_s, self.fs), 2)),
+                                          controller_on=ctrl)
+                path = rd / f"{stem}_impact_{spec.axis}_k{int(ctrl)}_r{r}.h5"
+                meta = self._meta(spec, point, axis=spec.axis, controller_on=ctrl, repeat=r,
+                                  pre_s=spec.pre_s, post_s=spec.post_s,
+                                  trigger_index=n_pre, trigger=spec.trigger)
+                if spec.trigger == "sim":
+                    meta.update(peak_n=spec.peak_n, pulse_s=spec.pulse_s)
+                    hit = (lambda a=spec.axis, f=spec.peak_n, d=spec.pulse_s:
+                           plant.impact(a, f, d))
+                    res = self._record(path, meta, np.zeros((n_pre + n_post, 2)),
+                                       controller_on=ctrl, events=[(n_pre, hit)])
+                    n = self._n_frames(res, n_pre + n_post)
+                else:
+                    n = self._operator_hit(spec, path, meta, ctrl, n_pre, n_post)
+                self.manifest.add_file(point, path, kind="impact", omega_rpm=point["omega_rpm"],
+                                       p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
+                                       repeat=r, axis=spec.axis, n_frames=n,
+                                       trigger_index=n_pre)
+                self.tick(f"impact k={'on' if ctrl else 'off'} #{r + 1}")
+
+    def _operator_hit(self, spec: ImpactSpec, path: Path, meta: dict[str, Any], ctrl: bool,
+                      n_pre: int, n_post: int) -> int:
+        """Record up to ``timeout_s`` while the operator hits; keep the window around the
+        first sample where |f_axis| >= trigger_n."""
+        from rigd.data.h5io import read_h5, write_h5
+
+        tmp = path.with_name(path.name + ".wait")
+        n_wait = _n(spec.timeout_s, self.fs)
+        try:
+            self._record(tmp, meta, np.zeros((n_wait, 2)), controller_on=ctrl)
+            rec = read_h5(tmp)
+        finally:
+            self.discard_partial()
+        try:
+            f = rec.col(f"f_{spec.axis}")
+            above = np.flatnonzero(np.abs(f) >= spec.trigger_n)
+            if above.size == 0:
+                raise PointFailed(f"no hammer hit above {spec.trigger_n:g} N on f_{spec.axis} "
+                                  f"within {spec.timeout_s:g} s")
+            i = int(above[0])
+            if i < n_pre or i + n_post > rec.n:
+                raise PointFailed("hammer hit too close to the start or end of the wait window")
+            win = rec.slice(i - n_pre, i + n_post)
+            win.meta.update(meta)
+            write_h5(path, win)
+            return win.n
+        finally:
+            tmp.unlink(missing_ok=True)
