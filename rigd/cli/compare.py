@@ -21,6 +21,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="which part of the record (the model file's split) to compare")
     p.add_argument("--report", metavar="DIR", help="write an HTML report into DIR")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    from rigd.cli.identify import add_range_argument
+
+    add_range_argument(p)
     g = p.add_argument_group("plain CSV without rig-data metadata (e.g. Silverbox)")
     g.add_argument("--fs", help="sample rate, Hz (number or ratio)")
     g.add_argument("--inputs", help="comma-separated input columns")
@@ -28,12 +31,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigd.cli.identify import load_data
+    from rigd.cli.identify import apply_range, load_data
     from rigd.ident.compare import compare_model, summary, write_report
     from rigd.ident.modelfile import load_model
 
     model = load_model(args.model)
-    record = load_data(args.data, args.fs, args.inputs, args.outputs)
+    record = apply_range(load_data(args.data, args.fs, args.inputs, args.outputs), args.range)
     runout = load_data(args.runout) if args.runout else None
     comps = compare_model(model, record, runout, args.part)
     res = summary(comps)

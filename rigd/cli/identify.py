@@ -42,10 +42,34 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="do not apply the run-out filter even with --runout")
     p.add_argument("--jobs", type=int, default=None,
                    help="parallel processes for a run directory (default: all cores)")
+    p.add_argument("--offset-samples", type=int, default=2000,
+                   help="offsets = mean of the first N samples (default 2000, the paper's)")
+    add_range_argument(p)
     g = p.add_argument_group("plain CSV without rig-data metadata (e.g. Silverbox)")
     g.add_argument("--fs", help="sample rate, Hz (number or ratio, e.g. 10000000/16384)")
     g.add_argument("--inputs", help="comma-separated input columns")
     g.add_argument("--outputs", help="comma-separated output columns")
+
+
+def add_range_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--range", metavar="START:STOP", help="use only samples START:STOP of the "
+                   "record (Python slice, e.g. 40000: or 0:40000)")
+
+
+def apply_range(record, text: str | None):
+    """``record`` sliced by ``START:STOP`` (InputError on a malformed or empty range)."""
+    if not text:
+        return record
+    try:
+        a, b = text.split(":")
+        start = int(a) if a.strip() else None
+        stop = int(b) if b.strip() else None
+    except ValueError:
+        raise InputError(f"--range must look like START:STOP, got {text!r}", "--range") from None
+    out = record.slice(start, stop)
+    if out.n == 0:
+        raise InputError(f"--range {text} selects no samples of {record.n}", "--range")
+    return out
 
 
 def load_data(path: str, fs: str | None = None, inputs: str | None = None,
@@ -82,8 +106,11 @@ def parse_effects(text: str | None) -> list[str]:
 def prefilter_options(args):
     from rigd.ident.prefilter import PrefilterOptions
 
+    if args.offset_samples <= 0:
+        raise InputError("--offset-samples must be positive", "--offset-samples")
     return PrefilterOptions(offsets=not args.no_offsets, median=not args.no_median,
-                            runout=not args.no_runout_filter)
+                            runout=not args.no_runout_filter,
+                            offset_samples=args.offset_samples)
 
 
 def summary_json(model, effects: list[str]) -> dict:
@@ -146,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     from rigd.ident.workflow import identify_record
 
-    record = load_data(args.data, args.fs, args.inputs, args.outputs)
+    record = apply_range(load_data(args.data, args.fs, args.inputs, args.outputs), args.range)
     runout = load_data(args.runout) if args.runout else None
     init = load_model(args.init) if args.init else None
     model = identify_record(record, args.model, runout=runout, options=prefilter_options(args),

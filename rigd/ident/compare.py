@@ -45,7 +45,9 @@ class Comparison:
 
 def _options_from(model: ModelFile, name: str) -> PrefilterOptions:
     rep = model.prefilters.get(name, {}) if isinstance(model.prefilters, dict) else {}
-    return PrefilterOptions(offsets=bool(rep.get("offsets", True)),
+    offs = rep.get("offsets", True)
+    n_off = offs.get("samples", 2000) if isinstance(offs, dict) else 2000
+    return PrefilterOptions(offsets=bool(offs), offset_samples=int(n_off),
                             median=bool(rep.get("median", True)),
                             runout=bool(rep.get("runout", True)))
 

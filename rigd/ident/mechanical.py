@@ -42,7 +42,11 @@ class MechanicalStructure(Structure):
     """
 
     def __init__(self, kind, mask_K, mask_D, mask_B, mask_Bd, prefix="", out_labels=None,
-                 in_labels=None, input_names=None, output_names=None, x0_name="x0_"):
+                 in_labels=None, input_names=None, output_names=None, x0_name="x0_",
+                 hold="zoh"):
+        if hold not in ("zoh", "foh"):
+            raise ValueError(f"hold must be 'zoh' or 'foh', got {hold!r}")
+        self.hold = hold
         self.kind = kind
         self.mask_K = np.asarray(mask_K, bool)
         self.mask_D = np.asarray(mask_D, bool)
@@ -121,11 +125,18 @@ class MechanicalStructure(Structure):
         sc[self._x0 + self.n:] = xs * wmax
         return sc
 
+    def _hooks(self, hooks):
+        hooks = hooks or Hooks()
+        hooks.hold = self.hold
+        return hooks
+
     def simulate(self, theta, data, hooks: Hooks | None = None):
+        hooks = self._hooks(hooks)
         K, D, B, Bd, x0 = self.unpack(theta)
         return simulate_mechanical(K, D, B, x0, data.u, data.fs, hooks)
 
     def predict(self, theta, data, hooks: Hooks | None = None):
+        hooks = self._hooks(hooks)
         K, D, B, Bd, x0 = self.unpack(theta)
         return predict_mechanical(K, D, B, Bd, x0, data.u, data.y, data.fs, hooks)
 
@@ -174,7 +185,8 @@ class MechanicalStructure(Structure):
                 "static_gain": G0.tolist()}
 
     def spec(self):
-        d = {"kind": self.kind, "inputs": self.input_names, "outputs": self.output_names}
+        d = {"kind": self.kind, "inputs": self.input_names, "outputs": self.output_names,
+             "hold": self.hold}
         if self.kind == "generic":
             d["n"] = self.n
             d["nu"] = self.nu
@@ -220,12 +232,17 @@ def actuator_structure() -> ActuatorStructure:
                              ["r_x", "r_y"], ["u_x", "u_y"], x0_name="xa0_")
 
 
-def generic_structure(inputs: list[str], outputs: list[str]) -> MechanicalStructure:
-    """n-DOF M p̈ + D ṗ + K p = B u (mass-normalised) for records from other rigs."""
+def generic_structure(inputs: list[str], outputs: list[str],
+                      hold: str = "foh") -> MechanicalStructure:
+    """n-DOF M p̈ + D ṗ + K p = B u (mass-normalised) for records from other rigs.
+
+    The inputs of other rigs are usually measured, smooth signals, so they are taken as
+    linear between samples (first-order hold) by default.
+    """
     n, nu = len(outputs), len(inputs)
     return MechanicalStructure("generic", np.ones((n, n), bool), np.ones((n, n), bool),
                                np.ones((n, nu), bool), np.ones((n, n), bool), "", None, None,
-                               inputs, outputs)
+                               inputs, outputs, hold=hold)
 
 
 def structure_for(submodel: str, data: IdData | None = None, spec: dict | None = None):
@@ -236,6 +253,7 @@ def structure_for(submodel: str, data: IdData | None = None, spec: dict | None =
         return bearing_structure()
     if submodel == "generic":
         if spec is not None:
-            return generic_structure(list(spec["inputs"]), list(spec["outputs"]))
+            return generic_structure(list(spec["inputs"]), list(spec["outputs"]),
+                                     spec.get("hold") or "foh")
         return generic_structure(data.input_names, data.output_names)
     raise ValueError(f"unknown sub-model {submodel!r}")

@@ -62,6 +62,7 @@ class StructureSpec(StrictModel):
     outputs: list[str]
     n: int | None = None
     nu: int | None = None
+    hold: str | None = None
     effects: list[str] = Field(default_factory=list)
 
 

@@ -201,6 +201,35 @@ def zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray
     return np.ascontiguousarray(E[:nx, :nx]), np.ascontiguousarray(E[:nx, nx:])
 
 
+def foh(A: np.ndarray, B: np.ndarray, dt: float):
+    """First-order-hold (triangle) discretisation: input linear between samples.
+
+    x[k+1] = Ad x[k] + B0 u[k] + B1 u[k+1]; returns (Ad, B0, B1).
+    """
+    nx, nb = A.shape[0], B.shape[1]
+    M = np.zeros((nx + 2 * nb, nx + 2 * nb))
+    M[:nx, :nx] = A * dt
+    M[:nx, nx:nx + nb] = B * dt
+    M[nx:nx + nb, nx + nb:] = np.eye(nb)
+    E = expm_kernel(M) if np.all(np.isfinite(M)) else np.full_like(M, np.nan)
+    G1, G2 = E[:nx, nx:nx + nb], E[:nx, nx + nb:]
+    return (np.ascontiguousarray(E[:nx, :nx]), np.ascontiguousarray(G1 - G2),
+            np.ascontiguousarray(G2))
+
+
+def _discrete(A, Bc, dt, hold, u):
+    """(Ad, Bd, u_eff): ZOH, or FOH written as a ZOH system on inputs [u[k], u[k+1]]."""
+    if hold == "foh":
+        Ad, B0, B1 = foh(A, Bc, dt)
+        un = np.empty_like(u)
+        un[:-1] = u[1:]
+        un[-1:] = u[-1:]
+        return Ad, np.ascontiguousarray(np.hstack([B0, B1])), np.ascontiguousarray(
+            np.hstack([u, un]))
+    Ad, Bd = zoh(A, Bc, dt)
+    return Ad, Bd, u
+
+
 def mechanical_abc(K, D, B):
     """State-space matrices of p̈ + D ṗ + K p = B u with x = [p, ṗ] (Eq. 6)."""
     n = K.shape[0]
@@ -249,6 +278,9 @@ class Hooks:
         Added to K, D, B (cross-coupling terms of a decoupled model ...).
     nsub : int
         RK4 sub-steps per sample for the nonlinear path.
+    hold : {"zoh", "foh"}
+        Input between samples: held (commanded signals) or linear (measured, smooth
+        signals). Set by the structure; the nonlinear path always holds.
     """
 
     delay: int = 0
@@ -260,6 +292,7 @@ class Hooks:
     dD: np.ndarray | None = None
     dB: np.ndarray | None = None
     nsub: int = 2
+    hold: str = "zoh"
 
     def transform_input(self, u: np.ndarray) -> np.ndarray:
         if self.delay > 0:
@@ -323,20 +356,28 @@ def simulate_mechanical(K, D, B, x0, u, fs, hooks: Hooks | None = None) -> np.nd
                      1.0 / fs, int(hooks.nsub), y, False, y)
     else:
         A, Bc, C = mechanical_abc(K, D, B)
-        Ad, Bd = zoh(A, Bc, 1.0 / fs)
-        lsim_kernel(Ad, Bd, C, x0, uu, y)
+        Ad, Bd, ue = _discrete(A, Bc, 1.0 / fs, hooks.hold, uu)
+        lsim_kernel(Ad, Bd, C, x0, ue, y)
     add = hooks.additive_output(uu, 1.0 / fs, m)
     return y if add is None else y + add
 
 
-def predictor_gain(K, D, B, Bdist, fs):
-    """Discrete (Ad, Bd, Kd) of Eq. 5: d enters the states through 𝓑_d = [0; B_d] (ZOH)."""
+def predictor_gain(K, D, B, Bdist, fs, hold="zoh", u=None):
+    """Discrete (Ad, Bd, Kd, C, u_eff) of Eq. 5: d enters the states through 𝓑_d = [0; B_d].
+
+    The disturbance is discretised with a zero-order hold (its gain is the innovation gain
+    Kd); the input with ``hold`` (``u_eff`` is the input sequence the kernel needs).
+    """
     A, Bc, C = mechanical_abc(K, D, B)
     m = K.shape[0]
     Bdc = np.zeros((2 * m, m))
     Bdc[m:, :] = Bdist
-    Ad, BB = zoh(A, np.hstack([Bc, Bdc]), 1.0 / fs)
-    return Ad, np.ascontiguousarray(BB[:, :Bc.shape[1]]), np.ascontiguousarray(BB[:, Bc.shape[1]:]), C
+    Ad, Kd = zoh(A, Bdc, 1.0 / fs)
+    if u is None:
+        _, Bd = zoh(A, Bc, 1.0 / fs)
+        return Ad, Bd, Kd, C, None
+    _, Bd, ue = _discrete(A, Bc, 1.0 / fs, hold, u)
+    return Ad, Bd, Kd, C, ue
 
 
 def predict_mechanical(K, D, B, Bdist, x0, u, y, fs, hooks: Hooks | None = None):
@@ -351,7 +392,7 @@ def predict_mechanical(K, D, B, Bdist, x0, u, y, fs, hooks: Hooks | None = None)
     u = np.ascontiguousarray(u, dtype=float)
     uu = hooks.transform_input(u)
     m = K.shape[0]
-    Ad, Bd, Kd, C = predictor_gain(K, D, B, np.asarray(Bdist, float), fs)
+    Ad, Bd, Kd, C, ue = predictor_gain(K, D, B, np.asarray(Bdist, float), fs, hooks.hold, uu)
     if np.max(np.abs(np.linalg.eigvals(Ad - Kd @ C))) >= 1.0:
         return None
     add = hooks.additive_output(uu, 1.0 / fs, m)
@@ -362,5 +403,5 @@ def predict_mechanical(K, D, B, Bdist, x0, u, y, fs, hooks: Hooks | None = None)
         cubic_kernel(K, D, B, np.asarray(hooks.k3, float), Kd, x0, uu, 1.0 / fs,
                      int(hooks.nsub), ym, True, yhat)
     else:
-        predict_kernel(Ad, Bd, Kd, C, x0, uu, ym, yhat)
+        predict_kernel(Ad, Bd, Kd, C, x0, ue, ym, yhat)
     return yhat if add is None else yhat + add
