@@ -1,0 +1,77 @@
+"""Fault codes of the supervisor: stable numbers and names (recorded in the ``fault`` channel).
+
+Any violation puts the loop into the *safe state* within the cycle that detects it: K∞ output
+off, excitation off, valve references r_p,i = r0, the PD loops keep holding the valves there.
+The code is LATCHED (the first fault wins) until an explicit ``ControlLoop.reset_fault()``; a
+reset while the cause persists latches again on the next cycle.
+
+The numbers are part of the recording format and of the service protocol: never renumber,
+only append.
+"""
+
+from __future__ import annotations
+
+NONE = 0
+SENSOR_NAN = 1          # a sensor channel (e_x, e_y, y_p1..4, phi) is NaN or infinite
+SENSOR_RANGE = 2        # e_x/e_y or y_p,i outside the configured sensor range
+STALE_FRAME = 3         # the fast driver's frame counter (drv_seq) repeated too long
+ENCODER_LOST = 4        # phi frozen while Ω > threshold, or driver status bit ENCODER
+VALVE_TRACKING = 5      # |r_p,i - y_p,i| above the limit for longer than allowed
+SHAFT_DISPLACEMENT = 6  # radial shaft displacement beyond the allowed fraction of the film gap
+OVERRUN_STORM = 7       # too many real-time overruns within the window
+DRIVER_EXCEPTION = 8    # a driver raised in read/write (Python side)
+DRIVER_STATUS = 9       # the fast driver reported a fault status bit (other than encoder)
+RECORDER_OVERFLOW = 10  # the recorder ring buffer was full: frames could not be recorded
+SLOW_DRIVER = 11        # a slow driver failed (device unreachable) or its data went stale
+OPERATOR_STOP = 12      # safe state requested by the operator / service
+
+#: code -> (name, one-line explanation)
+FAULTS: dict[int, tuple[str, str]] = {
+    NONE: ("none", "no fault"),
+    SENSOR_NAN: ("sensor_nan", "a sensor channel is NaN or infinite"),
+    SENSOR_RANGE: ("sensor_range", "a sensor channel is outside its configured range"),
+    STALE_FRAME: ("stale_frame", "the fast driver delivered the same frame repeatedly"),
+    ENCODER_LOST: ("encoder_lost", "encoder angle frozen while the shaft turns, or encoder status bit"),
+    VALVE_TRACKING: ("valve_tracking", "a valve stayed far from its reference for too long"),
+    SHAFT_DISPLACEMENT: ("shaft_displacement", "shaft displacement beyond the allowed fraction of the 25 um film gap"),
+    OVERRUN_STORM: ("overrun_storm", "too many real-time cycle overruns"),
+    DRIVER_EXCEPTION: ("driver_exception", "a driver raised an exception"),
+    DRIVER_STATUS: ("driver_status", "the fast driver reported a fault status"),
+    RECORDER_OVERFLOW: ("recorder_overflow", "recorder ring buffer full: frames not recorded"),
+    SLOW_DRIVER: ("slow_driver", "a slow driver failed or its data went stale"),
+    OPERATOR_STOP: ("operator_stop", "safe state requested by the operator"),
+}
+
+#: fast-driver status bits (``drv_status`` input channel)
+STATUS_ENCODER = 1      # bit 0: encoder signal lost
+STATUS_SENSOR = 2       # bit 1: sensor/ADC fault
+# any other bit: generic driver fault
+
+#: input-frame channel names used as fault details (index into rigd.frame.IN_NAMES)
+
+
+def fault_name(code: int) -> str:
+    """Stable short name of a fault code (``"unknown_<n>"`` for an unknown code)."""
+    return FAULTS.get(int(code), (f"unknown_{int(code)}", ""))[0]
+
+
+def fault_text(code: int) -> str:
+    """One-line explanation of a fault code."""
+    return FAULTS.get(int(code), ("", f"unknown fault code {int(code)}"))[1]
+
+
+def describe(code: int, detail: int) -> str:
+    """Human text for a latched fault with its detail (channel or valve index)."""
+    from rigd.frame import IN_NAMES
+
+    code, detail = int(code), int(detail)
+    text = fault_text(code)
+    if detail >= 0:
+        if code in (SENSOR_NAN, SENSOR_RANGE):
+            name = IN_NAMES[detail] if detail < len(IN_NAMES) else str(detail)
+            text += f" (channel {name})"
+        elif code == VALVE_TRACKING:
+            text += f" (valve {detail + 1})"
+        elif code == DRIVER_STATUS:
+            text += f" (status bits {detail:#x})"
+    return text

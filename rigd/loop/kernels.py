@@ -1,0 +1,388 @@
+"""The cycle as numba kernels on preallocated float64 arrays (no allocation, no Python).
+
+One cycle (docs/ARCHITECTURE.md, "The cycle")::
+
+    calibrate the input frame -> supervisor checks (latch a fault -> safe state)
+    -> K∞(z): k = C x + D e, x+ = A x + B e with e = -(p - p_eq)   (hot standby)
+    -> r = ramp * k + excitation -> r_p = map(r)  (Eq. 1) -> 4 x PD -> clamp -> drive
+    -> one record frame into the ring buffer
+
+Names from the paper: r = [r_x, r_y] lumped valve references (V), r_p,i per-valve references
+(V), y_p,i measured valve positions (V), u = [u_x, u_y] lumped valve positions (V),
+p = [e_x, e_y] shaft displacement (µm), K∞ the outer H∞ controller (Sec. 5, Eq. 11).
+
+Array layouts are in :mod:`rigd.loop.layout`. Every kernel is ``cache=True`` so a process pays
+the compile once per machine.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, types
+
+from rigd import frame as F
+from rigd.loop import faults as FC
+from rigd.loop.layout import (
+    FLOG_N, H_BIN_NS, H_COUNT, H_MAX, H_NB, H_OVER, P_CAL_G, P_CAL_O, P_CX, P_CY, P_DA, P_DB,
+    P_E_MAX, P_E_MIN, P_ENC_N, P_ENC_OMEGA, P_FS, P_GAP_MAX, P_KA, P_KB, P_KC, P_KD, P_KD_MAT,
+    P_KFF, P_KN, P_KP, P_PEQ_ALPHA, P_R0, P_RAMP_STEP, P_RING_N, P_STALE_N, P_SUP_ON, P_VERR_N,
+    P_VERR_V, P_VMAX, P_VMIN, P_Y_MAX, P_Y_MIN, S_DF, S_DROPPED, S_EPREV, S_EXT_FAULT, S_FAULT,
+    S_FAULT_DETAIL, S_FAULT_SEQ, S_FLOG, S_K_OUT_X, S_K_OUT_Y, S_K_TARGET, S_LAST_DRVSEQ,
+    S_LAST_PHI, S_NFAULT, S_PEQ_INIT, S_PEQ_X, S_PEQ_Y, S_PHI_CNT, S_RAMP, S_RD, S_SEQ,
+    S_SLOW_OMEGA, S_SLOW_PINJ, S_STALE_CNT, S_VERR_CNT, S_W, S_X, S_XN, S_Y,
+)
+
+N_IN = F.N_IN
+IN_E_X, IN_E_Y, IN_PHI = F.IN_E_X, F.IN_E_Y, F.IN_PHI
+IN_YP1 = F.IN_YP1
+IN_OMEGA, IN_P_INJ, IN_SEQ, IN_STATUS = F.IN_OMEGA, F.IN_P_INJ, F.IN_SEQ, F.IN_STATUS
+IN_F_X, IN_F_Y = F.IN_F_X, F.IN_F_Y
+_R = F.REC
+R_SEQ, R_T, R_EX, R_EY = _R["seq"], _R["t"], _R["e_x"], _R["e_y"]
+R_YP1, R_PHI, R_FX, R_FY = _R["y_p1"], _R["phi"], _R["f_x"], _R["f_y"]
+R_OMEGA, R_PINJ, R_RX, R_RY = _R["omega_rpm"], _R["p_inj_bar"], _R["r_x"], _R["r_y"]
+R_KX, R_KY, R_XX, R_XY = _R["k_x"], _R["k_y"], _R["x_x"], _R["x_y"]
+R_RP1, R_UX, R_UY, R_V1 = _R["r_p1"], _R["u_x"], _R["u_y"], _R["v_1"]
+R_KON, R_FAULT = _R["k_on"], _R["fault"]
+
+
+# --- small blocks (each usable and testable on its own) ----------------------------------
+@njit(cache=True, inline="always")
+def eq1(r0, rx, ry):
+    """Pairwise mapping r -> r_p of Eq. 1: (r0 + r_y, r0 + r_x, r0 - r_y, r0 - r_x), V."""
+    return r0 + ry, r0 + rx, r0 - ry, r0 - rx
+
+
+@njit(cache=True, inline="always")
+def clamp(v, lo, hi):
+    """Clamp ``v`` to [lo, hi]; a non-finite ``v`` becomes ``lo`` (never an unsafe command)."""
+    if v > hi:
+        return hi
+    if v >= lo:
+        return v
+    return lo
+
+
+@njit(cache=True)
+def ss_step(prm, st, e0, e1):
+    """One K∞(z) update: returns k = C x + D e, then x <- A x + B e (``prm``/``st`` layout).
+
+    The order n is ``prm[P_KN]`` (0: zero output). Matches python-control's discrete
+    ``forced_response`` of ``ss(A, B, C, D, dt)`` sample by sample.
+    """
+    n = int(prm[P_KN])
+    k0 = prm[P_KD_MAT] * e0 + prm[P_KD_MAT + 1] * e1
+    k1 = prm[P_KD_MAT + 2] * e0 + prm[P_KD_MAT + 3] * e1
+    for j in range(n):
+        xj = st[S_X + j]
+        k0 += prm[P_KC + j] * xj
+        k1 += prm[P_KC + n + j] * xj
+    for i in range(n):
+        acc = prm[P_KB + 2 * i] * e0 + prm[P_KB + 2 * i + 1] * e1
+        row = P_KA + i * n
+        for j in range(n):
+            acc += prm[row + j] * st[S_X + j]
+        st[S_XN + i] = acc
+    for i in range(n):
+        st[S_X + i] = st[S_XN + i]
+    return k0, k1
+
+
+@njit(cache=True, inline="always")
+def pd_step(prm, st, i, ref, meas):
+    """PD loop of valve ``i`` (0..3): drive voltage for reference ``ref`` and position ``meas``.
+
+    v = kff·r_p + kp·e + kd·d_f, e = r_p - y_p, with the derivative filtered by a first-order
+    low-pass of time constant tf (backward Euler: d_f+ = a d_f + b (e - e_prev),
+    a = tf/(tf+T), b = 1/(tf+T)); the result is clamped to the drive range. A non-finite
+    measurement resets the derivative and returns the feed-forward drive only.
+    """
+    vmin = prm[P_VMIN]
+    vmax = prm[P_VMAX]
+    e = ref - meas
+    if not math.isfinite(e):
+        st[S_DF + i] = 0.0
+        st[S_EPREV + i] = math.nan
+        return clamp(prm[P_KFF + i] * ref, vmin, vmax)
+    ep = st[S_EPREV + i]
+    if not math.isfinite(ep):
+        ep = e
+    df = prm[P_DA + i] * st[S_DF + i] + prm[P_DB + i] * (e - ep)
+    st[S_DF + i] = df
+    st[S_EPREV + i] = e
+    v = prm[P_KFF + i] * ref + prm[P_KP + i] * e + prm[P_KD + i] * df
+    return clamp(v, vmin, vmax)
+
+
+@njit(cache=True)
+def supervise(prm, st, y):
+    """Supervisor checks on the calibrated frame ``y``; returns (fault code, detail) or (0, -1).
+
+    Also updates the check counters in ``st`` (stale frames, frozen encoder, valve tracking).
+    """
+    ext = st[S_EXT_FAULT]
+    if ext != 0.0:
+        st[S_EXT_FAULT] = 0.0
+        return int(ext), -1
+    code = 0
+    detail = -1
+    # NaN / Inf on the sensors the loop uses
+    for ch in (IN_E_X, IN_E_Y, IN_YP1, IN_YP1 + 1, IN_YP1 + 2, IN_YP1 + 3, IN_PHI):
+        if not math.isfinite(y[ch]):
+            return FC.SENSOR_NAN, ch
+    if prm[P_SUP_ON] == 0.0:
+        return 0, -1
+    for ch in (IN_E_X, IN_E_Y):
+        if y[ch] < prm[P_E_MIN] or y[ch] > prm[P_E_MAX]:
+            return FC.SENSOR_RANGE, ch
+    for i in range(4):
+        ch = IN_YP1 + i
+        if y[ch] < prm[P_Y_MIN] or y[ch] > prm[P_Y_MAX]:
+            return FC.SENSOR_RANGE, ch
+    # driver status bits
+    status = y[IN_STATUS]
+    if math.isfinite(status) and status != 0.0:
+        bits = int(status)
+        if bits & FC.STATUS_ENCODER:
+            return FC.ENCODER_LOST, -1
+        return FC.DRIVER_STATUS, bits
+    # stale frame: the driver's own counter did not advance
+    dseq = y[IN_SEQ]
+    if prm[P_STALE_N] > 0.0 and math.isfinite(dseq):
+        if dseq == st[S_LAST_DRVSEQ]:
+            st[S_STALE_CNT] += 1.0
+            if st[S_STALE_CNT] > prm[P_STALE_N]:
+                code = FC.STALE_FRAME
+        else:
+            st[S_STALE_CNT] = 0.0
+        st[S_LAST_DRVSEQ] = dseq
+    # lost encoder: phi frozen while the shaft turns
+    omega = y[IN_OMEGA]
+    if prm[P_ENC_N] > 0.0 and math.isfinite(omega) and abs(omega) > prm[P_ENC_OMEGA]:
+        if y[IN_PHI] == st[S_LAST_PHI]:
+            st[S_PHI_CNT] += 1.0
+            if st[S_PHI_CNT] > prm[P_ENC_N] and code == 0:
+                code = FC.ENCODER_LOST
+        else:
+            st[S_PHI_CNT] = 0.0
+    else:
+        st[S_PHI_CNT] = 0.0
+    st[S_LAST_PHI] = y[IN_PHI]
+    if code != 0:
+        return code, detail
+    # shaft displacement relative to the bearing centre vs the film gap
+    dx = y[IN_E_X] - prm[P_CX]
+    dy = y[IN_E_Y] - prm[P_CY]
+    if dx * dx + dy * dy > prm[P_GAP_MAX] * prm[P_GAP_MAX]:
+        return FC.SHAFT_DISPLACEMENT, -1
+    return 0, -1
+
+
+@njit(cache=True)
+def _latch(st, code, detail):
+    """Latch ``code`` unless a fault is already latched; append it to the fault log."""
+    if st[S_FAULT] != 0.0 or code == 0:
+        return
+    st[S_FAULT] = code
+    st[S_FAULT_SEQ] = st[S_SEQ]
+    st[S_FAULT_DETAIL] = detail
+    k = int(st[S_NFAULT]) % FLOG_N
+    st[S_FLOG + 3 * k] = st[S_SEQ]
+    st[S_FLOG + 3 * k + 1] = code
+    st[S_FLOG + 3 * k + 2] = detail
+    st[S_NFAULT] += 1.0
+
+
+@njit(cache=True)
+def cycle(fin, prm, st, drive, ring, ex, ey):
+    """One loop cycle from the input frame ``fin`` to the drive vector and one ring frame.
+
+    Parameters
+    ----------
+    fin : float64[N_IN]
+        Input frame as the fast drivers delivered it (driver units; calibrated here).
+    prm, st : float64 arrays
+        Parameters and state (:mod:`rigd.loop.layout`).
+    drive : float64[4]
+        Output: valve drive voltages, V, clamped to the drive range.
+    ring : float64[(ring_n, N_REC)]
+        Recorder ring buffer; the frame goes to row ``st[S_W] % ring_n``. When the writer has
+        not freed a row the frame is counted in ``st[S_DROPPED]`` and RECORDER_OVERFLOW latches.
+    ex, ey : float
+        Experiment excitation added to r_x, r_y this cycle, V.
+    """
+    # calibrate (driver units -> µm, V, N) and overlay the latest slow-driver values
+    for c in range(N_IN):
+        st[S_Y + c] = fin[c] * prm[P_CAL_G + c] + prm[P_CAL_O + c]
+    y = st[S_Y:S_Y + N_IN]
+    if math.isfinite(st[S_SLOW_OMEGA]):
+        y[IN_OMEGA] = st[S_SLOW_OMEGA]
+    if math.isfinite(st[S_SLOW_PINJ]):
+        y[IN_P_INJ] = st[S_SLOW_PINJ]
+
+    # supervisor: reference of the previous cycle vs measured valve position
+    code, detail = supervise(prm, st, y)
+    if code == 0 and prm[P_SUP_ON] != 0.0 and prm[P_VERR_N] > 0.0:
+        for i in range(4):
+            prev = ring[int(st[S_W] - 1.0) % int(prm[P_RING_N]), R_RP1 + i] \
+                if st[S_W] > 0.0 else prm[P_R0]
+            if abs(prev - y[IN_YP1 + i]) > prm[P_VERR_V]:
+                st[S_VERR_CNT + i] += 1.0
+                if st[S_VERR_CNT + i] > prm[P_VERR_N] and code == 0:
+                    code = FC.VALVE_TRACKING
+                    detail = i
+            else:
+                st[S_VERR_CNT + i] = 0.0
+    _latch(st, code, detail)
+    safe = st[S_FAULT] != 0.0
+
+    # K∞(z) in hot standby on e = -(p - p_eq)
+    px = y[IN_E_X]
+    py = y[IN_E_Y]
+    ok = math.isfinite(px) and math.isfinite(py)
+    if ok and st[S_K_TARGET] == 0.0 and st[S_RAMP] == 0.0:
+        if st[S_PEQ_INIT] == 0.0:
+            st[S_PEQ_X] = px
+            st[S_PEQ_Y] = py
+            st[S_PEQ_INIT] = 1.0
+        else:  # track the equilibrium while off; frozen (captured) from the enable on
+            a = prm[P_PEQ_ALPHA]
+            st[S_PEQ_X] += a * (px - st[S_PEQ_X])
+            st[S_PEQ_Y] += a * (py - st[S_PEQ_Y])
+    e0 = -(px - st[S_PEQ_X]) if ok else 0.0
+    e1 = -(py - st[S_PEQ_Y]) if ok else 0.0
+    k0, k1 = ss_step(prm, st, e0, e1)
+    st[S_K_OUT_X] = k0
+    st[S_K_OUT_Y] = k1
+    # bumpless blend
+    if safe:
+        st[S_RAMP] = 0.0
+        ex = 0.0
+        ey = 0.0
+    elif st[S_K_TARGET] > st[S_RAMP]:
+        st[S_RAMP] = min(st[S_RAMP] + prm[P_RAMP_STEP], st[S_K_TARGET])
+    elif st[S_K_TARGET] < st[S_RAMP]:
+        st[S_RAMP] = max(st[S_RAMP] - prm[P_RAMP_STEP], st[S_K_TARGET])
+    ramp = st[S_RAMP]
+    kx = ramp * k0
+    ky = ramp * k1
+    rx = kx + ex
+    ry = ky + ey
+    vmin = prm[P_VMIN]
+    vmax = prm[P_VMAX]
+    rp1, rp2, rp3, rp4 = eq1(prm[P_R0], rx, ry)
+    rp1 = clamp(rp1, vmin, vmax)
+    rp2 = clamp(rp2, vmin, vmax)
+    rp3 = clamp(rp3, vmin, vmax)
+    rp4 = clamp(rp4, vmin, vmax)
+    drive[0] = pd_step(prm, st, 0, rp1, y[IN_YP1])
+    drive[1] = pd_step(prm, st, 1, rp2, y[IN_YP1 + 1])
+    drive[2] = pd_step(prm, st, 2, rp3, y[IN_YP1 + 2])
+    drive[3] = pd_step(prm, st, 3, rp4, y[IN_YP1 + 3])
+
+    # record
+    seq = st[S_SEQ]
+    ring_n = prm[P_RING_N]
+    w = st[S_W]
+    if w - st[S_RD] >= ring_n:
+        st[S_DROPPED] += 1.0
+        _latch(st, FC.RECORDER_OVERFLOW, -1)
+    else:
+        row = ring[int(w % ring_n)]
+        row[R_SEQ] = seq
+        row[R_T] = seq / prm[P_FS]
+        row[R_EX] = px
+        row[R_EY] = py
+        for i in range(4):
+            row[R_YP1 + i] = y[IN_YP1 + i]
+            row[R_V1 + i] = drive[i]
+        row[R_PHI] = y[IN_PHI]
+        row[R_FX] = y[IN_F_X]
+        row[R_FY] = y[IN_F_Y]
+        row[R_OMEGA] = y[IN_OMEGA]
+        row[R_PINJ] = y[IN_P_INJ]
+        row[R_RX] = rx
+        row[R_RY] = ry
+        row[R_KX] = kx
+        row[R_KY] = ky
+        row[R_XX] = ex
+        row[R_XY] = ey
+        row[R_RP1] = rp1
+        row[R_RP1 + 1] = rp2
+        row[R_RP1 + 2] = rp3
+        row[R_RP1 + 3] = rp4
+        row[R_UX] = y[IN_YP1 + 1] - y[IN_YP1 + 3]
+        row[R_UY] = y[IN_YP1] - y[IN_YP1 + 2]
+        row[R_KON] = 1.0 if (st[S_K_TARGET] != 0.0 and not safe) else 0.0
+        row[R_FAULT] = st[S_FAULT]
+        st[S_W] = w + 1.0
+    st[S_SEQ] = seq + 1.0
+
+
+@njit(cache=True, inline="always")
+def _hist_add(hist, row, ns):
+    if ns < 0:
+        ns = 0
+    b = ns // H_BIN_NS
+    if b >= H_NB:
+        hist[row, H_OVER] += 1
+    else:
+        hist[row, b] += 1
+    hist[row, H_COUNT] += 1
+    if ns > hist[row, H_MAX]:
+        hist[row, H_MAX] = ns
+
+
+@njit(cache=True)
+def rt_cycle(fin, prm, st, drive, ring, exc, exc_i, hist, late_ns, prev_compute_ns):
+    """One cycle on the real-time clock: timing samples into ``hist``, excitation row
+    ``exc[exc_i]`` (none when ``exc_i < 0``), then :func:`cycle`.
+
+    ``late_ns`` is this cycle's wake-up lateness, ``prev_compute_ns`` the previous cycle's
+    compute time (read to write, drivers included; < 0: none yet).
+    """
+    _hist_add(hist, 1, late_ns)
+    if prev_compute_ns >= 0:
+        _hist_add(hist, 0, prev_compute_ns)
+    if exc_i >= 0:
+        cycle(fin, prm, st, drive, ring, exc[exc_i, 0], exc[exc_i, 1])
+    else:
+        cycle(fin, prm, st, drive, ring, 0.0, 0.0)
+
+
+def _lockstep_batch(plant_step, pstate, pparams, fin, prm, st, drive, ring, exc, exc_i, n):
+    """Run up to ``n`` cycles with the plant kernel in the loop; returns the cycles run.
+
+    Stops early (never drops) when the ring buffer has no free row: the caller lets the writer
+    thread drain it and calls again. ``exc_i < 0``: no excitation; else row ``exc_i + k``.
+    """
+    ring_n = prm[P_RING_N]
+    done = 0
+    for k in range(n):
+        if st[S_W] - st[S_RD] >= ring_n:
+            break
+        if exc_i >= 0:
+            cycle(fin, prm, st, drive, ring, exc[exc_i + k, 0], exc[exc_i + k, 1])
+        else:
+            cycle(fin, prm, st, drive, ring, 0.0, 0.0)
+        plant_step(pstate, pparams, drive, fin)
+        done += 1
+    return done
+
+
+_A1 = types.float64[::1]
+_A2 = types.float64[:, ::1]
+PLANT_SIG = types.void(_A1, _A1, _A1, _A1)
+#: cached variant for plant kernels of the standard signature (float64 C-contiguous 1-D arrays)
+lockstep_batch = njit(types.int64(types.FunctionType(PLANT_SIG), _A1, _A1, _A1, _A1, _A1, _A1,
+                                  _A2, _A2, types.int64, types.int64),
+                      cache=True, nogil=True)(_lockstep_batch)
+#: generic variant (any plant kernel signature; compiled per process)
+lockstep_batch_generic = njit(nogil=True)(_lockstep_batch)
+
+
+def hist_new() -> np.ndarray:
+    """A zeroed timing histogram (see :mod:`rigd.loop.layout`)."""
+    return np.zeros((2, H_NB + 3), dtype=np.int64)
