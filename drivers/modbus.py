@@ -161,13 +161,24 @@ class ModbusDriver(SlowDriver):
 
     # --- SlowDriver API -------------------------------------------------------------------
     def poll(self) -> dict[str, float]:
-        """Read P_I, Ω and the status word once (blocks up to ``timeout_s``).
+        """Read P_I, Ω and the status word once (blocks up to ``timeout_s``), send queued
+        setpoints, and publish the result as :meth:`latest`.
+
+        Called by the loop's slow-driver thread (``ControlLoop``), or by this driver's own
+        thread after :meth:`start_polling` when used stand-alone. Not thread-safe: one
+        polling thread only.
 
         Raises
         ------
         FaultError
-            The device is unreachable or answered with an error.
+            The device is unreachable, answered with an error, or reports a non-zero status.
         """
+        s = self.poll_once()
+        if not s.ok:
+            raise FaultError(s.error)
+        return {"p_inj_bar": s.p_inj_bar, "omega_rpm": s.omega_rpm, "status": float(s.status)}
+
+    def _read(self) -> dict[str, float]:
         from pymodbus.exceptions import ModbusException
 
         self._ensure_connected()
@@ -230,7 +241,12 @@ class ModbusDriver(SlowDriver):
 
     # --- the polling thread -----------------------------------------------------------
     def open(self) -> None:
-        """Start the polling thread (the device may still be down: that is a fault, later)."""
+        """Nothing to acquire up front: the first poll connects (a device that is down is a
+        fault then, not a start-up failure)."""
+
+    def start_polling(self) -> None:
+        """Poll in this driver's own thread at ``poll_hz`` (stand-alone use; the loop has its
+        own slow-driver threads and must not be combined with this)."""
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="modbus-poll", daemon=True)
         self._thread.start()
@@ -246,7 +262,7 @@ class ModbusDriver(SlowDriver):
         period = 1.0 / self.poll_hz
         nxt = time.monotonic()
         while not self._stop.is_set():
-            self.poll_once()
+            self.poll_once()  # never raises
             nxt += period
             delay = nxt - time.monotonic()
             if delay < 0:
@@ -255,11 +271,11 @@ class ModbusDriver(SlowDriver):
             self._stop.wait(delay)
 
     def poll_once(self) -> SlowSample:
-        """One poll with fault bookkeeping; publishes and returns the new sample."""
+        """One poll with fault bookkeeping; publishes and returns the new sample (no raise)."""
         now = time.monotonic()
         prev = self._sample
         try:
-            v = self.poll()
+            v = self._read()
         except FaultError as exc:
             self.n_errors += 1
             self._fails += 1

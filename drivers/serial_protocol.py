@@ -50,8 +50,8 @@ SENSOR_FRAME = 4 + SENSOR_LEN + 2   # 30 bytes
 DRIVE_FRAME = 4 + DRIVE_LEN + 2     # 20 bytes
 
 # device status bits (sensor frame)
-DEV_ADC_OVERRANGE = 1 << 0   # an ADC channel clipped
-DEV_ENCODER_LOST = 1 << 1    # encoder index pulse missing / quadrature error
+DEV_ENCODER_LOST = 1 << 0    # encoder index pulse missing / quadrature error (loop: STATUS_ENCODER)
+DEV_ADC_OVERRANGE = 1 << 1   # an ADC channel clipped (loop: STATUS_SENSOR)
 DEV_HOST_TIMEOUT = 1 << 2    # no valid drive frame for hold_timeout: holding safe voltage
 DEV_DRIVE_CRC = 1 << 3       # a drive frame with a bad CRC was received
 

@@ -33,6 +33,7 @@ def test_poll_setpoints_stop_and_come_back():
     drv = ModbusDriver({"host": "127.0.0.1", "port": plc.port, "poll_hz": 50,
                         "timeout_s": 0.1, "reconnect_s": 0.1, "failures_to_fault": 2})
     drv.open()
+    drv.start_polling()
     try:
         assert _wait(lambda: drv.latest().ok)
         frame = np.zeros(N_IN)
@@ -68,6 +69,7 @@ def test_poll_raises_fault_when_nobody_listens():
     drv = ModbusDriver({"host": "127.0.0.1", "port": free_port(), "timeout_s": 0.1})
     with pytest.raises(FaultError, match="cannot connect"):
         drv.poll()
+    assert not drv.latest().ok and drv.counters()["errors"] == 1
 
 
 def test_options_validation(tmp_path):
