@@ -176,7 +176,11 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
         z0 = np.clip(z0, np.where(np.isfinite(zlo), zlo + 1e-9, zlo),
                      np.where(np.isfinite(zhi), zhi - 1e-9, zhi))
     nfree = int(free.sum())
-    sol = least_squares(fun, z0, jac="2-point", bounds=(zlo, zhi), method="trf",
+    bounded = bool(np.any(np.isfinite(zlo) | np.isfinite(zhi)))
+    # MINPACK Levenberg-Marquardt (QR) when unbounded: much cheaper than trf's SVD of the
+    # tall (n·ny × p) Jacobian; trust-region reflective when an effect brings bounds.
+    sol = least_squares(fun, z0, jac="2-point", bounds=(zlo, zhi) if bounded else
+                        (-np.inf, np.inf), method="trf" if bounded else "lm",
                         ftol=ftol, xtol=1e-10, gtol=1e-10, x_scale="jac", diff_step=1e-6,
                         max_nfev=max_nfev or 100 * nfree)
     theta = th0.copy()
