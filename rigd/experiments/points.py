@@ -43,6 +43,27 @@ def sim_plant(loop: Any) -> Any | None:
     return None
 
 
+def controller_enabled(loop: Any) -> bool | None:
+    """Is K∞ enabled (target state)? None if the loop does not say."""
+    try:
+        return bool(loop.status()["controller"]["enabled"])
+    except (KeyError, TypeError, AttributeError):
+        return None
+
+
+def controller_loaded(loop: Any) -> bool | None:
+    try:
+        return bool(loop.status()["controller"]["loaded"])
+    except (KeyError, TypeError, AttributeError):
+        return None
+
+
+def wants_controller(spec: Any) -> bool:
+    """Does the spec record anything with K∞ on?"""
+    c = getattr(spec, "controller", False)
+    return any(c) if isinstance(c, list) else bool(c)
+
+
 def check_against_rate(spec: Any, fs: float, where: str) -> None:
     """Refuse requests the loop rate cannot honour (before anything runs)."""
     nyq = fs / 2.0
@@ -131,6 +152,16 @@ class PointRunner:
                 pass
             self._part = None
 
+    # -- K∞ state -----------------------------------------------------------------------
+    def controller(self, on: bool) -> None:
+        """Switch K∞ (bumpless blend) and let the blend finish, unrecorded, before recording."""
+        if controller_enabled(self.loop) == on:
+            return
+        self.loop.enable_controller(on)
+        ramp = getattr(getattr(getattr(self.loop, "config", None), "loop", None), "k_ramp_s",
+                       0.05)
+        self.loop.run_segment(np.zeros((max(1, _n(2 * ramp + 0.02, self.fs)), 2)))
+
     def _meta(self, spec: Any, point: dict[str, Any], **extra: Any) -> dict[str, Any]:
         m = dict(self.base_meta)
         m.update({"kind": spec.kind, "omega_rpm": point["omega_rpm"],
@@ -162,7 +193,8 @@ class PointRunner:
                                                              "description"}),
                      "lead_in_samples": _n(spec.lead_in_s, self.fs), "controller_on": ctrl}
         path = rd / f"{stem}_{spec.kind}.h5"
-        res = self._record(path, self._meta(spec, point, **extra), exc, controller_on=ctrl)
+        self.controller(ctrl)
+        res = self._record(path, self._meta(spec, point, **extra), exc, controller_on=None)
         self.manifest.add_file(point, path, kind=spec.kind, omega_rpm=point["omega_rpm"],
                                p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
                                n_frames=self._n_frames(res, len(exc)))
@@ -177,12 +209,12 @@ class PointRunner:
             raise PointFailed("trigger 'sim' needs the simulated plant's hammer; on a real rig "
                               "use trigger: operator")
         for ctrl in spec.controller:
+            self.controller(ctrl)
             for r in range(spec.repeats):
                 if self.should_stop():
                     return
                 if spec.spacing_s > 0:  # let the previous response decay, unrecorded
-                    self.loop.run_segment(np.zeros((_n(spec.spacing_s, self.fs), 2)),
-                                          controller_on=ctrl)
+                    self.loop.run_segment(np.zeros((_n(spec.spacing_s, self.fs), 2)))
                 path = rd / f"{stem}_impact_{spec.axis}_k{int(ctrl)}_r{r}.h5"
                 meta = self._meta(spec, point, axis=spec.axis, controller_on=ctrl, repeat=r,
                                   pre_s=spec.pre_s, post_s=spec.post_s,
@@ -192,7 +224,7 @@ class PointRunner:
                     hit = (lambda a=spec.axis, f=spec.peak_n, d=spec.pulse_s:
                            plant.impact(a, f, d))
                     res = self._record(path, meta, np.zeros((n_pre + n_post, 2)),
-                                       controller_on=ctrl, events=[(n_pre, hit)])
+                                       controller_on=None, events=[(n_pre, hit)])
                     n = self._n_frames(res, n_pre + n_post)
                 else:
                     n = self._operator_hit(spec, path, meta, ctrl, n_pre, n_post)
@@ -211,7 +243,7 @@ class PointRunner:
         tmp = path.with_name(path.name + ".wait")
         n_wait = _n(spec.timeout_s, self.fs)
         try:
-            self._record(tmp, meta, np.zeros((n_wait, 2)), controller_on=ctrl)
+            self._record(tmp, meta, np.zeros((n_wait, 2)), controller_on=None)
             rec = read_h5(tmp)
         finally:
             self.discard_partial()

@@ -16,8 +16,9 @@ from typing import Any, Callable
 
 from rigd.errors import FaultError, InputError
 from rigd.experiments.manifest import Manifest, new_run_dir, now_iso, sha256_text
-from rigd.experiments.points import (PointFailed, PointRunner, check_against_rate, loop_fs,
-                                     segments)
+from rigd.experiments.points import (PointFailed, PointRunner, check_against_rate,
+                                     controller_enabled, controller_loaded, loop_fs, segments,
+                                     wants_controller)
 from rigd.experiments.schemas import (SweepSpec, load_experiment, spec_from_dict)
 from rigd.experiments.sweep import set_point, settle_check
 
@@ -99,6 +100,10 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
     exp = load(spec)
     fs = loop_fs(loop)
     check_against_rate(exp.point_spec, fs, exp.source + (": at_each" if exp.point else ""))
+    if wants_controller(exp.point_spec) and controller_loaded(loop) is False:
+        raise InputError("K∞ on is requested (controller) but the loop has no controller "
+                         "loaded: set 'controller:' in the rig config", exp.source)
+    k_was = controller_enabled(loop)
     rd = new_run_dir(run_dir, exp.name, runs_root)
     cfg_text = config_text
     if cfg_text is None:
@@ -176,16 +181,19 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
             man.write()
     except KeyboardInterrupt:
         runner.discard_partial()
+        _restore_controller(loop, k_was)
         _finish(man, "interrupted", current, "interrupted by SIGINT")
         return man
     except FaultError as exc:
         runner.discard_partial()
+        _restore_controller(loop, k_was)
         _finish(man, "failed", current, f"rig fault: {exc}")
         return man
     except BaseException:
         runner.discard_partial()
         _finish(man, "failed", current, "internal error (see log)")
         raise
+    _restore_controller(loop, k_was)
     if should_stop():
         _finish(man, "interrupted", current, "stopped on request")
     else:
@@ -193,6 +201,15 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         _finish(man, "complete" if not failed else "failed", None,
                 "" if not failed else f"points {failed} failed")
     return man
+
+
+def _restore_controller(loop: Any, was: bool | None) -> None:
+    """Leave K∞ as we found it."""
+    if was is not None and controller_enabled(loop) != was:
+        try:
+            loop.enable_controller(was)
+        except Exception:  # noqa: BLE001 - best effort on the way out
+            pass
 
 
 def _finish(man: Manifest, status: str, current: dict[str, Any] | None, why: str) -> None:
