@@ -27,8 +27,9 @@ Operating point: Ω (``omega_rpm``, 0…6000 rpm) and P_I (``p_inj_bar``, 3…7 
 Valves: valve i (1…4) maps its drive voltage v_i (V) to position y_p,i (V) as a second-order
 low pass ``y = g_i ω_i² /(s² + 2 ζ_i ω_i s + ω_i²) · v + offset_i`` (f_i ≈ 400 Hz,
 ζ_i ≈ 1.5: two real poles near 150 Hz and 1 kHz). Alone a valve is slow (≈ 150 Hz); under
-the suggested PD loop (Kp = 1.5, Kd = 2e-4 s, τ_d = 1e-4 s) it settles in ≈ 1 ms with no
-overshoot and a closed-loop bandwidth of 600–700 Hz: the lumped pair then behaves like Eq. 8.
+the suggested PD loop (Kff = 1, Kp = 1.5, Kd = 1e-4 s, τ_d = 1e-4 s) it settles in ≈ 1.2 ms
+with no overshoot and a closed-loop bandwidth near 500 Hz: the lumped pair then behaves like
+Eq. 8 with κ_a ≈ 2.
 """
 
 from __future__ import annotations
@@ -61,9 +62,10 @@ B_CROSS = 0.05                      # B_p cross terms relative to the diagonal
 # --- valve constants (valves 1..4) -------------------------------------------------------
 VALVE_F_HZ = (380.0, 420.0, 400.0, 410.0)   # overdamped: ≈150 Hz amplifier/capacitance pole
 VALVE_ZETA = (1.40, 1.60, 1.50, 1.45)       # and ≈1 kHz stack/spool pole
-#: Suggested per-valve PD gains (see valve_closed_loop): drive = Kp·e + Kd·filtered ė.
+#: Suggested per-valve PD gains (see valve_closed_loop): drive = Kff·r_p + Kp·e + Kd·filtered ė.
+PD_KFF = 1.0           # V/V feed-forward of the reference (keeps the drive near mid-range)
 PD_KP = 1.5            # V/V
-PD_KD = 2.0e-4         # V·s/V
+PD_KD = 1.0e-4         # V·s/V
 PD_TAU_D = 1.0e-4      # s, first-order derivative filter
 VALVE_GAIN = (1.00, 0.97, 1.03, 0.99)
 VALVE_OFFSET_V = (0.05, -0.03, 0.02, -0.04)
@@ -222,13 +224,14 @@ def valve_tf(valve: ValveParams):
 
 
 def valve_closed_loop(valve: ValveParams, kp: float = PD_KP, kd: float = PD_KD,
-                      tau_d: float = PD_TAU_D, fs: float = 5000.0):
+                      tau_d: float = PD_TAU_D, fs: float = 5000.0, kff: float = PD_KFF):
     """Discrete closed-loop transfer function r_p,i → y_p,i of one valve under a PD loop.
 
     The valve is discretised exactly (ZOH on the drive, which the plant holds over a period);
     the PD acts on the error e = r − y with a backward-Euler filtered derivative
-    ``d_k = (τ_d·d_{k-1} + Kd·(e_k − e_{k-1}))/(τ_d + T)``, drive ``Kp·e_k + d_k``, no clamp.
-    The static gain is ``Kp·g/(1 + Kp·g)`` (no integral action, as in Eq. 8's κ_a).
+    ``d_k = (τ_d·d_{k-1} + (e_k − e_{k-1}))/(τ_d + T)``, drive ``Kff·r_k + Kp·e_k + Kd·d_k``
+    (the loop's ``rigd.loop.kernels.pd_step``), no clamp. The static gain is
+    ``g·(Kff + Kp)/(1 + Kp·g)`` (no integral action: Eq. 8's κ_a).
 
     Returns
     -------
@@ -241,20 +244,21 @@ def valve_closed_loop(valve: ValveParams, kp: float = PD_KP, kd: float = PD_KD,
     G = control.c2d(valve_tf(valve), T, method="zoh")
     z = control.tf([1.0, 0.0], [1.0], T)
     C = kp + kd * (1 - z ** -1) / (tau_d * (1 - z ** -1) + T)
-    return control.minreal(control.feedback(C * G, 1), verbose=False)
+    return control.minreal((kff + C) * G / (1 + C * G), verbose=False)
 
 
 def lumped_actuator_tf(axis: str, kp: float = PD_KP, kd: float = PD_KD,
-                       tau_d: float = PD_TAU_D, fs: float = 5000.0, scale_f: float = 1.0):
+                       tau_d: float = PD_TAU_D, fs: float = 5000.0, scale_f: float = 1.0,
+                       kff: float = PD_KFF):
     """Discrete r_j → u_j of one lumped valve pair (Eq. 1 and Eq. 8), j = ``"x"`` or ``"y"``.
 
     u_x = y_p2 − y_p4 with r_p2 = r0 + r_x, r_p4 = r0 − r_x, hence H_x = H_2 + H_4
-    (H_y = H_1 + H_3). Static gain ≈ 2·Kp·g/(1 + Kp·g) ≈ 1.2 with the suggested gains.
+    (H_y = H_1 + H_3). Static gain ≈ 2 with the suggested gains (≈ 1.2 with Kff = 0).
     """
     v = valve_params(scale_f)
     i, j = {"x": (1, 3), "y": (0, 2)}[axis]
-    return (valve_closed_loop(v[i], kp, kd, tau_d, fs)
-            + valve_closed_loop(v[j], kp, kd, tau_d, fs))
+    return (valve_closed_loop(v[i], kp, kd, tau_d, fs, kff)
+            + valve_closed_loop(v[j], kp, kd, tau_d, fs, kff))
 
 
 def step_metrics(tf, n: int = 200) -> dict[str, float]:

@@ -64,9 +64,11 @@ def modes_from_free_response(records, fs: float = FS, decimate: int = 4):
     return f[order], z[order]
 
 
-def pd_run(driver, r_p: np.ndarray, kp=phys.PD_KP, kd=phys.PD_KD, tau=phys.PD_TAU_D):
-    """Run the driver under four PD loops (derivative of the error, backward Euler, clamp
-    [0, 10] V) following per-valve references r_p (n, 4). Returns the frames (n, 13)."""
+def pd_run(driver, r_p: np.ndarray, kp=phys.PD_KP, kd=phys.PD_KD, tau=phys.PD_TAU_D,
+           kff=phys.PD_KFF):
+    """Run the driver under four PD loops as the loop's ``pd_step`` does (feed-forward,
+    derivative of the error, backward Euler, clamp [0, 10] V) following per-valve references
+    r_p (n, 4). Returns the frames (n, 13): row i is the sample after step i."""
     T = 1.0 / driver.fs
     n = r_p.shape[0]
     frames = np.zeros((n, 13))
@@ -77,9 +79,9 @@ def pd_run(driver, r_p: np.ndarray, kp=phys.PD_KP, kd=phys.PD_KD, tau=phys.PD_TA
     drive = np.zeros(4)
     for i in range(n):
         e = r_p[i] - f[2:6]
-        d = (tau * d + kd * (e - eprev)) / (tau + T)
+        d = (tau * d + (e - eprev)) / (tau + T)
         eprev = e
-        drive[:] = np.clip(kp * e + d, 0.0, 10.0)
+        drive[:] = np.clip(kff * r_p[i] + kp * e + kd * d, 0.0, 10.0)
         driver.write(drive)
         driver.read(f)
         frames[i] = f

@@ -63,4 +63,6 @@ def test_valve_closed_loop_with_suggested_pd():
         assert alone["bandwidth_hz"] < 250         # the PD loop matters
     for axis in ("x", "y"):
         m = phys.step_metrics(phys.lumped_actuator_tf(axis))
-        assert 1.1 < m["static_gain"] < 1.3 and 400 <= m["bandwidth_hz"] <= 800
+        assert 1.9 < m["static_gain"] < 2.1 and 400 <= m["bandwidth_hz"] <= 800
+    m = phys.step_metrics(phys.lumped_actuator_tf("x", kff=0.0, kd=2e-4))   # without feed-forward
+    assert 1.1 < m["static_gain"] < 1.3 and m["overshoot"] < 0.02
