@@ -59,7 +59,6 @@ class ModbusOptions(StrictModel):
     parity: Literal["N", "E", "O"] = "E"
     stopbits: Literal[1, 2] = 1
     unit_id: int = Field(1, ge=0, le=247, description="Modbus device (slave) id")
-    poll_hz: float = Field(20.0, ge=10.0, le=100.0, description="poll rate, Hz")
     timeout_s: float = Field(0.05, gt=0, le=5.0, description="reply timeout, s")
     reconnect_s: float = Field(0.5, gt=0, description="retry period while unreachable, s")
     failures_to_fault: int = Field(3, ge=1, description="consecutive failed polls -> fault")
@@ -107,7 +106,7 @@ class ModbusDriver(SlowDriver):
         super().__init__(options, fs=fs)
         self.opts = options if isinstance(options, ModbusOptions) else \
             ModbusOptions.model_validate(options or {})
-        self.poll_hz = self.opts.poll_hz
+        # the poll rate is the config's drivers.slow[i].poll_hz (set by the loop builder)
         self._client = None
         self._sample = SlowSample()
         self._pending: dict[str, float] = {}

@@ -30,9 +30,10 @@ def test_float_words():
 
 def test_poll_setpoints_stop_and_come_back():
     plc = PlcServer(p_inj_bar=4.5, omega_rpm=2500.0).start()
-    drv = ModbusDriver({"host": "127.0.0.1", "port": plc.port, "poll_hz": 50,
+    drv = ModbusDriver({"host": "127.0.0.1", "port": plc.port,
                         "timeout_s": 0.1, "reconnect_s": 0.1, "failures_to_fault": 2})
     drv.open()
+    drv.poll_hz = 50.0
     drv.start_polling()
     try:
         assert _wait(lambda: drv.latest().ok)
@@ -77,7 +78,7 @@ def test_options_validation(tmp_path):
     p.write_text("transport: rtu\nbaudrate: 9600\n")
     with pytest.raises(InputError, match="needs 'device'"):
         load_model(p, ModbusOptions)
-    p.write_text("transport: tcp\nhost: plc\npoll_hz: 500\n")
-    with pytest.raises(InputError, match=r"mb.yaml:3: poll_hz"):
+    p.write_text("transport: tcp\nhost: plc\nport: 70000\n")
+    with pytest.raises(InputError, match=r"mb.yaml:3: port"):
         load_model(p, ModbusOptions)
     assert ModbusOptions(transport="rtu", device="/dev/ttyUSB0").parity == "E"

@@ -1,0 +1,264 @@
+"""The daemon around a running loop: control socket, sd_notify, signals, experiments.
+
+``rigd run`` wraps its run in ``with Daemon(loop, config, args): ...``:
+
+* **socket** (``--socket PATH``): :class:`~rigd.service.server.ControlServer` with the
+  :class:`~rigd.service.protocol.Dispatcher` mapping requests to the loop and to the
+  :class:`~rigd.experiments.manager.ExperimentManager` (experiments run in a worker thread);
+* **sd_notify** (unless ``--no-notify``): ``READY=1`` once the loop cycles, ``STATUS=`` on
+  every change (fault latched/reset, experiment), ``WATCHDOG=1`` at half ``WATCHDOG_USEC`` —
+  only while the loop's cycle counter advances, so a hung loop gets restarted by systemd —
+  and ``STOPPING=1`` on the way out;
+* **SIGTERM / SIGINT**: stop the experiment after its segment, trip the loop into the safe
+  state (``operator_stop``: K∞ off, excitation off, r_p = r0), let a few cycles record it,
+  stop the loop; ``rigd run`` then flushes and closes the recordings and exits 0;
+* **SIGHUP**: re-read the config file and the controller, *validated first* (in a worker
+  thread); a bad file is refused with one log line and the loop keeps running untouched; a
+  valid controller is switched bumplessly; other config changes are reported as needing a
+  restart (the loop's structure — drivers, rate, ring size — is fixed while it runs).
+
+Latched faults: the loop logs each once (structlog); the daemon drains the loop's fault queue
+into the systemd status line and ``faults`` answers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import threading
+import time
+from typing import Any
+
+from rigd import __version__
+from rigd.errors import InputError
+from rigd.log import get_logger
+from rigd.service.notify import Notifier
+from rigd.service.protocol import Dispatcher
+from rigd.service.server import ControlServer
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Service options of ``rigd run``."""
+    g = p.add_argument_group("service")
+    g.add_argument("--socket", default=os.environ.get("RIGD_SOCKET"), metavar="PATH",
+                   help="control socket for `rigd ctl` (default $RIGD_SOCKET; none if unset; "
+                        "the systemd unit uses /run/rigd/rigd.sock)")
+    g.add_argument("--socket-mode", default="0660", metavar="OCTAL",
+                   help="permissions of the socket file (default %(default)s)")
+    g.add_argument("--no-notify", action="store_true",
+                   help="do not talk to systemd even if NOTIFY_SOCKET is set")
+    g.add_argument("--runs-dir", default="runs", metavar="DIR",
+                   help="where experiments started over the socket write their runs")
+
+
+class Daemon:
+    """Context manager running the service parts around ``loop`` (see module docstring).
+
+    Parameters
+    ----------
+    loop : rigd.loop.ControlLoop
+    config : rigd.config.LoadedConfig
+        The configuration the loop was built from (its path is re-read on SIGHUP).
+    args : argparse.Namespace
+        ``socket``, ``socket_mode``, ``no_notify``, ``runs_dir``, ``controller`` (optional).
+    """
+
+    def __init__(self, loop: Any, config: Any, args: argparse.Namespace):
+        self.loop = loop
+        self.config = config
+        self.args = args
+        self.log = get_logger("rigd.service")
+        self.notifier = Notifier(environ={} if getattr(args, "no_notify", False) else None)
+        self.experiments = None
+        self.server: ControlServer | None = None
+        self.dispatcher: Dispatcher | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._shutdown_started = threading.Lock()
+        self._reload_lock = threading.Lock()
+        self._old_handlers: dict[int, Any] = {}
+        self._faults = None
+        self._fault_text = ""
+        self._started = time.monotonic()
+        self.ready = threading.Event()
+        self.last_reload: dict[str, Any] = {"state": "none"}
+        self.exit_reason = ""
+
+    # --- life cycle -------------------------------------------------------------------
+    def __enter__(self) -> "Daemon":
+        try:
+            from rigd.experiments.manager import ExperimentManager
+
+            self.experiments = ExperimentManager(self.loop, getattr(self.args, "runs_dir",
+                                                                    "runs"), log=self.log)
+        except ImportError:  # experiments package absent: the commands reply an error
+            self.experiments = None
+        self.dispatcher = Dispatcher(self.loop, self.experiments, info=self._info)
+        sock = getattr(self.args, "socket", None)
+        if sock:
+            try:
+                mode = int(str(getattr(self.args, "socket_mode", "0660")), 8)
+            except ValueError:
+                raise InputError(f"not an octal mode: {self.args.socket_mode!r}",
+                                 "--socket-mode") from None
+            self.server = ControlServer(sock, self.dispatcher.handle_line, mode=mode).start()
+        self._faults = self.loop.subscribe()
+        if threading.current_thread() is threading.main_thread():
+            for s, h in ((signal.SIGTERM, self._on_stop_signal),
+                         (signal.SIGINT, self._on_stop_signal),
+                         (signal.SIGHUP, self._on_hup)):
+                self._old_handlers[s] = signal.signal(s, h)
+        self._thread = threading.Thread(target=self._service_run, name="rigd-service",
+                                        daemon=True)
+        self._thread.start()
+        self.log.info("service started", socket=sock, notify=self.notifier.enabled,
+                      watchdog_s=self.notifier.watchdog_s)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.notifier.stopping(f"stopping{': ' + self.exit_reason if self.exit_reason else ''}")
+        if self.experiments is not None:
+            self.experiments.stop()
+            self.experiments.join(30.0)  # its recording is finished before the loop closes
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(5.0)
+        if self.server is not None:
+            self.server.stop()
+        for s, h in self._old_handlers.items():
+            signal.signal(s, h)
+        self._old_handlers.clear()
+        self.notifier.close()
+        self.log.info("service stopped", reason=self.exit_reason or "end of run")
+
+    def _info(self) -> dict[str, Any]:
+        return {"pid": os.getpid(), "version": __version__,
+                "uptime_s": round(time.monotonic() - self._started, 3),
+                "config": getattr(self.config, "path", None),
+                "clients": self.server.n_clients if self.server else 0,
+                "last_reload": dict(self.last_reload)}
+
+    # --- signals (main thread; hand the work to threads and return at once) -------------
+    def _on_stop_signal(self, signum, _frame) -> None:
+        name = signal.Signals(signum).name
+        if not self._shutdown_started.acquire(blocking=False):
+            return  # already stopping
+        self.exit_reason = name
+        threading.Thread(target=self.shutdown, args=(name,), name="rigd-shutdown",
+                         daemon=True).start()
+
+    def shutdown(self, why: str = "request") -> None:
+        """Safe outputs, stop the experiment and the loop (any thread)."""
+        from rigd.loop import faults as FC
+
+        self.log.info("shutting down", reason=why)
+        self.notifier.stopping(f"stopping ({why})")
+        if self.experiments is not None:
+            self.experiments.stop()
+        self.loop.trip(FC.OPERATOR_STOP)           # safe state from the next cycle on
+        fs = float(getattr(self.loop, "fs", 5000.0))
+        time.sleep(max(20.0 / fs, 0.005))          # let the safe state be applied and recorded
+        self.loop.stop()
+
+    def _on_hup(self, _signum, _frame) -> None:
+        threading.Thread(target=self.reload, name="rigd-reload", daemon=True).start()
+
+    def reload(self) -> dict[str, Any]:
+        """Re-read config and controller, validated first; never disturbs the loop on error."""
+        from rigd.config import load_config
+
+        with self._reload_lock:
+            path = getattr(self.config, "path", None)
+            try:
+                if not path or str(path).startswith("<"):
+                    raise InputError("the running config was not read from a file", "SIGHUP")
+                new = load_config(path)
+                ctrl = getattr(self.args, "controller", None)
+                if ctrl is None and new.config.controller is not None:
+                    from pathlib import Path
+
+                    c = Path(new.config.controller)
+                    ctrl = str(c if c.is_absolute() else Path(path).parent / c)
+                if ctrl is not None:
+                    self.loop.load_controller(ctrl)   # validates, then switches bumplessly
+                changed = _changed_sections(self.config, new, ignore=("controller",))
+                self.last_reload = {"state": "applied", "controller": ctrl,
+                                    "needs_restart": changed, "time": time.time()}
+                self.log.info("reloaded on SIGHUP", controller=ctrl,
+                              needs_restart=changed or None)
+                self.notifier.status(f"reloaded{' (restart needed for: ' + ', '.join(changed) + ')' if changed else ''}")
+            except InputError as exc:
+                self.last_reload = {"state": "refused", "error": str(exc), "time": time.time()}
+                self.log.error("reload refused, loop unchanged", error=str(exc))
+                self.notifier.status(f"reload refused: {exc}")
+            except Exception as exc:  # noqa: BLE001 - never take the daemon down on a reload
+                self.last_reload = {"state": "refused", "error": repr(exc), "time": time.time()}
+                self.log.error("reload failed, loop unchanged", error=repr(exc))
+            return dict(self.last_reload)
+
+    # --- the service thread: READY, WATCHDOG, STATUS -----------------------------------
+    def _service_run(self) -> None:
+        wd = self.notifier.watchdog_interval_s
+        tick = min(wd, 0.25) if wd > 0 else 0.25
+        last_seq = -1
+        last_wd = 0.0
+        last_status = ""
+        while not self._stop.wait(tick):
+            try:
+                seq = int(self.loop.status().get("seq", 0))
+            except Exception:  # noqa: BLE001
+                seq = last_seq
+            running = bool(getattr(self.loop, "running", True))
+            advancing = seq != last_seq
+            last_seq = seq
+            if not self.ready.is_set() and running and advancing and seq > 0:
+                self.ready.set()
+                self.notifier.ready(f"loop running at {getattr(self.loop, 'fs', 0):g} Hz")
+                self.log.info("ready", seq=seq, socket=getattr(self.args, "socket", None))
+            now = time.monotonic()
+            if wd > 0 and running and advancing and now - last_wd >= wd:
+                self.notifier.watchdog()
+                last_wd = now
+            self._drain_faults()
+            text = self._status_text(seq)
+            if text != last_status:
+                self.notifier.status(text)
+                last_status = text
+        self._drain_faults()
+
+    def _drain_faults(self) -> None:
+        q = self._faults
+        if q is None:
+            return
+        while True:
+            try:
+                ev = q.get_nowait()
+            except Exception:  # queue.Empty
+                return
+            self._fault_text = f"FAULT {ev.get('name')} at cycle {ev.get('seq')}"
+
+    def _status_text(self, seq: int) -> str:
+        try:
+            st = self.loop.status()
+            f = st.get("fault", {})
+            fault = f"FAULT {f.get('name')}" if f.get("code") else "ok"
+            ctrl = "K∞ on" if st.get("controller", {}).get("enabled") else "K∞ off"
+        except Exception:  # noqa: BLE001
+            fault, ctrl = "?", "?"
+        exp = ""
+        if self.experiments is not None:
+            es = self.experiments.status()
+            if es.get("state") not in (None, "idle"):
+                exp = f", experiment {es.get('name')} {es.get('state')}"
+        return f"{fault}, {ctrl}{exp}"
+
+
+def _changed_sections(old: Any, new: Any, ignore: tuple[str, ...] = ()) -> list[str]:
+    """Top-level config sections that differ between two loaded configs."""
+    try:
+        a = old.config.model_dump(mode="json")
+        b = new.config.model_dump(mode="json")
+    except AttributeError:
+        return []
+    return sorted(k for k in set(a) | set(b) if k not in ignore and a.get(k) != b.get(k))
