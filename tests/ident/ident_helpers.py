@@ -39,13 +39,13 @@ def prbs(n, rng, nu=2, hold=(1, 4)):
 
 
 def rotor_record(n=15000, seed=0, noise=0.02, omega_rpm=0.0, p_inj_bar=4.0, runout=0.0,
-                 kind="prbs", excite=True):
+                 kind="prbs", excite=True, kscale=1.0):
     """A simulated rotor record; ``noise`` is relative to each channel's std."""
     rng = np.random.default_rng(seed)
     r = prbs(n, rng) if excite else np.zeros((n, 2))
     Ka, Da, Ba = actuator_matrices()
     u = simulate_mechanical(Ka, Da, Ba, np.zeros(4), r, FS)
-    e = simulate_mechanical(K_TRUE, D_TRUE, B_TRUE, np.zeros(4), u, FS)
+    e = simulate_mechanical(K_TRUE * kscale, D_TRUE, B_TRUE, np.zeros(4), u, FS)
     sd_u = 0.5 if not excite else u.std(0)
     sd_e = 5.0 if not excite else e.std(0)
     u = u + noise * sd_u * rng.standard_normal(u.shape)
