@@ -14,12 +14,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
+
 from rigd.errors import FaultError, InputError
 from rigd.experiments.manifest import Manifest, new_run_dir, now_iso, sha256_text
 from rigd.experiments.points import (PointFailed, PointRunner, check_against_rate,
                                      controller_enabled, controller_loaded, loop_fs, segments,
                                      wants_controller)
-from rigd.experiments.schemas import (SweepSpec, load_experiment, spec_from_dict)
+from rigd.experiments.schemas import SettleSpec, SweepSpec, load_experiment, spec_from_dict
 from rigd.experiments.sweep import set_point, settle_check
 
 #: progress(done, total, text): called after each recorded segment.
@@ -154,12 +156,12 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
                 if op is not None:
                     set_point(loop, op, getattr(exp.spec, "set_point_by", "loop")
                               if isinstance(exp.spec, SweepSpec) else "loop", confirm)
-                    if op is not None and isinstance(exp.spec, SweepSpec):
-                        pt["settle"] = settle_check(loop, op, exp.spec.settle, fs,
-                                                    rd / ".settle.h5")
-                        if not pt["settle"]["settled"]:
-                            raise PointFailed("operating point not reached within "
-                                              f"{exp.spec.settle.timeout_s:g} s")
+                    settle = (exp.spec.settle if isinstance(exp.spec, SweepSpec)
+                              else SettleSpec())
+                    pt["settle"] = settle_check(loop, op, settle, fs, rd / ".settle.h5")
+                    if not pt["settle"]["settled"]:
+                        raise PointFailed("operating point not reached within "
+                                          f"{settle.timeout_s:g} s")
                 elif pt["omega_rpm"] is None:
                     last = (loop.status() or {}).get("last_frame", {})
                     pt["omega_rpm"] = _finite(last.get("omega_rpm"))
@@ -208,6 +210,7 @@ def _restore_controller(loop: Any, was: bool | None) -> None:
     if was is not None and controller_enabled(loop) != was:
         try:
             loop.enable_controller(was)
+            loop.run_segment(np.zeros((max(1, int(0.12 * loop_fs(loop))), 2)))  # apply + blend
         except Exception:  # noqa: BLE001 - best effort on the way out
             pass
 

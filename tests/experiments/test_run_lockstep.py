@@ -1,0 +1,157 @@
+"""Every experiment kind runs lock-step on the simulated plant; the records match the request."""
+
+import json
+
+import numpy as np
+import pytest
+
+from rigd.config import default_config
+from rigd.controller import save_controller
+from rigd.data import load_record
+from rigd.errors import InputError
+from rigd.experiments.runner import run_experiment
+from rigd.experiments.manifest import read_manifest
+from rigd.loop.app import build_loop
+
+FS = 5000.0
+
+
+@pytest.fixture(scope="module")
+def loop(tmp_path_factory):
+    # a small stable K∞(z) (first-order low-pass, gain 0.01 V/µm) so "K∞ on" is real
+    ctrl = tmp_path_factory.mktemp("ctrl") / "k.yaml"
+    save_controller(ctrl, [[0.9]], [[0.1, 0.0]], [[0.01], [0.0]], [[0.0, 0.0], [0.0, 0.0]],
+                    fs_hz=FS)
+    lp = build_loop(default_config(), clock="lockstep", controller=ctrl)
+    with lp:
+        yield lp
+
+
+def _run(loop, tmp_path, spec, **kw):
+    man = run_experiment(spec, loop, tmp_path / "run", **kw)
+    data = read_manifest(tmp_path / "run")
+    assert data["status"] == man.status
+    return man, data
+
+
+def _check_manifest(data, n_points):
+    for key in ("experiment", "started", "finished", "software", "config", "fs_hz", "points",
+                "files", "missing", "mode"):
+        assert key in data, key
+    assert data["software"]["rigd_version"] and data["config"]["sha256"].startswith("sha256:")
+    assert data["mode"] == "lockstep" and data["fs_hz"] == FS
+    assert len(data["points"]) == n_points
+
+
+def test_prbs_levels_and_switching(loop, tmp_path):
+    spec = {"kind": "prbs", "operating_point": {"omega_rpm": 0, "p_inj_bar": 4.0},
+            "amplitude_v": [1.0, 0.6], "switch_probability": 0.25, "min_hold_s": 0.001,
+            "seed": 5, "duration_s": 1.0, "lead_in_s": 0.1}
+    man, data = _run(loop, tmp_path, spec)
+    assert man.status == "complete" and data["missing"] == []
+    _check_manifest(data, 1)
+    f = data["files"][0]
+    assert f["kind"] == "prbs" and f["omega_rpm"] == 0 and f["p_inj_bar"] == 4.0
+    rec = load_record(tmp_path / "run" / f["path"])
+    assert rec.n == f["n_frames"] == int(1.1 * FS)
+    assert rec.kind == "prbs" and rec.p_inj_bar == 4.0
+    lead = rec.meta["lead_in_samples"]
+    assert lead == 500 and not rec.col("x_x")[:lead].any()
+    hold = 5
+    for ch, amp in (("x_x", 1.0), ("x_y", 0.6)):
+        x = rec.col(ch)[lead:]
+        assert set(np.unique(x)) == {-amp, amp}
+        sw = np.flatnonzero(np.diff(x)) + 1
+        assert np.all(sw % hold == 0)               # switches only at bit boundaries
+        n_bits = len(x) // hold
+        assert abs(len(sw) - 0.25 * n_bits) < 4 * np.sqrt(0.1875 * n_bits)
+    # the loop added the excitation to r (K∞ off: r = excitation)
+    assert np.array_equal(rec.col("r_x"), rec.col("x_x")) and not rec.col("k_on").any()
+    assert np.std(rec.col("e_x")[lead:]) > 10 * np.std(rec.col("e_x")[50:lead]) > 0
+
+
+@pytest.mark.parametrize("kind,extra", [
+    ("multilevel", {"levels": 5, "min_hold_s": 0.002, "duration_s": 0.5}),
+    ("multisine", {"f_min_hz": 10, "f_max_hz": 300, "period_s": 0.1, "periods": 3}),
+    ("chirp", {"f0_hz": 10, "f1_hz": 400, "duration_s": 0.5}),
+])
+def test_other_excitations(loop, tmp_path, kind, extra):
+    spec = {"kind": kind, "operating_point": {"omega_rpm": 0, "p_inj_bar": 5.0},
+            "amplitude_v": 1.0, "lead_in_s": 0.05, "axes": ["x"], **extra}
+    man, data = _run(loop, tmp_path, spec)
+    assert man.status == "complete"
+    rec = load_record(tmp_path / "run" / data["files"][0]["path"])
+    x = rec.col("x_x")[250:]
+    assert not rec.col("x_y").any() and np.max(np.abs(x)) == pytest.approx(1.0)
+    if kind == "multilevel":
+        assert np.allclose(np.unique(x), [-1, -0.5, 0, 0.5, 1])
+    if kind == "multisine":
+        assert len(x) == 1500 and np.allclose(x[:500], x[500:1000])
+
+
+def test_runout_length_and_speed(loop, tmp_path):
+    spec = {"kind": "runout", "operating_point": {"omega_rpm": 6000, "p_inj_bar": 4.0},
+            "revolutions": 20}
+    man, data = _run(loop, tmp_path, spec)
+    rec = load_record(tmp_path / "run" / data["files"][0]["path"])
+    assert rec.n == int(20 * 60 / 6000 * FS) and not rec.col("x_x").any()
+    assert rec.omega_rpm == 6000 and np.all(rec.col("omega_rpm") == 6000)
+    revs = np.count_nonzero(np.diff(rec.col("phi")) < -np.pi)  # wraps of the encoder angle
+    assert revs in (19, 20)
+
+
+def test_impact_windows_controller_off_and_on(loop, tmp_path):
+    spec = {"kind": "impact", "operating_point": {"omega_rpm": 0, "p_inj_bar": 4.0},
+            "axis": "y", "controller": [False, True], "repeats": 2, "pre_s": 0.01,
+            "post_s": 0.1, "spacing_s": 0.05, "peak_n": 40.0, "pulse_s": 0.001}
+    man, data = _run(loop, tmp_path, spec)
+    assert man.status == "complete" and len(data["files"]) == 4
+    n_pre = 50
+    for f in data["files"]:
+        rec = load_record(tmp_path / "run" / f["path"])
+        assert rec.n == f["n_frames"] == 50 + 500
+        fy = rec.col("f_y")
+        assert not rec.col("f_x").any()
+        assert not fy[:n_pre].any()                       # nothing before the trigger
+        assert n_pre <= np.argmax(fy) <= n_pre + 5         # the hit is at the trigger
+        assert 30.0 < fy.max() <= 40.0
+        k_on = rec.col("k_on")
+        assert np.all(k_on == (1.0 if f["controller_on"] else 0.0))
+        assert rec.meta["axis"] == "y" and rec.meta["trigger_index"] == n_pre
+    assert [f["controller_on"] for f in data["files"]] == [False, False, True, True]
+    assert loop.status()["controller"]["enabled"] is False   # restored
+
+
+def test_sweep_every_point_present(loop, tmp_path):
+    spec = {"kind": "sweep", "grid": {"omega_rpm": [0, 3000], "p_inj_bar": [3.0, 5.0, 7.0]},
+            "settle": {"hold_s": 0.02}, "at_each": {"kind": "prbs", "amplitude_v": 1.0,
+                                                    "duration_s": 0.1, "lead_in_s": 0.02}}
+    man, data = _run(loop, tmp_path, spec)
+    _check_manifest(data, 6)
+    assert man.status == "complete" and data["missing"] == []
+    got = set()
+    for pt in data["points"]:
+        assert pt["status"] == "done" and pt["settle"]["settled"] and len(pt["files"]) == 1
+        rec = load_record(tmp_path / "run" / pt["files"][0])
+        assert rec.omega_rpm == pt["omega_rpm"] and rec.p_inj_bar == pt["p_inj_bar"]
+        assert np.all(rec.col("omega_rpm") == pt["omega_rpm"])
+        assert np.all(rec.col("p_inj_bar") == pt["p_inj_bar"])
+        got.add((pt["omega_rpm"], pt["p_inj_bar"]))
+    assert got == {(w, p) for w in (0, 3000) for p in (3.0, 5.0, 7.0)}
+    assert sorted(x.name for x in (tmp_path / "run").iterdir()) == sorted(
+        ["manifest.json"] + [f["path"] for f in data["files"]])
+
+
+def test_never_overwrites_and_refuses_before_running(loop, tmp_path):
+    spec = {"kind": "runout", "operating_point": {"omega_rpm": 3000, "p_inj_bar": 4.0},
+            "revolutions": 10}
+    _run(loop, tmp_path, spec)
+    before = json.loads((tmp_path / "run" / "manifest.json").read_text())
+    with pytest.raises(InputError, match="not empty"):
+        run_experiment(spec, loop, tmp_path / "run")
+    assert json.loads((tmp_path / "run" / "manifest.json").read_text()) == before
+    bad = {"kind": "multisine", "amplitude_v": 1, "f_min_hz": 10, "f_max_hz": 2600,
+           "period_s": 0.1}
+    with pytest.raises(InputError, match="Nyquist"):
+        run_experiment(bad, loop, tmp_path / "run2")
+    assert not (tmp_path / "run2").exists()
