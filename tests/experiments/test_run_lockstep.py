@@ -155,3 +155,52 @@ def test_never_overwrites_and_refuses_before_running(loop, tmp_path):
     with pytest.raises(InputError, match="Nyquist"):
         run_experiment(bad, loop, tmp_path / "run2")
     assert not (tmp_path / "run2").exists()
+
+
+def test_manager_start_status_stop(loop, tmp_path):
+    """The daemon's ExperimentManager: runs in a thread, stop keeps completed points."""
+    import time
+
+    from rigd.experiments.manager import ExperimentManager
+
+    mgr = ExperimentManager(loop, runs_root=tmp_path / "runs")
+    spec = {"kind": "sweep", "grid": {"omega_rpm": [0, 1000, 2000, 3000],
+                                      "p_inj_bar": [3.0, 4.0, 5.0, 6.0]},
+            "settle": {"hold_s": 0.02},
+            "at_each": {"kind": "prbs", "amplitude_v": 1.0, "duration_s": 0.5,
+                        "lead_in_s": 0.02}}
+    started = mgr.start(spec=spec)
+    assert started["kind"] == "sweep" and started["run_dir"]
+    with pytest.raises(InputError, match="already running"):
+        mgr.start(spec=spec)
+    deadline = time.monotonic() + 60
+    while mgr.status().get("done", 0) < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert mgr.stop()["stopping"] is True
+    mgr.join(60)
+    st = mgr.status()
+    assert st["state"] == "interrupted" and st["missing"], st
+    data = read_manifest(st["run_dir"])
+    done = [p for p in data["points"] if p["status"] == "done"]
+    assert 2 <= len(done) < 16 and len(done) + len(data["missing"]) == 16
+    with pytest.raises(InputError, match="unknown kind"):
+        mgr.start(spec={"kind": "bogus"})
+
+
+@pytest.mark.parametrize("name", ["prbs", "multilevel", "multisine", "chirp", "runout",
+                                  "impact", "sweep"])
+def test_shipped_examples_validate(name, loop):
+    from conftest import ROOT
+    from rigd.experiments.points import check_against_rate
+    from rigd.experiments.runner import load
+
+    exp = load(ROOT / "config" / "experiments" / f"{name}.yaml")
+    assert exp.spec.kind == name
+    check_against_rate(exp.point_spec, FS, exp.source)
+
+
+def test_shipped_impact_runs(loop, tmp_path):
+    from conftest import ROOT
+
+    man, data = _run(loop, tmp_path, ROOT / "config" / "experiments" / "impact.yaml")
+    assert man.status == "complete" and len(data["files"]) == 3
