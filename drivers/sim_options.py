@@ -55,7 +55,7 @@ class ExtraMode(StrictModel):
     enabled: bool = False
     f_hz: float = Field(240.0, ge=20.0, le=2000.0)
     zeta: float = Field(0.02, gt=0.0, le=1.0)
-    input_um_per_v: Pair = Field(default_factory=lambda: [0.06, 0.04],
+    input_um_per_v: Pair = Field(default_factory=lambda: [0.04, 0.025],
                                  description="b_x, b_y: static q per V of u_x, u_y")
     output: Pair = Field(default_factory=lambda: [1.0, 0.6], description="c_x, c_y")
 
@@ -76,7 +76,7 @@ class Creep(StrictModel):
     """Slow piezo creep: two first-order lags adding fractions of the drive (effect ``creep``)."""
 
     enabled: bool = False
-    fraction: Pair = Field(default_factory=lambda: [0.04, 0.06])
+    fraction: Pair = Field(default_factory=lambda: [0.06, 0.06])
     tau_s: Pair = Field(default_factory=lambda: [0.02, 0.5])
 
 
