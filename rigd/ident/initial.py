@@ -84,7 +84,7 @@ def stabilise(K: np.ndarray, D: np.ndarray) -> np.ndarray:
     return D
 
 
-def levy_fit(f, H, coh, suu, fs, mask_K, mask_D, mask_B, iters: int = 4):
+def levy_fit(f, H, coh, suu, fs, mask_K, mask_D, mask_B, iters: int = 4, hold: str = "zoh"):
     """Fit mass-normalised K, D, B to a frequency response (see module docstring).
 
     ``mask_*`` are boolean arrays of the free entries; the others stay zero.
@@ -92,8 +92,8 @@ def levy_fit(f, H, coh, suu, fs, mask_K, mask_D, mask_B, iters: int = 4):
     nf, ny, nu = H.shape
     w = 2 * np.pi * f
     T = 1.0 / fs
-    # undo the half-sample delay and sinc droop of the zero-order hold
-    Hc = H * (np.exp(1j * w * T / 2) / np.sinc(f * T))[:, None, None]
+    # undo the half-sample delay and sinc droop of the zero-order hold (none for FOH)
+    Hc = H * (np.exp(1j * w * T / 2) / np.sinc(f * T))[:, None, None] if hold == "zoh" else H
     band = (f < 0.4 * fs)
     inpow = suu.max(axis=1)
     band &= inpow > 1e-3 * inpow[band].max() if band.any() else band
@@ -134,8 +134,8 @@ def levy_fit(f, H, coh, suu, fs, mask_K, mask_D, mask_B, iters: int = 4):
     return K, stabilise(K, D), B
 
 
-def mechanical_initial(u, y, fs, mask_K, mask_D, mask_B):
+def mechanical_initial(u, y, fs, mask_K, mask_D, mask_B, hold: str = "zoh"):
     """Initial mass-normalised (K, D, B) for a mechanical structure from data (n, nu), (n, ny)."""
     f, H, coh, suu = frf(u, y, fs)
     return levy_fit(f, H, coh, suu, fs, np.asarray(mask_K, bool), np.asarray(mask_D, bool),
-                    np.asarray(mask_B, bool))
+                    np.asarray(mask_B, bool), hold=hold)

@@ -106,7 +106,7 @@ class MechanicalStructure(Structure):
     # --- Structure API ---------------------------------------------------------------
     def theta0(self, data: IdData) -> np.ndarray:
         K, D, B = mechanical_initial(data.u, data.y, data.fs, self.mask_K, self.mask_D,
-                                     self.mask_B)
+                                     self.mask_B, self.hold)
         x0 = np.zeros(2 * self.n)
         x0[:self.n] = data.y[0]
         return self.pack(K, D, B, np.zeros((self.n, self.n)), x0)
@@ -218,18 +218,25 @@ class ActuatorStructure(MechanicalStructure):
         return out
 
 
-def bearing_structure() -> MechanicalStructure:
-    """𝔐_b (Eqs. 5-7): u = [u_x, u_y] (V) -> p = [e_x, e_y] (µm), 20 parameters."""
+def bearing_structure(hold: str = "foh") -> MechanicalStructure:
+    """𝔐_b (Eqs. 5-7): u = [u_x, u_y] (V) -> p = [e_x, e_y] (µm), 20 parameters.
+
+    u is a *measured* valve position (a continuous signal), so it is taken as linear between
+    samples (first-order hold) by default; the actuator's input r is a held command (ZOH).
+    """
     full = np.ones((2, 2), bool)
     return MechanicalStructure("bearing", full, full, full, full, "", ["x", "y"], ["x", "y"],
-                               ["u_x", "u_y"], ["e_x", "e_y"], x0_name="x0_")
+                               ["u_x", "u_y"], ["e_x", "e_y"], x0_name="x0_", hold=hold)
 
 
-def actuator_structure() -> ActuatorStructure:
-    """𝔐_a (Eqs. 8-10): r = [r_x, r_y] (V) -> u = [u_x, u_y] (V), 12 parameters."""
+def actuator_structure(hold: str = "zoh") -> ActuatorStructure:
+    """𝔐_a (Eqs. 8-10): r = [r_x, r_y] (V) -> u = [u_x, u_y] (V), 12 parameters.
+
+    r is the commanded reference, held over each loop period (zero-order hold).
+    """
     eye = np.eye(2, dtype=bool)
     return ActuatorStructure("actuator", eye, eye, eye, eye, "a_", ["x", "y"], ["x", "y"],
-                             ["r_x", "r_y"], ["u_x", "u_y"], x0_name="xa0_")
+                             ["r_x", "r_y"], ["u_x", "u_y"], x0_name="xa0_", hold=hold)
 
 
 def generic_structure(inputs: list[str], outputs: list[str],
@@ -247,10 +254,11 @@ def generic_structure(inputs: list[str], outputs: list[str],
 
 def structure_for(submodel: str, data: IdData | None = None, spec: dict | None = None):
     """Base structure of a sub-model (``actuator``, ``bearing``, ``generic``)."""
+    hold = (spec or {}).get("hold")
     if submodel == "actuator":
-        return actuator_structure()
+        return actuator_structure(hold or "zoh")
     if submodel == "bearing":
-        return bearing_structure()
+        return bearing_structure(hold or "foh")
     if submodel == "generic":
         if spec is not None:
             return generic_structure(list(spec["inputs"]), list(spec["outputs"]),
