@@ -46,9 +46,9 @@ class ValvePD(StrictModel):
     """PD loop of one piezo valve: v = kff·r_p + kp·e + kd·d/dt_filtered(e), e = r_p - y_p."""
 
     kp: float = Field(1.5, ge=0, le=1000)               #: proportional gain, V/V
-    kd: float = Field(2e-4, ge=0, le=10)                #: derivative gain, V·s/V
+    kd: float = Field(1e-4, ge=0, le=10)                #: derivative gain, V·s/V
     tf_s: float = Field(1e-4, gt=0, le=1)               #: derivative filter time constant, s
-    kff: float = Field(0.0, ge=0, le=10)                #: reference feed-forward gain, V/V (0: pure PD as in the paper)
+    kff: float = Field(1.0, ge=0, le=10)                #: reference feed-forward gain, V/V (0: pure PD)
 
 
 class SupervisorConfig(StrictModel):

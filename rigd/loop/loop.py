@@ -172,6 +172,7 @@ class ControlLoop(LoopRunner):
         for d in self.slow:
             d.open()
         self.fast.read(self.fin)
+        self._warm_up()
         self.recorder.start()
         self._opened = True
         self._monitor = threading.Thread(target=self._monitor_run, name="rigd-monitor",
@@ -185,6 +186,15 @@ class ControlLoop(LoopRunner):
             t.start()
             self._slow_threads.append(t)
         return self
+
+    def _warm_up(self) -> None:
+        """Load (or compile) the kernels now, on scratch copies: the first real cycle is fast."""
+        ring = np.zeros((4, F.N_REC))
+        prm = self.prm.copy()
+        prm[L.P_RING_N] = 4
+        K.rt_cycle(self.fin.copy(), prm, self.st.copy(), self.drive.copy(), ring,
+                   np.zeros((1, 2)), -1, K.hist_new(), 0, -1)
+        K.cycle(self.fin.copy(), prm, self.st.copy(), self.drive.copy(), ring, 0.0, 0.0)
 
     def __enter__(self) -> "ControlLoop":
         return self.open()

@@ -286,11 +286,14 @@ class LoopRunner:
         done = 0
         t0 = time.perf_counter()
         while done < n and not self._stop.is_set():
-            self._apply_commands()
-            m = min(n - done, batch)
-            exc, ei = _NO_EXC, -1
             if seg is not None:
                 self._fire_events(seg)
+            self._apply_commands()
+            m = min(n - done, batch)
+            if self._pending_ctrl is not None:   # blending out for a swap: stop when at 0
+                m = min(m, int(st[L.S_RAMP] / self.prm[L.P_RAMP_STEP]) + 1)
+            exc, ei = _NO_EXC, -1
+            if seg is not None:
                 if seg.events:
                     m = min(m, max(seg.events[0][0] - seg.i, 1))
                 exc, ei = seg.exc, seg.i
@@ -380,15 +383,16 @@ class LoopRunner:
                 read(fin)
             except Exception as exc:
                 self._driver_failed(exc)
-            if cmds or self._pending_ctrl is not None:
-                self._apply_commands()
             seg = self._seg
-            if seg is None:
-                rt_cycle(fin, prm, st, drive, ring, _NO_EXC, -1, hist, wake - nxt, prev)
-            else:
+            if seg is not None:
                 if seg.first_seq < 0:
                     self._seg_begin(seg)
                 self._fire_events(seg)
+            if cmds or self._pending_ctrl is not None:
+                self._apply_commands()
+            if seg is None:
+                rt_cycle(fin, prm, st, drive, ring, _NO_EXC, -1, hist, wake - nxt, prev)
+            else:
                 rt_cycle(fin, prm, st, drive, ring, seg.exc, seg.i, hist, wake - nxt, prev)
                 seg.i += 1
                 if seg.i >= seg.n:

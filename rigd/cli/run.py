@@ -1,0 +1,118 @@
+"""``rigd run``: the control loop on the configured drivers, real time or lock-step.
+
+Parses the arguments, configures logging, builds the loop from the config, runs it for
+``--duration`` seconds (or until SIGINT/SIGTERM or a service ``stop``) and prints the timing
+statistics. When the service package provides ``rigd.service.daemon.Daemon`` the run is wrapped
+in it (control socket, sd_notify, signals).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import importlib
+import json
+import signal
+import sys
+
+HELP = "run the 5 kHz control loop (simulated plant by default), print timing statistics"
+
+
+def _daemon_module():
+    try:
+        return importlib.import_module("rigd.service.daemon")
+    except ModuleNotFoundError as exc:
+        if exc.name in ("rigd.service.daemon",):
+            return None
+        raise
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", default="config/sim.yaml", help="rig config YAML "
+                   "(default: %(default)s)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="run this many seconds of loop time (default: until stopped; "
+                        "0: only build and check)")
+    p.add_argument("--lockstep", action="store_true",
+                   help="virtual clock: run as fast as the CPU allows")
+    p.add_argument("--record", metavar="FILE.h5", help="record every frame to this HDF5 file")
+    p.add_argument("--controller", metavar="FILE", help="K∞ controller YAML to load")
+    p.add_argument("--enable-controller", action="store_true",
+                   help="enable the loaded K∞ at start (bumpless ramp)")
+    p.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
+    p.add_argument("--json", action="store_true", help="print the timing statistics as JSON")
+    mod = _daemon_module()
+    if mod is not None and hasattr(mod, "add_arguments"):
+        mod.add_arguments(p)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rigd import log
+    from rigd.config import load_config
+    from rigd.errors import InputError
+    from rigd.loop.app import build_loop
+    from rigd.loop.timing import format_summary
+
+    log.configure(args.log_level)
+    logger = log.get_logger("rigd.run")
+    if args.duration is not None and args.duration < 0:
+        raise InputError(f"must be >= 0 (got {args.duration})", "--duration")
+    if args.enable_controller and not args.controller:
+        lc0 = load_config(args.config)
+        if lc0.config.controller is None:
+            raise InputError("needs --controller or a controller: key in the config",
+                             "--enable-controller")
+    lc = load_config(args.config)
+    loop = build_loop(lc, clock="lockstep" if args.lockstep else None,
+                      controller=args.controller)
+    if args.duration == 0:
+        loop.close()
+        print(f"{args.config}: configuration OK ({loop.clock} clock, fast driver "
+              f"{lc.config.drivers.fast.name!r})")
+        return 0
+    mod = _daemon_module()
+    service = (mod.Daemon(loop, lc, args) if mod is not None and hasattr(mod, "Daemon")
+               else contextlib.nullcontext())
+    previous = {}
+
+    def _stop(signum, _frame):
+        loop.stop()
+
+    if mod is None:
+        for s in (signal.SIGINT, signal.SIGTERM):
+            previous[s] = signal.signal(s, _stop)
+    sink = None
+    try:
+        with loop:
+            if args.record:
+                sink = loop.start_recording(args.record)
+            if args.enable_controller:
+                loop.enable_controller(True)
+            logger.info("loop running", clock=loop.clock, fs_hz=loop.fs, config=args.config,
+                        duration_s=args.duration, record=args.record)
+            with service:
+                if loop.clock == "lockstep":
+                    if args.duration is None:
+                        while not loop.stopped:
+                            loop.run_cycles(loop.config.clock.batch_cycles)
+                    else:
+                        loop.run_for(args.duration)
+                else:
+                    loop.start()
+                    loop.wait(args.duration)
+            if sink is not None:
+                loop.stop_recording(sink)
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+    timing = loop.timing()
+    faults = loop.faults()
+    if args.json:
+        print(json.dumps({"timing": timing, "faults": faults}, indent=2, default=str))
+    else:
+        print(format_summary(timing))
+        for f in faults:
+            print(f"fault at cycle {f['seq']}: {f['name']} ({f['text']})")
+        if sink is not None:
+            print(f"recorded {sink.n_written} frames to {args.record}")
+    return 0
