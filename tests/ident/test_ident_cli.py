@@ -86,3 +86,14 @@ def test_silverbox_linear_1dof(tmp_path, capsys):
     arrow = json.loads(capsys.readouterr().out)["fit_percent"]
     # the linear model misses the cubic stiffness: worse on the wide arrow
     assert 50.0 < arrow < js["fit_percent"]
+
+
+def test_identify_add_effect_from_registry(files, capsys):
+    reg = pytest.importorskip("rigd.effects").REGISTRY
+    if "delay" not in reg:
+        pytest.skip("delay effect not registered")
+    assert main(["identify", str(files / "prbs.csv"), "--model", "bearing", "--add", "delay",
+                 "--json"]) == 0
+    js = json.loads(capsys.readouterr().out)
+    assert js["effects"] == ["delay"] and len(js["parameters"]) > 20
+    assert np.isfinite(js["fit_percent"]) and js["fit_percent"] > 90
