@@ -127,7 +127,7 @@ def test_large_file_in_several_blocks_locates_late_error(tmp_path):
 
 
 def test_silverbox_raw_refused_then_loaded_with_fs(tmp_path):
-    from conftest import SHARED
+    from testpaths import SHARED
 
     raw = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
     with pytest.raises(InputError, match="rigd export --from-csv"):

@@ -190,7 +190,7 @@ def test_manager_start_status_stop(loop, tmp_path):
 @pytest.mark.parametrize("name", ["prbs", "multilevel", "multisine", "chirp", "runout",
                                   "impact", "sweep"])
 def test_shipped_examples_validate(name, loop):
-    from conftest import ROOT
+    from testpaths import ROOT
     from rigd.experiments.points import check_against_rate
     from rigd.experiments.runner import load
 
@@ -200,7 +200,7 @@ def test_shipped_examples_validate(name, loop):
 
 
 def test_shipped_impact_runs(loop, tmp_path):
-    from conftest import ROOT
+    from testpaths import ROOT
 
     man, data = _run(loop, tmp_path, ROOT / "config" / "experiments" / "impact.yaml")
     assert man.status == "complete" and len(data["files"]) == 3
