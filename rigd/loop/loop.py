@@ -375,6 +375,7 @@ class ControlLoop(LoopRunner):
             except Exception as exc:
                 if not failed:
                     self.log.error("slow driver failed", driver=d.name, error=str(exc))
+                    self.st[L.S_EXT_FAULT] = FC.SLOW_DRIVER
                 failed = True
                 continue
             failed = False

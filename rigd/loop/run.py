@@ -69,8 +69,10 @@ class LoopRunner:
         if self._thread is not None:
             return
         target = self._rt_main if self.clock == "realtime" else self._lockstep_main
+        self._started = threading.Event()
         self._thread = threading.Thread(target=target, name="rigd-loop", daemon=True)
         self._thread.start()
+        self._started.wait(30.0)        # returns once the first cycle is due
 
     def run_cycles(self, n: int) -> int:
         """Run ``n`` cycles: lock-step in this thread, or wait n/fs on the running real-time loop.
@@ -265,6 +267,7 @@ class LoopRunner:
 
     # lock-step --------------------------------------------------------------------------
     def _lockstep_main(self) -> None:
+        self._started.set()
         while not self._stop.is_set():
             seg = self._seg
             if seg is not None:
@@ -350,7 +353,9 @@ class LoopRunner:
             self.log.warning("real-time scheduling not fully available, running best-effort",
                              problems="; ".join(problems))
         old_si = CLK.fast_switch_interval()
+        t0 = time.perf_counter()
         CLK.freeze_gc()
+        self.setup_s = time.perf_counter() - t0
         try:
             self._rt_loop()
         except BaseException as exc:  # never die silently: safe state and log
@@ -376,7 +381,9 @@ class LoopRunner:
         storm_ns = int(sup.overrun_storm_window_s * 1e9)
         S_W = L.S_W
         prev = -1
-        nxt = perf() + period
+        t_setup = perf()
+        nxt = t_setup + period
+        self._started.set()
         while not stop.is_set():
             wake = wait_until(nxt, spin)
             try:
