@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rigd_drivers import sim_physics as phys
+from rigd_drivers.sim_info import run_pd
 
 FS = 5000.0
 QUIET = {"noise": {"e_um": 0.0, "y_p_v": 0.0}}
@@ -64,30 +64,6 @@ def modes_from_free_response(records, fs: float = FS, decimate: int = 4):
     return f[order], z[order]
 
 
-def pd_run(driver, r_p: np.ndarray, kp=phys.PD_KP, kd=phys.PD_KD, tau=phys.PD_TAU_D,
-           kff=phys.PD_KFF):
-    """Run the driver under four PD loops as the loop's ``pd_step`` does (feed-forward,
-    derivative of the error, backward Euler, clamp [0, 10] V) following per-valve references
-    r_p (n, 4). Returns the frames (n, 13): row i is the sample after step i."""
-    T = 1.0 / driver.fs
-    n = r_p.shape[0]
-    frames = np.zeros((n, 13))
-    f = np.zeros(13)
-    driver.read(f)
-    eprev = r_p[0] - f[2:6]
-    d = np.zeros(4)
-    drive = np.zeros(4)
-    for i in range(n):
-        e = r_p[i] - f[2:6]
-        d = (tau * d + (e - eprev)) / (tau + T)
-        eprev = e
-        drive[:] = np.clip(kff * r_p[i] + kp * e + kd * d, 0.0, 10.0)
-        driver.write(drive)
-        driver.read(f)
-        frames[i] = f
-    return frames
-
-
 @pytest.fixture
 def free_modes():
     return modes_from_free_response
@@ -95,4 +71,4 @@ def free_modes():
 
 @pytest.fixture
 def pd():
-    return pd_run
+    return run_pd
