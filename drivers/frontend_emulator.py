@@ -47,17 +47,21 @@ class FrontendEmulator:
         Shaft speed of the model (encoder angle advances at this rate), rpm.
     fd : int, optional
         Use this already-open serial file descriptor instead of creating a pty.
+    tx_buffer_s : float
+        Device transmit buffer, s of frames (a microcontroller's DMA buffer: 10 ms). A host
+        that does not read for longer loses frames (the host then sees a sequence gap).
     """
 
     def __init__(self, link: str | None = None, *, fs: float = 5000.0, hold_v: float = 5.0,
-                 hold_timeout: float = 0.002, omega_rpm: float = 3000.0, fd: int | None = None):
+                 hold_timeout: float = 0.002, omega_rpm: float = 3000.0, fd: int | None = None,
+                 tx_buffer_s: float = 0.01):
         self.link = link
         self.fs = float(fs)
         self.hold_v = hold_v
         self.hold_timeout = hold_timeout
         self.omega_rpm = omega_rpm
         self._ext_fd = fd
-        self.max_pending_s = 0.5     # device-side transmit backlog before frames are dropped
+        self.max_pending_s = tx_buffer_s  # device transmit buffer; beyond it frames are dropped
         self.master = -1
         self.slave_name = ""
         self.lock = threading.Lock()

@@ -88,6 +88,8 @@ class SerialFrameDriver(FastDriver):
         self.n_disconnects = 0
         self.n_reconnects = 0
         self.n_tx_overflow = 0
+        self.n_resyncs = 0
+        self._last_call = 0.0
         self._reset_rx()
 
     # --- device ------------------------------------------------------------------------
@@ -122,6 +124,21 @@ class SerialFrameDriver(FastDriver):
         sp.encode_drive(self._tx, 0, False, np.zeros(4))
 
     def _attach(self, ser) -> None:
+        # Frames the device sent before we listened are history, not samples of this run:
+        # drain them (until the port is quiet for 1 ms, at most 0.2 s) and start counting
+        # sequence gaps from the first live frame.
+        fd = ser.fileno()
+        end = time.monotonic() + 0.2
+        quiet = 0
+        while quiet < 2 and time.monotonic() < end:
+            try:
+                n = os.readv(fd, (self._rxmv,))
+            except (BlockingIOError, InterruptedError):
+                n = 0
+            except OSError:
+                break
+            quiet = quiet + 1 if n < sp.SENSOR_FRAME else 0
+            time.sleep(0.0005)
         self._reset_rx()
         self._dev_status = 0
         self._ser = ser
@@ -204,6 +221,10 @@ class SerialFrameDriver(FastDriver):
         if n:
             st[sp.C_RXLEN] += n
             sp.ingest_sensor(self._rx, st, self._fifo)
+        now = time.monotonic()
+        if now - self._last_call > self._timeout_s:
+            self._resync(fd)
+        self._last_call = now
         ev = st[sp.C_EVENTS]
         if ev:
             st[sp.C_EVENTS] = 0
@@ -213,7 +234,7 @@ class SerialFrameDriver(FastDriver):
                 status |= DRV_GAP
         row = self._row
         if sp.pop_sensor(st, self._fifo, row):
-            self._last_rx = time.monotonic()
+            self._last_rx = now
             self._in_timeout = False
             frame_in[IN_E_X] = row[sp.R_EX]
             frame_in[IN_E_Y] = row[sp.R_EY]
@@ -226,12 +247,35 @@ class SerialFrameDriver(FastDriver):
             frame_in[IN_F_Y] = row[sp.R_FY]
             frame_in[IN_SEQ] = row[sp.R_SEQ]
             self._dev_status = int(row[sp.R_STATUS]) & 0xFF
-        elif time.monotonic() - self._last_rx > self._timeout_s:
+        elif now - self._last_rx > self._timeout_s:
             if not self._in_timeout:
                 self._in_timeout = True
                 self.n_timeouts += 1
             status |= DRV_TIMEOUT
         frame_in[IN_STATUS] = status | self._dev_status  # device bits of the latest frame
+
+    def _resync(self, fd: int) -> None:
+        """The host was not cycling (start-up, loop paused): what queued up meanwhile is
+        history. Drain the port (at most 50 ms), keep the newest frame and start gap counting
+        afresh; counted in ``resyncs``. Host stalls *while running* are reported by the loop's
+        overrun supervision, and a FIFO overflow then is a gap fault."""
+        st = self._state
+        end = time.monotonic() + 0.05
+        while time.monotonic() < end:
+            try:
+                n = os.readv(fd, (self._rxmv[st[sp.C_RXLEN]:],))
+            except (BlockingIOError, InterruptedError):
+                n = 0
+            except OSError:
+                return  # the next read() finds the port gone
+            if n == 0:
+                break
+            st[sp.C_RXLEN] += n
+            sp.ingest_sensor(self._rx, st, self._fifo)
+        while st[sp.C_COUNT] > 1:
+            sp.pop_sensor(st, self._fifo, self._row)
+        st[sp.C_EVENTS] = 0
+        self.n_resyncs += 1
 
     def write(self, drive: np.ndarray) -> None:
         fd = self._fd
@@ -252,6 +296,6 @@ class SerialFrameDriver(FastDriver):
         st = self._state
         c = {name: int(st[i]) for i, name in sp.COUNTER_NAMES.items()}
         c.update(timeouts=self.n_timeouts, disconnects=self.n_disconnects,
-                 reconnects=self.n_reconnects, tx_overflow=self.n_tx_overflow,
+                 reconnects=self.n_reconnects, resyncs=self.n_resyncs, tx_overflow=self.n_tx_overflow,
                  connected=int(self.connected))
         return c

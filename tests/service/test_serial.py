@@ -55,7 +55,8 @@ def _run(drv, frame, seconds, drive=None):
 @pytest.fixture()
 def link(tmp_path):
     # device hold after 50 ms of host silence (2 ms on the rig; a loaded test host pauses)
-    emu = FrontendEmulator(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.05).start()
+    emu = FrontendEmulator(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.05,
+                           tx_buffer_s=0.5).start()  # flow-control-like: test-host pauses lose nothing
     drv = SerialFrameDriver({"port": emu.port, "backlog": 256, "timeout_ms": 20,
                              "reconnect_s": 0.05})
     drv.open()

@@ -1,0 +1,177 @@
+"""Fault-injection suite: every fault puts the rig in the safe state within one cycle, latches,
+and loses no recorded frame. Lock-step in-process where the loop is enough; the real-time
+clock where timing is the fault; a real process where the fault is about the process.
+
+The other process-level faults live beside their process tests:
+``test_daemon_process.py`` (bad controller on SIGHUP) and ``test_faults_process.py``
+(SIGTERM during an experiment, disk full while recording).
+"""
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from rigd.frame import IN_E_X, IN_E_Y, IN_PHI, IN_SEQ, IN_YP1
+from rigd.loop import faults as FC
+
+from faultkit import assert_safe_after_fault, lockstep_fault
+
+AT = 1500
+
+
+def _set(ch, value):
+    def f(frame):
+        frame[ch] = value
+    return f
+
+
+def test_fault_sensor_nan(tmp_path):
+    fr, faults, _ = lockstep_fault(tmp_path, _set(IN_E_X, math.nan), at=AT)
+    i = assert_safe_after_fault(fr, FC.SENSOR_NAN, armed_at=AT, max_latency=1)
+    assert faults[-1]["name"] == "sensor_nan" and "e_x" in faults[-1]["text"]
+    assert len(fr) - i > 2000  # and recording went on after it
+
+
+def test_fault_sensor_out_of_range(tmp_path):
+    fr, faults, _ = lockstep_fault(tmp_path, _set(IN_E_Y, 500.0), at=AT)
+    assert_safe_after_fault(fr, FC.SENSOR_RANGE, armed_at=AT, max_latency=1)
+    assert "e_y" in faults[-1]["text"]
+
+
+def test_fault_stale_frame(tmp_path):
+    fr, _, _ = lockstep_fault(tmp_path, _set(IN_SEQ, 12345.0), at=AT)
+    assert_safe_after_fault(fr, FC.STALE_FRAME, armed_at=AT, max_latency=5)  # stale_frames: 3
+
+
+def test_fault_lost_encoder(tmp_path):
+    # the shaft turns at 3000 rpm; the encoder angle freezes -> encoder_frozen_s = 10 ms
+    fr, _, _ = lockstep_fault(tmp_path, _set(IN_PHI, 1.0), at=AT,
+                              plant={"omega_rpm": 3000.0})
+    assert_safe_after_fault(fr, FC.ENCODER_LOST, armed_at=AT, max_latency=52)
+
+
+def test_fault_valve_far_from_reference(tmp_path):
+    # valve 1 reports 4 V away from its reference: valve_error_v 3 V for valve_error_s 50 ms
+    def stuck(frame):
+        frame[IN_YP1] = 9.5
+    fr, faults, _ = lockstep_fault(tmp_path, stuck, at=AT)
+    i = assert_safe_after_fault(fr, FC.VALVE_TRACKING, armed_at=AT, max_latency=260)
+    assert i - AT >= 240, "not before the allowed time"
+    assert "valve 1" in faults[-1]["text"]
+
+
+def test_fault_shaft_displacement(tmp_path):
+    # 21 µm from the centre: within the sensor range, beyond 0.8 x 25 µm film gap
+    fr, _, _ = lockstep_fault(tmp_path, _set(IN_E_X, 21.0), at=AT)
+    assert_safe_after_fault(fr, FC.SHAFT_DISPLACEMENT, armed_at=AT, max_latency=1)
+
+
+def test_fault_driver_exception(tmp_path):
+    def boom(frame):
+        raise OSError("front-end vanished")
+    fr, faults, _ = lockstep_fault(tmp_path, boom, at=AT)
+    assert_safe_after_fault(fr, FC.DRIVER_EXCEPTION, armed_at=AT, max_latency=1)
+    assert "front-end vanished" in faults[-1]["text"]
+
+
+def test_fault_overrun_storm_realtime(tmp_path):
+    # real-time clock: the driver takes 0.5 ms (> 0.2 ms period) on every cycle
+    def slow(frame):
+        time.sleep(0.0005)
+    fr, _, _ = lockstep_fault(tmp_path, slow, at=AT, n=6000, clock="realtime",
+                              supervisor={"overrun_storm_count": 50})
+    # the loop counts overruns over the window: the storm is detected after >= 50 late cycles
+    assert_safe_after_fault(fr, FC.OVERRUN_STORM, armed_at=AT)
+
+
+def _realtime_loop(tmp_path, drivers, **sections):
+    from rigd.config import load_config
+    from rigd.loop.app import build_drivers
+    from rigd.loop.loop import ControlLoop
+
+    from daemon_helpers import make_config
+    from faultkit import controller_file
+
+    lc = load_config(make_config(tmp_path, drivers=drivers, clock={"spin_us": 0.0},
+                                 **sections))
+    fast, slow, hz = build_drivers(lc)
+    return ControlLoop(lc, fast, slow_drivers=slow, slow_poll_hz=hz,
+                       controller=controller_file(tmp_path), clock="realtime")
+
+
+def _play(loop, tmp_path, n, events=()):
+    from faultkit import excitation, read_frames
+
+    rec = tmp_path / "fault.h5"
+    loop.enable_controller(True)
+    loop.run_cycles(600)
+    loop.run_segment(excitation(n), record=str(rec), events=list(events))
+    return read_frames(rec)
+
+
+def test_fault_serial_disconnect_then_reconnect(tmp_path):
+    """The real serial driver on the real-time loop, fed by the front-end emulator on a pty;
+    the front-end is unplugged in the middle of an excitation."""
+    from rigd_drivers.frontend_emulator import FrontendEmulator
+    from rigd_drivers.serial_frame import DRV_DISCONNECT
+
+    from faultkit import wait_for
+
+    emu = FrontendEmulator(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.05,
+                           tx_buffer_s=0.5).start()
+    try:
+        # The emulator shares this process and its two loaded CPUs with the loop, so frames
+        # arrive in bursts and may be late: the stale-frame and gap checks are off here (each
+        # has its own test: test_fault_stale_frame, test_serial.py). The disconnect is not.
+        loop = _realtime_loop(
+            tmp_path, {"fast": {"name": "serial", "options": {
+                "port": emu.port, "reconnect_s": 0.05, "timeout_ms": 50.0,
+                "fault_on_gap": False}}},
+            supervisor={"stale_frames": 0})
+        with loop:
+            fr = _play(loop, tmp_path, 4000, events=[(AT, emu.unplug)])
+            faults = loop.faults()
+            i = assert_safe_after_fault(fr, FC.DRIVER_STATUS, armed_at=AT, max_latency=10)
+            assert f"status bits {DRV_DISCONNECT | 0x100:#x}" in faults[-1]["text"]
+            assert loop.fast.counters()["disconnects"] == 1
+            # plugged back: the driver reconnects by itself; the fault stays latched until reset
+            emu.replug()
+            assert wait_for(lambda: loop.fast.connected, 5.0)
+            time.sleep(0.2)
+            assert loop.status()["fault"]["code"] == FC.DRIVER_STATUS
+            loop.reset_fault()
+            assert wait_for(lambda: loop.status()["fault"]["code"] == 0, 5.0), loop.status()["fault"]
+            assert loop.fast.counters()["reconnects"] == 1
+    finally:
+        emu.stop()
+    assert i >= AT
+
+
+def test_fault_modbus_server_down(tmp_path):
+    """The real Modbus driver (polled by the loop's slow thread) against a pymodbus server on
+    loopback that stops in the middle of an excitation."""
+    import threading
+
+    from modbus_server import PlcServer
+
+    plc = PlcServer(p_inj_bar=4.5, omega_rpm=0.0).start()
+    try:
+        loop = _realtime_loop(
+            tmp_path, {"fast": {"name": "sim"}, "slow": [{"name": "modbus", "poll_hz": 50.0,
+                       "options": {"host": "127.0.0.1", "port": plc.port, "timeout_s": 0.05,
+                                   "reconnect_s": 0.05}}]},
+            supervisor={"slow_stale_s": 0.3})
+        with loop:
+            timer = threading.Timer(0.6, plc.stop)  # not in the loop thread: it never waits
+            timer.start()
+            fr = _play(loop, tmp_path, 7500)
+            timer.join()
+            faults = loop.faults()
+            assert_safe_after_fault(fr, FC.SLOW_DRIVER)
+            assert faults[-1]["name"] == "slow_driver"
+            from rigd.frame import REC
+            assert np.all(fr[:100, REC["p_inj_bar"]] == 4.5)  # P_I came from the PLC
+    finally:
+        plc.stop()
