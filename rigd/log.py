@@ -13,6 +13,19 @@ import structlog
 _configured = False
 
 
+class _StderrProxy:
+    """Writes to whatever ``sys.stderr`` is at the time of the write."""
+
+    def write(self, text: str) -> int:
+        return sys.stderr.write(text)
+
+    def flush(self) -> None:
+        sys.stderr.flush()
+
+    def isatty(self) -> bool:
+        return hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
+
+
 def configure(level: str = "info", *, json: bool | None = None, stream=None) -> None:
     """Configure structlog once for the process.
 
@@ -27,7 +40,9 @@ def configure(level: str = "info", *, json: bool | None = None, stream=None) -> 
         Where to write (default ``sys.stderr``).
     """
     global _configured
-    stream = stream or sys.stderr
+    if stream is None:
+        # resolve sys.stderr at each write, not now: it may be replaced later (tests, daemons)
+        stream = _StderrProxy()
     if json is None:
         json = not (hasattr(stream, "isatty") and stream.isatty())
     renderer = (structlog.processors.JSONRenderer() if json
