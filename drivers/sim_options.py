@@ -76,8 +76,8 @@ class Creep(StrictModel):
     """Slow piezo creep: two first-order lags adding fractions of the drive (effect ``creep``)."""
 
     enabled: bool = False
-    fraction: Pair = Field(default_factory=lambda: [0.06, 0.06])
-    tau_s: Pair = Field(default_factory=lambda: [0.02, 0.5])
+    fraction: Pair = Field(default_factory=lambda: [0.08, 0.10])
+    tau_s: Pair = Field(default_factory=lambda: [0.05, 0.5])
 
 
 class Runout(StrictModel):
