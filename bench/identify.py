@@ -31,7 +31,7 @@ def run() -> dict:
     from rigd.ident.pem import fit
 
     data = _record()
-    S = bearing_structure()
+    S = bearing_structure("foh")
     fit(S, data.slice(0, 2000))  # compile / load the numba cache
     t = time.perf_counter()
     res = fit(S, data)

@@ -218,11 +218,13 @@ class ActuatorStructure(MechanicalStructure):
         return out
 
 
-def bearing_structure(hold: str = "foh") -> MechanicalStructure:
+def bearing_structure(hold: str = "zoh") -> MechanicalStructure:
     """𝔐_b (Eqs. 5-7): u = [u_x, u_y] (V) -> p = [e_x, e_y] (µm), 20 parameters.
 
-    u is a *measured* valve position (a continuous signal), so it is taken as linear between
-    samples (first-order hold) by default; the actuator's input r is a held command (ZOH).
+    ``hold``: how the input behaves between samples. u is a *measured* valve position (a
+    continuous signal), for which ``"foh"`` (linear between samples) is right and is what
+    ``rigd identify`` uses (:data:`DEFAULT_HOLD`); the plain default ``"zoh"`` is the raw
+    simulator convention (inputs held), kept for callers that compensate themselves.
     """
     full = np.ones((2, 2), bool)
     return MechanicalStructure("bearing", full, full, full, full, "", ["x", "y"], ["x", "y"],
@@ -240,11 +242,11 @@ def actuator_structure(hold: str = "zoh") -> ActuatorStructure:
 
 
 def generic_structure(inputs: list[str], outputs: list[str],
-                      hold: str = "foh") -> MechanicalStructure:
+                      hold: str = "zoh") -> MechanicalStructure:
     """n-DOF M p̈ + D ṗ + K p = B u (mass-normalised) for records from other rigs.
 
-    The inputs of other rigs are usually measured, smooth signals, so they are taken as
-    linear between samples (first-order hold) by default.
+    The inputs of other rigs are usually measured, smooth signals: ``rigd identify`` takes
+    them as linear between samples (``hold="foh"``, :data:`DEFAULT_HOLD`).
     """
     n, nu = len(outputs), len(inputs)
     return MechanicalStructure("generic", np.ones((n, n), bool), np.ones((n, n), bool),
@@ -252,16 +254,25 @@ def generic_structure(inputs: list[str], outputs: list[str],
                                inputs, outputs, hold=hold)
 
 
-def structure_for(submodel: str, data: IdData | None = None, spec: dict | None = None):
-    """Base structure of a sub-model (``actuator``, ``bearing``, ``generic``)."""
-    hold = (spec or {}).get("hold")
+#: Input hold per sub-model used by ``rigd identify``: commanded references are held (ZOH),
+#: measured signals (valve positions, other rigs' inputs) are linear between samples (FOH).
+DEFAULT_HOLD = {"actuator": "zoh", "bearing": "foh", "generic": "foh"}
+
+
+def structure_for(submodel: str, data: IdData | None = None, spec: dict | None = None,
+                  hold: str | None = None):
+    """Base structure of a sub-model (``actuator``, ``bearing``, ``generic``).
+
+    ``hold``: ``"zoh"``/``"foh"``; default: the spec's (model files), else ``"zoh"`` (pass
+    ``DEFAULT_HOLD[submodel]`` for what ``rigd identify`` uses).
+    """
+    hold = hold or (spec or {}).get("hold") or "zoh"
     if submodel == "actuator":
-        return actuator_structure(hold or "zoh")
+        return actuator_structure(hold)
     if submodel == "bearing":
-        return bearing_structure(hold or "foh")
+        return bearing_structure(hold)
     if submodel == "generic":
         if spec is not None:
-            return generic_structure(list(spec["inputs"]), list(spec["outputs"]),
-                                     spec.get("hold") or "foh")
-        return generic_structure(data.input_names, data.output_names)
+            return generic_structure(list(spec["inputs"]), list(spec["outputs"]), hold)
+        return generic_structure(data.input_names, data.output_names, hold)
     raise ValueError(f"unknown sub-model {submodel!r}")

@@ -21,7 +21,7 @@ import numpy as np
 from rigd.data.record import Record
 from rigd.errors import InputError
 from rigd.ident.iddata import IdData, channels_for, from_record
-from rigd.ident.mechanical import structure_for
+from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
 from rigd.ident.modelfile import ModelFile, Submodel, apply_effects
 from rigd.ident.pem import fit, fit_percent
 from rigd.ident.prefilter import PrefilterOptions, apply_prefilters
@@ -156,7 +156,7 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         prefilter_reports[sm] = rep
         k = int(round(data.n * split))
         est = data.slice(0, k)
-        base = structure_for(sm, data)
+        base = structure_for(sm, data, hold=DEFAULT_HOLD[sm])
         th0 = _start_values(base, init, sm, est)
         res = fit(base, est, method=method, theta0=th0)
         structure, theta, std, used = base, res.theta, res.std, res.method

@@ -24,7 +24,7 @@ def _modes(S, theta):
 def test_bearing_known_parameters_from_automatic_start(rec, method):
     data = from_record(rec, "bearing")
     est, val = data.split()
-    S = bearing_structure()
+    S = bearing_structure("foh")
     res = fit(S, est, method=method)  # no start values: automatic initial guess
     true = _modes(S, S.pack(K_TRUE, D_TRUE, B_TRUE))
     got = _modes(S, res.theta)
@@ -43,7 +43,7 @@ def test_bearing_known_parameters_from_automatic_start(rec, method):
 
 def test_automatic_initial_guess_is_close_but_refined(rec):
     data = from_record(rec, "bearing")
-    S = bearing_structure()
+    S = bearing_structure("foh")
     th0 = S.theta0(data)
     m0 = _modes(S, th0)
     true = _modes(S, S.pack(K_TRUE, D_TRUE, B_TRUE))
@@ -67,7 +67,7 @@ def test_actuator_poles_and_gains(rec):
 
 
 def test_bearing_structure_has_paper_parameters():
-    S = bearing_structure()
+    S = bearing_structure("foh")
     assert len(S.names) == 20
     assert {"k_xy", "d_yx", "b_xx", "bd_yy", "x0_4"} <= set(S.names)
 
@@ -111,7 +111,7 @@ def test_hooked_structure_fits_extension_parameters_with_pem(rec):
 
     data = from_record(rec, "bearing").slice(0, 8000)
     shifted = data.with_y(data.y + np.array([3.0, -2.0]))
-    S = HookedStructure(bearing_structure(), [_OutputOffset()])
+    S = HookedStructure(bearing_structure("foh"), [_OutputOffset()])
     assert isinstance(_OutputOffset(), Extension)
     assert S.names[-2:] == ["off_x", "off_y"] and S.effects == ["offset"]
     th0 = S.theta0(shifted)
