@@ -44,6 +44,15 @@ def try_realtime(priority: int, cpu: int | None) -> list[str]:
     return problems
 
 
+def boost_threads(native_ids, priority: int) -> None:
+    """Give other threads of this process SCHED_FIFO ``priority`` (best effort, silent)."""
+    for tid in native_ids:
+        try:
+            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+        except (OSError, AttributeError):
+            pass
+
+
 def drop_realtime() -> None:
     """Return the calling thread to SCHED_OTHER (after the loop ends)."""
     try:

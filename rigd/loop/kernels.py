@@ -30,7 +30,7 @@ from rigd.loop.layout import (
     P_KFF, P_KN, P_KP, P_PEQ_ALPHA, P_R0, P_RAMP_STEP, P_RING_N, P_STALE_N, P_SUP_ON, P_VERR_N,
     P_VERR_V, P_VMAX, P_VMIN, P_Y_MAX, P_Y_MIN, S_DF, S_DROPPED, S_EPREV, S_EXT_FAULT, S_FAULT,
     S_FAULT_DETAIL, S_FAULT_SEQ, S_FLOG, S_K_OUT_X, S_K_OUT_Y, S_K_TARGET, S_LAST_DRVSEQ,
-    S_LAST_PHI, S_NFAULT, S_PEQ_INIT, S_PEQ_X, S_PEQ_Y, S_PHI_CNT, S_RAMP, S_RD, S_SEQ,
+    S_LAST_PHI, S_NFAULT, S_PEQ_INIT, S_PEQ_X, S_PEQ_Y, S_PHI_CNT, S_RAMP, S_RD, S_RP_PREV, S_SEQ,
     S_SLOW_OMEGA, S_SLOW_PINJ, S_STALE_CNT, S_VERR_CNT, S_W, S_X, S_XN, S_Y,
 )
 
@@ -117,8 +117,8 @@ def pd_step(prm, st, i, ref, meas):
 
 
 @njit(cache=True)
-def supervise(prm, st, y):
-    """Supervisor checks on the calibrated frame ``y``; returns (fault code, detail) or (0, -1).
+def supervise(prm, st):
+    """Supervisor checks on the calibrated frame ``st[S_Y:S_Y + N_IN]``; returns (fault code, detail) or (0, -1).
 
     Also updates the check counters in ``st`` (stale frames, frozen encoder, valve tracking).
     """
@@ -130,26 +130,26 @@ def supervise(prm, st, y):
     detail = -1
     # NaN / Inf on the sensors the loop uses
     for ch in (IN_E_X, IN_E_Y, IN_YP1, IN_YP1 + 1, IN_YP1 + 2, IN_YP1 + 3, IN_PHI):
-        if not math.isfinite(y[ch]):
+        if not math.isfinite(st[S_Y + ch]):
             return FC.SENSOR_NAN, ch
     if prm[P_SUP_ON] == 0.0:
         return 0, -1
     for ch in (IN_E_X, IN_E_Y):
-        if y[ch] < prm[P_E_MIN] or y[ch] > prm[P_E_MAX]:
+        if st[S_Y + ch] < prm[P_E_MIN] or st[S_Y + ch] > prm[P_E_MAX]:
             return FC.SENSOR_RANGE, ch
     for i in range(4):
         ch = IN_YP1 + i
-        if y[ch] < prm[P_Y_MIN] or y[ch] > prm[P_Y_MAX]:
+        if st[S_Y + ch] < prm[P_Y_MIN] or st[S_Y + ch] > prm[P_Y_MAX]:
             return FC.SENSOR_RANGE, ch
     # driver status bits
-    status = y[IN_STATUS]
+    status = st[S_Y + IN_STATUS]
     if math.isfinite(status) and status != 0.0:
         bits = int(status)
         if bits & FC.STATUS_ENCODER:
             return FC.ENCODER_LOST, -1
         return FC.DRIVER_STATUS, bits
     # stale frame: the driver's own counter did not advance
-    dseq = y[IN_SEQ]
+    dseq = st[S_Y + IN_SEQ]
     if prm[P_STALE_N] > 0.0 and math.isfinite(dseq):
         if dseq == st[S_LAST_DRVSEQ]:
             st[S_STALE_CNT] += 1.0
@@ -159,9 +159,9 @@ def supervise(prm, st, y):
             st[S_STALE_CNT] = 0.0
         st[S_LAST_DRVSEQ] = dseq
     # lost encoder: phi frozen while the shaft turns
-    omega = y[IN_OMEGA]
+    omega = st[S_Y + IN_OMEGA]
     if prm[P_ENC_N] > 0.0 and math.isfinite(omega) and abs(omega) > prm[P_ENC_OMEGA]:
-        if y[IN_PHI] == st[S_LAST_PHI]:
+        if st[S_Y + IN_PHI] == st[S_LAST_PHI]:
             st[S_PHI_CNT] += 1.0
             if st[S_PHI_CNT] > prm[P_ENC_N] and code == 0:
                 code = FC.ENCODER_LOST
@@ -169,12 +169,12 @@ def supervise(prm, st, y):
             st[S_PHI_CNT] = 0.0
     else:
         st[S_PHI_CNT] = 0.0
-    st[S_LAST_PHI] = y[IN_PHI]
+    st[S_LAST_PHI] = st[S_Y + IN_PHI]
     if code != 0:
         return code, detail
     # shaft displacement relative to the bearing centre vs the film gap
-    dx = y[IN_E_X] - prm[P_CX]
-    dy = y[IN_E_Y] - prm[P_CY]
+    dx = st[S_Y + IN_E_X] - prm[P_CX]
+    dy = st[S_Y + IN_E_Y] - prm[P_CY]
     if dx * dx + dy * dy > prm[P_GAP_MAX] * prm[P_GAP_MAX]:
         return FC.SHAFT_DISPLACEMENT, -1
     return 0, -1
@@ -216,19 +216,16 @@ def cycle(fin, prm, st, drive, ring, ex, ey):
     # calibrate (driver units -> µm, V, N) and overlay the latest slow-driver values
     for c in range(N_IN):
         st[S_Y + c] = fin[c] * prm[P_CAL_G + c] + prm[P_CAL_O + c]
-    y = st[S_Y:S_Y + N_IN]
     if math.isfinite(st[S_SLOW_OMEGA]):
-        y[IN_OMEGA] = st[S_SLOW_OMEGA]
+        st[S_Y + IN_OMEGA] = st[S_SLOW_OMEGA]
     if math.isfinite(st[S_SLOW_PINJ]):
-        y[IN_P_INJ] = st[S_SLOW_PINJ]
+        st[S_Y + IN_P_INJ] = st[S_SLOW_PINJ]
 
-    # supervisor: reference of the previous cycle vs measured valve position
-    code, detail = supervise(prm, st, y)
+    # supervisor; valve tracking compares the previous cycle's reference with the position
+    code, detail = supervise(prm, st)
     if code == 0 and prm[P_SUP_ON] != 0.0 and prm[P_VERR_N] > 0.0:
         for i in range(4):
-            prev = ring[int(st[S_W] - 1.0) % int(prm[P_RING_N]), R_RP1 + i] \
-                if st[S_W] > 0.0 else prm[P_R0]
-            if abs(prev - y[IN_YP1 + i]) > prm[P_VERR_V]:
+            if abs(st[S_RP_PREV + i] - st[S_Y + IN_YP1 + i]) > prm[P_VERR_V]:
                 st[S_VERR_CNT + i] += 1.0
                 if st[S_VERR_CNT + i] > prm[P_VERR_N] and code == 0:
                     code = FC.VALVE_TRACKING
@@ -239,8 +236,8 @@ def cycle(fin, prm, st, drive, ring, ex, ey):
     safe = st[S_FAULT] != 0.0
 
     # K∞(z) in hot standby on e = -(p - p_eq)
-    px = y[IN_E_X]
-    py = y[IN_E_Y]
+    px = st[S_Y + IN_E_X]
+    py = st[S_Y + IN_E_Y]
     ok = math.isfinite(px) and math.isfinite(py)
     if ok and st[S_K_TARGET] == 0.0 and st[S_RAMP] == 0.0:
         if st[S_PEQ_INIT] == 0.0:
@@ -277,10 +274,14 @@ def cycle(fin, prm, st, drive, ring, ex, ey):
     rp2 = clamp(rp2, vmin, vmax)
     rp3 = clamp(rp3, vmin, vmax)
     rp4 = clamp(rp4, vmin, vmax)
-    drive[0] = pd_step(prm, st, 0, rp1, y[IN_YP1])
-    drive[1] = pd_step(prm, st, 1, rp2, y[IN_YP1 + 1])
-    drive[2] = pd_step(prm, st, 2, rp3, y[IN_YP1 + 2])
-    drive[3] = pd_step(prm, st, 3, rp4, y[IN_YP1 + 3])
+    st[S_RP_PREV] = rp1
+    st[S_RP_PREV + 1] = rp2
+    st[S_RP_PREV + 2] = rp3
+    st[S_RP_PREV + 3] = rp4
+    drive[0] = pd_step(prm, st, 0, rp1, st[S_Y + IN_YP1])
+    drive[1] = pd_step(prm, st, 1, rp2, st[S_Y + IN_YP1 + 1])
+    drive[2] = pd_step(prm, st, 2, rp3, st[S_Y + IN_YP1 + 2])
+    drive[3] = pd_step(prm, st, 3, rp4, st[S_Y + IN_YP1 + 3])
 
     # record
     seq = st[S_SEQ]
@@ -290,33 +291,33 @@ def cycle(fin, prm, st, drive, ring, ex, ey):
         st[S_DROPPED] += 1.0
         _latch(st, FC.RECORDER_OVERFLOW, -1)
     else:
-        row = ring[int(w % ring_n)]
-        row[R_SEQ] = seq
-        row[R_T] = seq / prm[P_FS]
-        row[R_EX] = px
-        row[R_EY] = py
+        r = int(w) % int(ring_n)
+        ring[r, R_SEQ] = seq
+        ring[r, R_T] = seq / prm[P_FS]
+        ring[r, R_EX] = px
+        ring[r, R_EY] = py
         for i in range(4):
-            row[R_YP1 + i] = y[IN_YP1 + i]
-            row[R_V1 + i] = drive[i]
-        row[R_PHI] = y[IN_PHI]
-        row[R_FX] = y[IN_F_X]
-        row[R_FY] = y[IN_F_Y]
-        row[R_OMEGA] = y[IN_OMEGA]
-        row[R_PINJ] = y[IN_P_INJ]
-        row[R_RX] = rx
-        row[R_RY] = ry
-        row[R_KX] = kx
-        row[R_KY] = ky
-        row[R_XX] = ex
-        row[R_XY] = ey
-        row[R_RP1] = rp1
-        row[R_RP1 + 1] = rp2
-        row[R_RP1 + 2] = rp3
-        row[R_RP1 + 3] = rp4
-        row[R_UX] = y[IN_YP1 + 1] - y[IN_YP1 + 3]
-        row[R_UY] = y[IN_YP1] - y[IN_YP1 + 2]
-        row[R_KON] = 1.0 if (st[S_K_TARGET] != 0.0 and not safe) else 0.0
-        row[R_FAULT] = st[S_FAULT]
+            ring[r, R_YP1 + i] = st[S_Y + IN_YP1 + i]
+            ring[r, R_V1 + i] = drive[i]
+        ring[r, R_PHI] = st[S_Y + IN_PHI]
+        ring[r, R_FX] = st[S_Y + IN_F_X]
+        ring[r, R_FY] = st[S_Y + IN_F_Y]
+        ring[r, R_OMEGA] = st[S_Y + IN_OMEGA]
+        ring[r, R_PINJ] = st[S_Y + IN_P_INJ]
+        ring[r, R_RX] = rx
+        ring[r, R_RY] = ry
+        ring[r, R_KX] = kx
+        ring[r, R_KY] = ky
+        ring[r, R_XX] = ex
+        ring[r, R_XY] = ey
+        ring[r, R_RP1] = rp1
+        ring[r, R_RP1 + 1] = rp2
+        ring[r, R_RP1 + 2] = rp3
+        ring[r, R_RP1 + 3] = rp4
+        ring[r, R_UX] = st[S_Y + IN_YP1 + 1] - st[S_Y + IN_YP1 + 3]
+        ring[r, R_UY] = st[S_Y + IN_YP1] - st[S_Y + IN_YP1 + 2]
+        ring[r, R_KON] = 1.0 if (st[S_K_TARGET] != 0.0 and not safe) else 0.0
+        ring[r, R_FAULT] = st[S_FAULT]
         st[S_W] = w + 1.0
     st[S_SEQ] = seq + 1.0
 

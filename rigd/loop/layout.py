@@ -77,6 +77,7 @@ S_FAULT_DETAIL = 30  # channel / valve index of the latched fault (-1 if none)
 S_PEQ_INIT = 31     # 0 until p_eq tracking has been seeded with a first sample
 S_K_OUT_X = 32      # last K∞ output before the blend (for status)
 S_K_OUT_Y = 33
+S_RP_PREV = 34      # 4 valve references of the previous cycle (valve tracking check)
 S_FLOG = 40         # fault log: FLOG_N entries of (seq, code, detail)
 FLOG_N = 16
 S_X = S_FLOG + 3 * FLOG_N     # K∞ state x (K_NMAX)

@@ -132,6 +132,7 @@ class ControlLoop(LoopRunner):
         p[L.P_VERR_N] = round(s.valve_error_s * self.fs)
         st = self.st
         st[L.S_EPREV:L.S_EPREV + 4] = np.nan
+        st[L.S_RP_PREV:L.S_RP_PREV + 4] = c.loop.r0_v
         st[L.S_LAST_DRVSEQ] = np.nan
         st[L.S_SLOW_OMEGA] = st[L.S_SLOW_PINJ] = np.nan
         st[L.S_FAULT_DETAIL] = -1

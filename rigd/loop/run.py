@@ -348,6 +348,12 @@ class LoopRunner:
     def _rt_main(self) -> None:
         cfg = self.config.clock
         problems = CLK.try_realtime(cfg.priority, cfg.cpu)
+        if not any("SCHED_FIFO" in p for p in problems):
+            # the helper threads share the GIL with the loop: run them just below it, or a
+            # preempted helper holding the GIL would stall the loop (priority inversion)
+            helpers = [self.recorder._thread, self._monitor, *self._slow_threads]
+            CLK.boost_threads([t.native_id for t in helpers if t is not None],
+                              max(1, cfg.priority - 1))
         if problems:
             self.rt_warnings = problems
             self.log.warning("real-time scheduling not fully available, running best-effort",
