@@ -95,7 +95,8 @@ def _val_err(ctx: Context, yhat: np.ndarray) -> float:
 
 def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                   val: slice | None = None, effects: list[str] | None = None,
-                  refit: bool = True, max_nfev: int | None = None) -> SubDiagnosis:
+                  refit: bool = True, max_nfev: int | None = None,
+                  theta0: np.ndarray | None = None, rounds: int = 1) -> SubDiagnosis:
     """Diagnose one sub-model on identification data (``rigd.ident.iddata.IdData``).
 
     Parameters
@@ -112,6 +113,11 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         Effects to test (default: every registered effect concerning the sub-model).
     refit : bool
         Refit each revealable effect (``fit_percent_with``); off: signature only.
+    theta0 : ndarray, optional
+        Start values of the base fit.
+    rounds : int
+        With 2, the diagnosis is repeated on the base extended by the top significant
+        effect, so a second effect masked by a stronger one is found too.
     """
     from rigd.ident.mechanical import structure_for
 
@@ -121,7 +127,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         est, val = slice(0, k), slice(k, n)
     structure = structure or structure_for(submodel, data)
     data_est = data.slice(est.start, est.stop)
-    base = _fit(structure, data_est, max_nfev=max_nfev)
+    base = _fit(structure, data_est, theta0=theta0, max_nfev=max_nfev)
     theta = base.theta
     yhat = np.asarray(structure.simulate(theta, data), float)
     omega_hz = float(getattr(data, "meta", {}).get("omega_rpm", 0.0) or 0.0) / 60.0
@@ -169,6 +175,8 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
             gain = max(0.0, 1.0 - _val_err(ctx, yw) / err_base) if err_base > 0 else 0.0
             f.fit_percent_with = fw
             f.score = gain
+            # a signature masked by a stronger effect still counts when the refit removes a
+            # large share of the error and the F test is decisive
             f.significant = bool(sig_ok and gain >= MIN_REFIT_GAIN)
             f.evidence["refit_seconds"] = refits[name].seconds
         else:
@@ -176,6 +184,25 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
             f.evidence["refit"] = "not refitted: no signature in the residual"
         findings.append(f)
     findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
+    top = findings[0] if findings and findings[0].significant else None
+    if rounds > 1 and refit and top is not None and top.effect in refits:
+        ref = refits[top.effect]
+        rest = [f.effect for f in findings if f.effect != top.effect and not f.significant]
+        if rest:
+            sd2 = diagnose_data(data, submodel, ref.structure, est, val, rest, refit,
+                                max_nfev, ref.theta, rounds - 1)
+            new = {f.effect: f for f in sd2.findings if f.significant}
+            for i, f in enumerate(findings):
+                if f.effect in new:
+                    g = new[f.effect]
+                    g.explanation = f"with {top.effect} added: {g.explanation}"
+                    g.evidence["found_after"] = top.effect
+                    # score on the base model's scale: share of its error energy removed by
+                    # adding this effect on top of the first one
+                    g.score = g.score * (1 - top.score)
+                    findings[i] = g
+                    refits[f.effect] = sd2.refits[f.effect]
+            findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
     sd = SubDiagnosis(submodel, fp_base, findings, cannot, [], ctx, {}, refits,
                       (0, data.n))
     _tests_and_unexplained(sd)
@@ -202,7 +229,12 @@ def _tests_and_unexplained(sd: SubDiagnosis) -> None:
     rb = (ctx.y - yb)[v]
     sig = {f.effect for f in sd.findings if f.significant}
     unexplained = []
+    # report only structure that matters at the scale of the measured output (≥ 0.1 % of
+    # its power, i.e. worth ≳ 3 % of fit)
+    rel = float(np.sum(rb ** 2) / max(np.sum((ctx.y[v] - ctx.y[v].mean(axis=0)) ** 2), 1e-300))
     for pk in R.spectral_peaks(rb, ctx.fs):
+        if pk["share"] * rel < 1e-3:
+            continue
         fpk = pk["frequency_hz"]
         near_res = any(abs(fpk - fr) < 0.1 * fr for fr in ctx.resonances_hz)
         if ctx.omega_hz > 0 and any(abs(fpk - k * ctx.omega_hz) < 0.03 * ctx.omega_hz + 0.5
@@ -217,7 +249,7 @@ def _tests_and_unexplained(sd: SubDiagnosis) -> None:
                      "not explained by any known effect")})
     a = np.abs(yb[v] - yb[v].mean(axis=0)).max(axis=1)
     edges, rms = R.by_amplitude(rb, a, 4)
-    if rms[0] > 0 and rms[-1] / rms[0] > 2.5 and "cubic_stiffness" not in sig:
+    if rms[0] > 0 and rms[-1] / rms[0] > 2.5 and "cubic_stiffness" not in sig and rel > 1e-3:
         unexplained.append({
             "where": {"amplitude_range": [round(float(edges[-2]), 6), round(float(edges[-1]), 6)]},
             "ratio": round(float(rms[-1] / rms[0]), 2),

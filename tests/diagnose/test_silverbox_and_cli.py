@@ -1,0 +1,43 @@
+"""Silverbox (measured, not made by this project) and the CLI contract."""
+
+import json
+
+import numpy as np
+
+from conftest_paths import SHARED
+from rigd.cli import main
+from rigd.diagnose import residual as R
+
+
+def test_silverbox_cubic_first_and_error_halved(capsys, tmp_path):
+    path = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
+    rc = main(["diagnose", str(path), "--fs", "610.3515625", "--inputs", "V1", "--outputs", "V2",
+               "--est", "40600:", "--val", "0:40000", "--json", "--report", str(tmp_path)])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    top = out["findings"][0]
+    assert top["effect"] == "cubic_stiffness" and top["significant"]
+    assert (100 - out["fit_percent"]) >= 2 * (100 - top["fit_percent_with"])
+    assert {c["effect"] for c in out["cannot_reveal"]} >= {"runout", "cross_coupling"}
+    assert (tmp_path / "index.html").exists()
+
+
+def test_cli_unknown_effect_is_one_line_exit_2(capsys, tmp_path):
+    p = tmp_path / "x.csv"
+    p.write_text("a,b\n1,2\n")
+    rc = main(["diagnose", str(p), "--effects", "nonsense"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "unknown effect" in err and err.count("\n") == 1
+
+
+def test_whiteness_and_cross_correlation_bounds():
+    rng = np.random.default_rng(0)
+    e = rng.standard_normal(20000)
+    assert R.whiteness(e).passed
+    col = np.convolve(e, np.ones(10) / 10, mode="same")
+    assert not R.whiteness(col).passed
+    u = rng.standard_normal(20000)
+    assert R.cross_correlation(e, u).outside < 0.1
+    r = np.r_[np.zeros(3), u[:-3]] + 0.5 * e  # residual driven by the input 3 samples late
+    c = R.cross_correlation(r, u)
+    assert np.abs(c.rho).max() > 10 * c.bound and c.lags[np.argmax(np.abs(c.rho))] in (3, -3)
