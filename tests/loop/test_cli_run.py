@@ -68,3 +68,42 @@ def test_realtime_clock_runs_at_rate_with_timing_and_recording(tmp_path):
     with open_recording(tmp_path / "rt.h5") as f:
         seq = f["frames"][:, REC["seq"]]
     assert len(seq) > 1000 and np.all(np.diff(seq) == 1)
+
+
+class _Hiccup:
+    """Wraps the plant: one write at cycle ``at`` takes ``pause_s`` (a stalled driver)."""
+
+    def __new__(cls, plant, at, pause_s):
+        from conftest import InjectingDriver
+
+        drv = InjectingDriver(plant)
+        orig = drv.write
+
+        def write(drive):
+            if drv.n == at:
+                time.sleep(pause_s)
+            orig(drive)
+        drv.write = write
+        return drv
+
+
+def _rt_run(policy, seconds=0.6):
+    cfg = default_config(clock={"mode": "realtime", "overrun": policy})
+    loop = ControlLoop(cfg, _Hiccup(make_plant(), 500, 0.004))   # 20 periods lost
+    with loop:
+        loop.start()
+        t0 = time.monotonic()
+        time.sleep(seconds)
+        loop.stop()
+        elapsed = time.monotonic() - t0
+    return loop.timing(), elapsed
+
+
+def test_overrun_policy_skip_and_catch_up():
+    skip, el = _rt_run("skip")
+    assert skip["overruns"] >= 1 and skip["skipped_periods"] >= 19
+    assert skip["lateness_us"]["max"] < 4000          # resumes on the period grid
+    catch, el = _rt_run("catch_up")
+    assert catch["overruns"] >= 1 and catch["skipped_periods"] == 0
+    assert catch["lateness_us"]["max"] >= 3500        # the missed cycles ran late, none skipped
+    assert abs(catch["cycles"] / 5000.0 - el) < 0.1
