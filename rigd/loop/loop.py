@@ -83,6 +83,7 @@ class ControlLoop(LoopRunner):
         self._subscribers: list[queue.Queue] = []
         self._fault_history: list[dict] = []
         self._seen_faults = 0
+        self._fault_lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._monitor: threading.Thread | None = None
@@ -340,6 +341,10 @@ class ControlLoop(LoopRunner):
         self.log.error("recording failed", error=str(exc))
 
     def _poll_faults(self) -> None:
+        with self._fault_lock:      # monitor thread, runners and faults() may all call this
+            self._poll_faults_locked()
+
+    def _poll_faults_locked(self) -> None:
         st = self.st
         n = int(st[L.S_NFAULT])
         while self._seen_faults < n:
