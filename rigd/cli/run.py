@@ -82,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
         for s in (signal.SIGINT, signal.SIGTERM):
             previous[s] = signal.signal(s, _stop)
     sink = None
+    status = 0
     try:
         with loop:
             if args.record:
@@ -101,7 +102,12 @@ def run(args: argparse.Namespace) -> int:
                     loop.start()
                     loop.wait(args.duration)
             if sink is not None:
-                loop.stop_recording(sink)
+                try:
+                    loop.stop_recording(sink)
+                except Exception as exc:  # e.g. disk full: already a latched fault, logged
+                    failed = f"recording {args.record} incomplete: {str(exc).splitlines()[0]}"
+                    print(f"rigd run: {failed}", file=sys.stderr)
+                    status = 1
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
@@ -115,4 +121,4 @@ def run(args: argparse.Namespace) -> int:
             print(f"fault at cycle {f['seq']}: {f['name']} ({f['text']})")
         if sink is not None:
             print(f"recorded {sink.n_written} frames to {args.record}")
-    return 0
+    return status
