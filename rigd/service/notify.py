@@ -68,10 +68,13 @@ class Notifier:
         try:
             if self._sock is None:
                 self._sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM | socket.SOCK_CLOEXEC)
+                # never block: a receiver that does not read (queue full) costs a dropped
+                # notification, not a hung shutdown or watchdog thread
+                self._sock.setblocking(False)
             self._sock.sendto(msg, addr)
             self.sent += 1
             return True
-        except OSError:
+        except OSError:  # incl. BlockingIOError when the receiver's queue is full
             self.errors += 1
             return False
 

@@ -5,6 +5,7 @@ import os
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -31,41 +32,67 @@ def make_config(tmp_path, **sections):
     return path
 
 
+def _limit_fsize(nbytes):
+    """In the child: files may not grow beyond ``nbytes`` (a full disk, as the writer sees it:
+    write() fails with EFBIG instead of ENOSPC). SIGXFSZ is ignored so the write fails instead
+    of the kernel killing the process; the ignore survives exec."""
+    import resource
+    import signal
+
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (nbytes, nbytes))
+
+
 class Daemon:
-    def __init__(self, tmp_path, config, *extra, watchdog_usec=400000):
+    def __init__(self, tmp_path, config, *extra, watchdog_usec=400000, fsize_limit=None):
         self.tmp = Path(tmp_path)
         self.sock = str(self.tmp / "rigd.sock")
         self.notify_path = str(self.tmp / "notify.sock")
         self.notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
         self.notify.bind(self.notify_path)
         self.messages = []
-        env = dict(os.environ, NOTIFY_SOCKET=self.notify_path,
+        self._closing = False
+        self.notify.settimeout(0.2)
+        self._reader = threading.Thread(target=self._collect, daemon=True)
+        self._reader.start()
+        env = dict(os.environ, NOTIFY_SOCKET=self.notify_path, PYTHONFAULTHANDLER="1",
                    WATCHDOG_USEC=str(watchdog_usec))
         env.pop("WATCHDOG_PID", None)
         self.stderr = open(self.tmp / "daemon.err", "w")
         self.proc = subprocess.Popen(
             [RIGD, "run", "--config", str(config), "--socket", self.sock,
              "--runs-dir", str(self.tmp / "runs"), *extra],
-            stdout=subprocess.PIPE, stderr=self.stderr, text=True, env=env, cwd=str(self.tmp))
+            stdout=subprocess.PIPE, stderr=self.stderr, text=True, env=env, cwd=str(self.tmp),
+            preexec_fn=None if fsize_limit is None else (lambda: _limit_fsize(fsize_limit)))
 
-    def wait_notify(self, needle, timeout=90.0):
-        """Collect notify datagrams until one contains ``needle``."""
-        end = time.monotonic() + timeout
-        for m in self.messages:
-            if needle in m:
-                return m
-        while time.monotonic() < end:
-            if self.proc.poll() is not None and needle != "STOPPING=1":
-                raise AssertionError(f"daemon exited {self.proc.returncode}: {self.log()}")
-            self.notify.settimeout(0.5)
+    def _collect(self):
+        """Read NOTIFY_SOCKET all the time, as systemd does."""
+        while True:
             try:
                 m = self.notify.recv(4096).decode()
             except socket.timeout:
+                if self._closing:
+                    return
                 continue
+            except OSError:
+                return
             self.messages.append(m)
+
+    def wait_notify(self, needle, timeout=90.0):
+        """Wait until a notify datagram containing ``needle`` has arrived."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            for m in list(self.messages):
+                if needle in m:
+                    return m
+            if self.proc.poll() is not None:
+                break
+            time.sleep(0.02)
+        for m in list(self.messages):
             if needle in m:
                 return m
-        raise AssertionError(f"no {needle!r} in {self.messages}; log: {self.log()}")
+        raise AssertionError(f"no {needle!r} in {self.messages}; exit {self.proc.poll()}; "
+                             f"log: {self.log()}")
 
     def ctl(self, *args, check=True):
         r = subprocess.run([RIGD, "ctl", "--socket", self.sock, *args], capture_output=True,
@@ -87,16 +114,16 @@ class Daemon:
             self.proc.send_signal(sig)
         try:
             out, _ = self.proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.send_signal(6)  # SIGABRT: faulthandler dumps every thread to daemon.err
+            self.proc.communicate(timeout=10)
+            raise AssertionError(f"daemon did not stop within {timeout} s: {self.log()}")
         finally:
             if self.proc.poll() is None:
                 self.proc.kill()
                 self.proc.wait()
-            self.notify.setblocking(False)
-            while True:  # datagrams sent before the exit are still queued
-                try:
-                    self.messages.append(self.notify.recv(4096).decode())
-                except BlockingIOError:
-                    break
+            self._closing = True
+            self._reader.join(5)  # returns after draining what the daemon sent before exit
             self.notify.close()
             self.stderr.close()
         return self.proc.returncode, out

@@ -58,3 +58,15 @@ def test_notify_disabled_and_broken(tmp_path):
     # nobody listening: counted, never raised
     n = Notifier(environ={"NOTIFY_SOCKET": str(tmp_path / "absent.sock")})
     assert not n.ready() and n.errors == 1
+
+
+def test_notify_never_blocks_on_a_full_queue(tmp_path):
+    path = str(tmp_path / "full.sock")
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    srv.bind(path)
+    try:
+        n = Notifier(environ={"NOTIFY_SOCKET": path})
+        results = [n.watchdog() for _ in range(5000)]  # nobody reads: the queue fills up
+        assert results[0] and not results[-1] and n.errors > 0
+    finally:
+        srv.close()

@@ -1,0 +1,118 @@
+"""Fault injection where the fault is about the process: SIGTERM in the middle of an
+experiment, and the disk filling up while recording (see also test_daemon_process.py for the
+bad controller on SIGHUP)."""
+
+import json
+import signal
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from rigd.frame import REC
+from rigd.loop import faults as FC
+
+from daemon_helpers import Daemon, make_config
+from faultkit import assert_safe_after_fault, controller_file, read_frames, wait_for
+
+EXPERIMENT = """\
+kind: prbs
+name: long-prbs
+operating_point: {omega_rpm: 0, p_inj_bar: 4.0}
+amplitude_v: 0.3
+seed: 3
+duration_s: 30.0
+lead_in_s: 0.1
+controller: true
+"""
+
+
+def test_sigterm_during_experiment(tmp_path):
+    cfg = make_config(tmp_path, clock={"spin_us": 0.0})
+    ctrl = controller_file(tmp_path)
+    spec = tmp_path / "long.yaml"
+    spec.write_text(EXPERIMENT)
+    main_rec = tmp_path / "main.h5"
+    d = Daemon(tmp_path, cfg, "--record", str(main_rec), "--controller", str(ctrl))
+    try:
+        d.wait_notify("READY=1")
+        started = d.ctl_json("start", str(spec), "--run-dir", str(tmp_path / "run"))
+        assert started["name"] == "long-prbs"
+        assert wait_for(lambda: d.ctl_json("experiment")["state"] == "running", 30)
+        time.sleep(1.5)  # well inside the 30 s record
+        assert d.ctl_json("experiment")["state"] == "running"
+    finally:
+        code, out = d.stop(signal.SIGTERM)
+    assert code == 0, d.log()
+    assert any("STOPPING=1" in m for m in d.messages)
+    # the daemon's own recording: safe state within one cycle of the operator stop
+    fr = read_frames(main_rec)
+    assert_safe_after_fault(fr, FC.OPERATOR_STOP)
+    # the experiment: manifest says interrupted, its record is closed, readable, contiguous,
+    # and ends in the safe state too
+    man = json.loads((tmp_path / "run" / "manifest.json").read_text())
+    assert man["status"] in ("interrupted", "failed"), man["status"]
+    run = tmp_path / "run"
+    assert not list(run.rglob("*.part")), "no half-written file left"
+    # the runner keeps completed segments only; whatever it kept is whole and contiguous, and
+    # its frames are the very frames of the main recording
+    for path in run.rglob("*.h5"):
+        with h5py.File(path, "r") as f:
+            seg = f["frames"][:]
+        assert np.all(np.diff(seg[:, REC["seq"]]) == 1)
+        i0 = int(seg[0, REC["seq"]] - fr[0, REC["seq"]])
+        np.testing.assert_array_equal(fr[i0:i0 + len(seg)], seg)
+    # the excitation was playing when SIGTERM came, and the main recording has all of it
+    i = int(np.flatnonzero(fr[:, REC["fault"]])[0])
+    assert np.any(fr[i - 500:i, REC["x_x"]] != 0)
+
+
+@pytest.fixture(scope="module")
+def disk_full(tmp_path_factory):
+    """RLIMIT_FSIZE of 3 MB on the daemon process: the recording file cannot grow past it
+    (about 2.3 s of frames). A tiny tmpfs or a full loopback filesystem needs root, which the
+    test host does not give; the writer sees the same thing, a failing write() (EFBIG)."""
+    tmp_path = tmp_path_factory.mktemp("diskfull")
+    cfg = make_config(tmp_path, clock={"spin_us": 0.0}, recorder={"flush_interval_s": 0.1})
+    rec = tmp_path / "rec.h5"
+    d = Daemon(tmp_path, cfg, "--record", str(rec), "--controller",
+               str(controller_file(tmp_path)), "--enable-controller",
+               fsize_limit=3 * 1024 * 1024)
+    seen = {}
+    try:
+        d.wait_notify("READY=1")
+        seen["faulted"] = wait_for(lambda: d.ctl_json("status")["fault"]["code"] != 0, 30)
+        seen["st"] = d.ctl_json("status")
+        time.sleep(0.3)
+        seen["st2"] = d.ctl_json("status")
+        seen["logged"] = wait_for(lambda: "recording failed" in d.log(), 5)
+    finally:
+        seen["code"], _ = d.stop(signal.SIGTERM)
+    seen["log"] = (tmp_path / "daemon.err").read_text()
+    seen["rec"] = rec
+    return seen
+
+
+def test_disk_full_fault_latched_loop_safe_daemon_alive(disk_full):
+    s = disk_full
+    assert s["faulted"], s["log"][-2000:]
+    assert s["st"]["fault"]["code"] == FC.RECORDER_OVERFLOW, s["st"]["fault"]
+    # the daemon kept answering, the loop kept cycling, in the safe state (r = 0, K∞ off)
+    assert s["st2"]["seq"] > s["st"]["seq"]
+    assert s["st2"]["last_frame"]["r_x"] == 0.0 and s["st2"]["last_frame"]["r_y"] == 0.0
+    assert s["logged"] and s["log"].count('"event": "fault latched"') == 1  # logged once
+    assert s["rec"].stat().st_size <= 3 * 1024 * 1024
+    assert "incomplete" in s["log"]  # rigd run says so in one line on the way out
+
+
+@pytest.mark.xfail(strict=True, reason="KNOWN BUG (recorder, rigd/loop/recorder.py + h5py): "
+                   "after a failed write (EFBIG/ENOSPC) the HDF5 file is left unreadable "
+                   "('truncated file: eof < stored_eof') and the process segfaults (-11) "
+                   "while h5py deallocates the broken file at exit")
+def test_disk_full_clean_exit_and_readable_recording(disk_full):
+    s = disk_full
+    assert s["code"] == 1, s["code"]
+    fr = read_frames(s["rec"])
+    assert len(fr) > 1000 and np.all(np.diff(fr[:, REC["seq"]]) == 1)
