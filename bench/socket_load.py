@@ -1,0 +1,223 @@
+"""Control-socket load test: does a flood of requests disturb the 5 kHz loop?
+
+A real daemon (``rigd run`` on the simulated rig, real-time clock) is started; its loop's
+real-time miss fraction (overruns per cycle, from ``timing``) is measured over ``seconds``
+idle, then over ``seconds`` while ``clients`` connections send ``rate`` requests/s in total —
+a mix of ``status``/``timing``/``faults``/``ping``, malformed JSON, unknown commands, bad
+arguments and oversized lines. Every reply is checked.
+
+Figures (keys of ``run()``): ``socket_load_rt_miss_fraction_idle``,
+``socket_load_rt_miss_fraction_loaded``, ``socket_load_requests_served``,
+``socket_load_requests_per_s``, ``socket_load_bad_requests_refused``,
+``socket_load_errors`` (wrong or missing replies: must be 0), ``socket_load_reply_p99_ms``.
+
+    python -m bench socket_load        # about 30 s
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+RIGD = str(Path(sys.executable).parent / "rigd")
+
+#: (request line, expected ok, expected error substring) — the malformed part of the mix
+BAD = [
+    (b"not json at all", "not JSON"),
+    (b"[1, 2, 3]", "JSON object"),
+    (b'{"id": 1}', "no 'cmd'"),
+    (b'{"id": 1, "cmd": "reboot"}', "unknown command"),
+    (b'{"id": 1, "cmd": "status", "verbose": true}', "unknown argument"),
+    (b'{"id": 1, "cmd": "operating_point.set", "omega_rpm": "x", "p_inj_bar": 4}', "omega_rpm"),
+    (b'{"id": 1, "cmd": "controller.load", "path": "rel.yaml"}', "absolute"),
+    (b"\xff\xfe\xfd", "UTF-8"),
+]
+GOOD = ["status", "timing", "faults", "ping", "experiment.status"]
+
+
+def _config(tmp: Path) -> Path:
+    cfg = yaml.safe_load((ROOT / "config" / "sim.yaml").read_text())
+    cfg["supervisor"]["overrun_storm_count"] = 10**9   # measure misses, do not trip on them
+    cfg["recorder"]["data_dir"] = str(tmp / "data")
+    p = tmp / "rig.yaml"
+    p.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return p
+
+
+def _call(sock_path: str, cmd: str) -> dict:
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    s.settimeout(10)
+    s.connect(sock_path)
+    s.sendall((json.dumps({"id": 1, "cmd": cmd}) + "\n").encode())
+    buf = b""
+    while not buf.endswith(b"\n"):
+        buf += s.recv(65536)
+    s.close()
+    return json.loads(buf)["result"]
+
+
+def _counts(sock_path: str) -> tuple[int, int]:
+    t = _call(sock_path, "timing")
+    return int(t["cycles"]), int(t["overruns"])
+
+
+class _Client(threading.Thread):
+    def __init__(self, sock_path, rate, until, seed):
+        super().__init__(daemon=True)
+        self.sock_path, self.rate, self.until = sock_path, rate, until
+        self.rng = random.Random(seed)
+        self.served = self.refused = self.errors = 0
+        self.latency: list[float] = []
+
+    def _reply(self, s, buf):
+        while b"\n" not in buf:
+            chunk = s.recv(65536)
+            if not chunk:
+                raise ConnectionError("closed")
+            buf += chunk
+        line, buf = buf.split(b"\n", 1)
+        return json.loads(line), buf
+
+    def run(self):
+        period = 1.0 / self.rate
+        nxt = time.monotonic()
+        s = None
+        buf = b""
+        rid = 0
+        while time.monotonic() < self.until:
+            try:
+                if s is None:
+                    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+                    s.settimeout(10)
+                    s.connect(self.sock_path)
+                    buf = b""
+                rid += 1
+                r = self.rng.random()
+                t0 = time.perf_counter()
+                if r < 0.02:  # oversized line: refused, connection closed by the daemon
+                    s.sendall(b"x" * (70 * 1024) + b"\n")
+                    rep, buf = self._reply(s, buf)
+                    ok = rep["ok"] is False and "longer than" in rep["error"]
+                    s.close()
+                    s = None
+                    self.refused += ok
+                elif r < 0.25:  # malformed / bad request: error reply, connection kept
+                    line, needle = self.rng.choice(BAD)
+                    s.sendall(line + b"\n")
+                    rep, buf = self._reply(s, buf)
+                    ok = rep["ok"] is False and needle in rep["error"]
+                    self.refused += ok
+                else:
+                    cmd = self.rng.choice(GOOD)
+                    s.sendall((json.dumps({"id": rid, "cmd": cmd}) + "\n").encode())
+                    rep, buf = self._reply(s, buf)
+                    ok = rep.get("ok") is True and rep.get("id") == rid
+                    self.served += ok
+                self.latency.append(time.perf_counter() - t0)
+                if not ok:
+                    self.errors += 1
+            except (OSError, ValueError, KeyError):
+                self.errors += 1
+                if s is not None:
+                    s.close()
+                s = None
+            nxt += period
+            d = nxt - time.monotonic()
+            if d > 0:
+                time.sleep(d)
+        if s is not None:
+            s.close()
+
+
+def hammer(sock_path: str, *, clients: int = 20, rate: float = 1000.0,
+           seconds: float = 10.0, seed: int = 0) -> dict:
+    """``clients`` connections sending ``rate`` requests/s in total for ``seconds``."""
+    until = time.monotonic() + seconds
+    ts = [_Client(sock_path, rate / clients, until, seed + i) for i in range(clients)]
+    t0 = time.monotonic()
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join(seconds + 30)
+    wall = time.monotonic() - t0
+    lat = np.concatenate([np.asarray(t.latency) for t in ts]) if ts else np.zeros(1)
+    served = sum(t.served for t in ts)
+    refused = sum(t.refused for t in ts)
+    return {"served": served, "refused": refused, "errors": sum(t.errors for t in ts),
+            "requests_per_s": (served + refused) / wall,
+            "reply_p99_ms": float(np.percentile(lat, 99) * 1e3) if lat.size else 0.0}
+
+
+def start_daemon(tmp: Path, *extra: str) -> tuple[subprocess.Popen, str]:
+    sock = str(tmp / "rigd.sock")
+    env = dict(os.environ)
+    env.pop("NOTIFY_SOCKET", None)
+    proc = subprocess.Popen([RIGD, "run", "--config", str(_config(tmp)), "--socket", sock,
+                             *extra], stdout=subprocess.DEVNULL,
+                            stderr=open(tmp / "daemon.err", "w"), env=env, cwd=str(tmp))
+    end = time.monotonic() + 120
+    while time.monotonic() < end:
+        if proc.poll() is not None:
+            raise RuntimeError(f"daemon exited: {(tmp / 'daemon.err').read_text()[-2000:]}")
+        try:
+            if _call(sock, "status")["seq"] > 5000:
+                return proc, sock
+        except (OSError, KeyError, ValueError):
+            pass
+        time.sleep(0.2)
+    proc.kill()
+    raise RuntimeError("daemon did not come up")
+
+
+def stop_daemon(proc: subprocess.Popen) -> int:
+    proc.send_signal(signal.SIGTERM)
+    try:
+        return proc.wait(60)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return proc.wait()
+
+
+def run(seconds: float = 10.0, clients: int = 20, rate: float = 1000.0) -> dict:
+    with tempfile.TemporaryDirectory(prefix="rigd-socket-load-") as d:
+        tmp = Path(d)
+        proc, sock = start_daemon(tmp)
+        try:
+            c0, o0 = _counts(sock)
+            time.sleep(seconds)
+            c1, o1 = _counts(sock)
+            load = hammer(sock, clients=clients, rate=rate, seconds=seconds)
+            c2, o2 = _counts(sock)
+            alive = _call(sock, "ping")["pong"]
+        finally:
+            code = stop_daemon(proc)
+    return {
+        "socket_load_rt_miss_fraction_idle": (o1 - o0) / max(c1 - c0, 1),
+        "socket_load_rt_miss_fraction_loaded": (o2 - o1) / max(c2 - c1, 1),
+        "socket_load_requests_served": load["served"],
+        "socket_load_bad_requests_refused": load["refused"],
+        "socket_load_requests_per_s": round(load["requests_per_s"], 1),
+        "socket_load_reply_p99_ms": round(load["reply_p99_ms"], 3),
+        "socket_load_errors": load["errors"],
+        "socket_load_clients": clients,
+        "socket_load_seconds": seconds,
+        "socket_load_daemon_alive_after": bool(alive),
+        "socket_load_daemon_exit_code": code,
+    }
+
+
+if __name__ == "__main__":  # pragma: no cover
+    print(json.dumps(run(), indent=2))
