@@ -82,3 +82,18 @@ def test_options_validation(tmp_path):
     with pytest.raises(InputError, match=r"mb.yaml:3: port"):
         load_model(p, ModbusOptions)
     assert ModbusOptions(transport="rtu", device="/dev/ttyUSB0").parity == "E"
+
+
+def test_shipped_rig_config_validates_with_these_drivers():
+    """config/rig.yaml (written by the loop engineer) against the drivers' Options models."""
+    from pathlib import Path
+
+    from rigd.config import load_config
+    from rigd_drivers.serial_frame import SerialFrameDriver, SerialFrameOptions
+
+    lc = load_config(Path(__file__).resolve().parents[2] / "config" / "rig.yaml")
+    cls, opts = lc.driver_options("fast")
+    assert cls is SerialFrameDriver and isinstance(opts, SerialFrameOptions)
+    scls, sopts = lc.driver_options("slow", 0)
+    assert scls is ModbusDriver and isinstance(sopts, ModbusOptions)
+    assert sopts.registers.omega == 2
