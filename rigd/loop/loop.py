@@ -197,6 +197,11 @@ class ControlLoop(LoopRunner):
         K.rt_cycle(self.fin.copy(), prm, self.st.copy(), self.drive.copy(), ring,
                    np.zeros((1, 2)), -1, K.hist_new(), 0, -1)
         K.cycle(self.fin.copy(), prm, self.st.copy(), self.drive.copy(), ring, 0.0, 0.0)
+        f = self.fast
+        if self._pk is not None and hasattr(f, "state") and hasattr(f, "params"):
+            # the plant's kernel too (driver.write calls it on the real-time path): a compile
+            # must never happen inside the loop thread
+            self._pk(f.state.copy(), f.params.copy(), self.drive.copy(), self.fin.copy())
 
     def __enter__(self) -> "ControlLoop":
         return self.open()
