@@ -37,7 +37,7 @@ FAULTS: dict[int, tuple[str, str]] = {
     OVERRUN_STORM: ("overrun_storm", "too many real-time cycle overruns"),
     DRIVER_EXCEPTION: ("driver_exception", "a driver raised an exception"),
     DRIVER_STATUS: ("driver_status", "the fast driver reported a fault status"),
-    RECORDER_OVERFLOW: ("recorder_overflow", "recorder ring buffer full: frames not recorded"),
+    RECORDER_OVERFLOW: ("recorder_overflow", "recording failed or recorder ring buffer full: frames not recorded"),
     SLOW_DRIVER: ("slow_driver", "a slow driver failed or its data went stale"),
     OPERATOR_STOP: ("operator_stop", "safe state requested by the operator"),
 }

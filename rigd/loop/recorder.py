@@ -76,6 +76,9 @@ class Sink:
     def close(self) -> None:
         pass
 
+    def abandon(self) -> None:
+        """Give up after a failed write: keep what is on disk, never write again."""
+
 
 class MemorySink(Sink):
     """Frames kept in memory (for :func:`rigd.loop.sim.simulate_record`)."""
@@ -161,6 +164,30 @@ class H5Sink(Sink):
             self.flush()
         finally:
             self._f.close()
+
+    def abandon(self) -> None:
+        """After a failed write (disk full, I/O error): freeze the file as it is on disk.
+
+        The file was flushed in SWMR mode, so what is on disk is consistent up to the last
+        flush. Any further write by the HDF5 library (cache eviction, the close) could leave
+        metadata pointing past the end of the file, so the file descriptor is pointed at
+        /dev/null before the h5py file is closed.
+        """
+        import os
+
+        try:
+            fd = self._f.id.get_vfd_handle()
+            null = os.open(os.devnull, os.O_RDWR)
+            try:
+                os.dup2(null, fd)
+            finally:
+                os.close(null)
+        except Exception:  # noqa: BLE001 - best effort; the error is already reported
+            pass
+        try:
+            self._f.close()
+        except Exception:  # noqa: BLE001
+            pass
 
 
 def _attr_value(v: Any):
@@ -248,8 +275,6 @@ class Recorder:
         with self._freed:
             self._freed.wait_for(lambda: self.published - self.read < self.n or self._stop,
                                  timeout)
-        if self.error is not None:
-            raise self.error
 
     def drain(self, timeout: float = 30.0) -> None:
         """Block until every published frame has been handed to the sinks."""
@@ -258,8 +283,7 @@ class Recorder:
             return
         self._wake.set()
         with self._freed:
-            self._freed.wait_for(lambda: self.read >= self.published or self.error is not None,
-                                 timeout)
+            self._freed.wait_for(lambda: self.read >= self.published, timeout)
 
     def add_sink(self, sink: Sink) -> Sink:
         with self._lock:
@@ -309,6 +333,7 @@ class Recorder:
             with self._lock:
                 if sink in self._sinks:
                     self._sinks.remove(sink)
+            sink.abandon()
             sink.done.set()
             if self._on_error is not None:
                 self._on_error(exc)

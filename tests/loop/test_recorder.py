@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 from conftest import make_plant
 
@@ -97,3 +98,34 @@ def test_memory_and_file_sinks_get_identical_frames(tmp_path):
                 out.append(f["frames"][:])
     np.testing.assert_array_equal(out[0], out[1])
     assert len(out[0]) == 3020
+
+
+def test_failed_recording_latches_fault_loop_goes_on_file_keeps_flushed_frames(tmp_path):
+    from rigd.loop import faults as FC
+    from rigd.loop.recorder import H5Sink
+
+    class FailingSink(H5Sink):
+        """Fails like a full disk once 20000 frames are in (after flushing them)."""
+
+        def write(self, block):
+            if self.n_written >= 20000:
+                self.flush()
+                raise OSError(28, "No space left on device")
+            super().write(block)
+
+    cfg = default_config(clock={"mode": "lockstep", "batch_cycles": 4096})
+    loop = ControlLoop(cfg, make_plant())
+    path = tmp_path / "full.h5"
+    with loop:
+        sink = loop.recorder.add_sink(FailingSink(path, fs=5000.0))
+        sink.first_seq = int(loop.status()["seq"])
+        loop.run_cycles(60000)
+        loop.recorder.drain()
+        with pytest.raises(OSError, match="No space"):
+            loop.stop_recording(sink)
+        loop.run_cycles(1000)                    # the loop goes on, in the safe state
+        st = loop.status()
+    assert st["fault"]["code"] == FC.RECORDER_OVERFLOW and st["seq"] == 61000
+    with open_recording(path) as f:
+        seq = f["frames"][:, REC["seq"]]
+    assert len(seq) >= 20000 and np.all(np.diff(seq) == 1) and seq[0] == 0
