@@ -90,6 +90,7 @@ class SerialFrameDriver(FastDriver):
         self.n_tx_overflow = 0
         self.n_resyncs = 0
         self._last_call = 0.0
+        self._delivered = 0
         self._reset_rx()
 
     # --- device ------------------------------------------------------------------------
@@ -141,6 +142,7 @@ class SerialFrameDriver(FastDriver):
             time.sleep(0.0005)
         self._reset_rx()
         self._dev_status = 0
+        self._delivered = 0
         self._ser = ser
         self._last_rx = time.monotonic()
         self._in_timeout = False
@@ -222,7 +224,7 @@ class SerialFrameDriver(FastDriver):
             st[sp.C_RXLEN] += n
             sp.ingest_sensor(self._rx, st, self._fifo)
         now = time.monotonic()
-        if now - self._last_call > self._timeout_s:
+        if now - self._last_call > self._timeout_s and self._delivered < self.fs:
             self._resync(fd)
         self._last_call = now
         ev = st[sp.C_EVENTS]
@@ -235,6 +237,7 @@ class SerialFrameDriver(FastDriver):
         row = self._row
         if sp.pop_sensor(st, self._fifo, row):
             self._last_rx = now
+            self._delivered += 1
             self._in_timeout = False
             frame_in[IN_E_X] = row[sp.R_EX]
             frame_in[IN_E_Y] = row[sp.R_EY]
@@ -255,10 +258,11 @@ class SerialFrameDriver(FastDriver):
         frame_in[IN_STATUS] = status | self._dev_status  # device bits of the latest frame
 
     def _resync(self, fd: int) -> None:
-        """The host was not cycling (start-up, loop paused): what queued up meanwhile is
-        history. Drain the port (at most 50 ms), keep the newest frame and start gap counting
-        afresh; counted in ``resyncs``. Host stalls *while running* are reported by the loop's
-        overrun supervision, and a FIFO overflow then is a gap fault."""
+        """Start-up: the host was not cycling yet (between ``open`` and the first cycles of
+        the loop) and what queued up meanwhile is history. Drain the port (at most 50 ms), keep
+        the newest frame and start gap counting afresh; counted in ``resyncs``. Only during
+        the first second of frames after (re)connecting: later, a host stall that loses frames
+        is a gap fault (and the loop's overrun supervision reports the stall itself)."""
         st = self._state
         end = time.monotonic() + 0.05
         while time.monotonic() < end:

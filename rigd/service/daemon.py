@@ -38,6 +38,10 @@ from rigd.service.protocol import Dispatcher
 from rigd.service.server import ControlServer
 
 
+#: status/timing/faults answers are reused this long under a flood of queries, s
+QUERY_CACHE_S = 0.02
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Service options of ``rigd run``."""
     g = p.add_argument_group("service")
@@ -94,7 +98,8 @@ class Daemon:
                                                                     "runs"), log=self.log)
         except ImportError:  # experiments package absent: the commands reply an error
             self.experiments = None
-        self.dispatcher = Dispatcher(self.loop, self.experiments, info=self._info)
+        self.dispatcher = Dispatcher(self.loop, self.experiments, info=self._info,
+                                     cache_s=QUERY_CACHE_S)
         sock = getattr(self.args, "socket", None)
         if sock:
             try:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from typing import Any, Callable
 
 import numpy as np
@@ -171,8 +172,12 @@ class Dispatcher:
     """
 
     def __init__(self, loop: Any, experiments: Any = None,
-                 info: Callable[[], dict] | None = None):
+                 info: Callable[[], dict] | None = None, cache_s: float = 0.0):
         self.loop = loop
+        #: read-only answers (status, timing, faults) are reused for this long, s: a flood of
+        #: queries then costs the loop's process a bounded amount of work (see docs/service.md)
+        self.cache_s = cache_s
+        self._cache: dict[str, tuple[float, Any]] = {}
         self.experiments = experiments
         self.info = info or (lambda: {})
         self.served = 0
@@ -201,11 +206,12 @@ class Dispatcher:
         if cmd == "ping":
             return {"pong": True, **self.info()}
         if cmd == "status":
-            return loop.status()
+            return self._cached(cmd, loop.status)
         if cmd == "timing":
-            return loop.timing()
+            return self._cached(cmd, loop.timing)
         if cmd == "faults":
-            return {"faults": loop.faults()}
+            return self._cached(cmd, lambda: {"faults": loop.faults()})
+        self._cache.clear()  # a command changes the state: the next query is fresh
         if cmd == "fault.reset":
             loop.reset_fault()
             return {"reset": True}
@@ -230,6 +236,18 @@ class Dispatcher:
         if cmd == "experiment.stop":
             return self.experiments.stop()
         raise RequestError(f"unknown command {cmd!r}")  # pragma: no cover - table-driven
+
+
+    def _cached(self, key: str, fn: Callable[[], Any]) -> Any:
+        if self.cache_s <= 0:
+            return fn()
+        now = time.monotonic()
+        hit = self._cache.get(key)
+        if hit is not None and now - hit[0] < self.cache_s:
+            return hit[1]
+        value = fn()
+        self._cache[key] = (now, value)
+        return value
 
 
 def _absolute(path: str, where: str) -> str:

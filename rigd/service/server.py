@@ -23,6 +23,7 @@ import selectors
 import socket
 import stat
 import threading
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -223,6 +224,7 @@ class ControlServer:
                 continue
             self.stats["requests"] += 1
             c.wbuf += self.handle(line)
+            time.sleep(0)  # hand the GIL to the loop thread if it is waiting
         if len(c.rbuf) > self.max_line:
             self._too_long(c)
             return

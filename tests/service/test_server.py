@@ -176,3 +176,24 @@ def test_parse_request_unit():
     assert (rid, cmd, args.path) == (5, "experiment.start", "/a.yaml")
     with pytest.raises(RequestError, match="exactly one"):
         parse_request(b'{"cmd": "experiment.start"}')
+
+
+def test_query_cache_bounded_and_invalidated_by_commands():
+    import time as _t
+
+    loop = FakeLoop()
+    calls = []
+    orig = loop.status
+    loop.status = lambda: (calls.append(1), orig())[1]
+    d = Dispatcher(loop, cache_s=10.0)
+    for _ in range(50):
+        d.handle_line(b'{"cmd": "status"}')
+    assert len(calls) == 1  # a flood of queries costs the loop one status()
+    d.handle_line(b'{"cmd": "controller.enable"}')
+    r = json.loads(d.handle_line(b'{"cmd": "status"}'))
+    assert len(calls) == 2 and r["result"]["controller_enabled"] is True
+    d0 = Dispatcher(loop)  # no cache by default
+    d0.handle_line(b'{"cmd": "status"}')
+    d0.handle_line(b'{"cmd": "status"}')
+    assert len(calls) == 4
+    assert _t.monotonic() > 0
