@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import SHARED
+from testpaths import SHARED
 from ident_helpers import rotor_record
 from rigd.cli import main
 from rigd.data.csvio import write_csv

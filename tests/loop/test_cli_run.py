@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from conftest import make_plant
+from loop_helpers import make_plant
 
 from rigd.config import default_config
 from rigd.frame import REC
@@ -74,7 +74,7 @@ class _Hiccup:
     """Wraps the plant: one write at cycle ``at`` takes ``pause_s`` (a stalled driver)."""
 
     def __new__(cls, plant, at, pause_s):
-        from conftest import InjectingDriver
+        from loop_helpers import InjectingDriver
 
         drv = InjectingDriver(plant)
         orig = drv.write

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from conftest import random_stable_controller
+from loop_helpers import random_stable_controller
 from numba import njit
 
 from rigd.loop import kernels as K

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from conftest import make_plant
+from loop_helpers import make_plant
 
 from rigd.config import default_config
 from rigd.controller import Controller

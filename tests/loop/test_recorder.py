@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import make_plant
+from loop_helpers import make_plant
 
 from rigd.config import default_config
 from rigd.frame import RECORD_NAMES, REC

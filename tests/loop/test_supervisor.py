@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import InjectingDriver, make_plant
+from loop_helpers import InjectingDriver, make_plant
 
 from rigd.config import default_config
 from rigd.frame import IN_E_X, IN_OMEGA, IN_PHI, IN_SEQ, IN_YP1, REC
