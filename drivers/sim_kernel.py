@@ -29,6 +29,7 @@ import numpy as np
 
 from rigd.frame import (IN_E_X, IN_E_Y, IN_F_X, IN_F_Y, IN_OMEGA, IN_P_INJ, IN_PHI, IN_SEQ,
                         IN_STATUS, IN_YP1, N_IN)
+from rigd_drivers.sim_noise import normal_pair as _normal_pair
 
 NX = 6          # bearing states: e_x, e_y, de_x, de_y, q, dq (q: extra mode)
 NW = 4          # FOH inputs: u_x, u_y (V), f_x, f_y (N)
@@ -116,33 +117,6 @@ S_FRAME = _take(N_IN)         # last sensor frame (what read() returns)
 S_XN = _take(NX)              # scratch: next bearing state
 S_XP = _take(NX)              # scratch: predictor state
 N_STATE = _n
-
-_M1 = np.uint64(0x9E3779B97F4A7C15)
-_M2 = np.uint64(0xBF58476D1CE4E5B9)
-_M3 = np.uint64(0x94D049BB133111EB)
-_S30 = np.uint64(30)
-_S27 = np.uint64(27)
-_S31 = np.uint64(31)
-_S11 = np.uint64(11)
-
-
-@numba.njit(cache=True, nogil=True)
-def _uniform(seed, ctr):
-    """Counter-based uniform in (0, 1): SplitMix64 of seed + ctr·golden."""
-    z = np.uint64(seed) + np.uint64(ctr) * _M1
-    z = (z ^ (z >> _S30)) * _M2
-    z = (z ^ (z >> _S27)) * _M3
-    z = z ^ (z >> _S31)
-    return (float(z >> _S11) + 0.5) * (1.0 / 9007199254740992.0)
-
-
-@numba.njit(cache=True, nogil=True)
-def _normal_pair(seed, ctr):
-    u1 = _uniform(seed, ctr)
-    u2 = _uniform(seed, ctr + 1.0)
-    r = math.sqrt(-2.0 * math.log(u1))
-    return r * math.cos(TWO_PI * u2), r * math.sin(TWO_PI * u2)
-
 
 @numba.njit(cache=True, nogil=True)
 def _apply_staged(state, params):
@@ -289,12 +263,13 @@ def plant_step(state, params, drive, frame_in):
             v = 10.0
         if not (v == v):                       # NaN drive: amplifier holds 0 V
             v = 0.0
+        vprev = state[S_VPREV + i]
+        state[S_VPREV + i] = v                 # the amplifier output (clamped)
         if hyst_on:
-            h = _hyst(state[S_HYST + i], v - state[S_VPREV + i], params[P + A_HYST_ALPHA],
+            h = _hyst(state[S_HYST + i], v - vprev, params[P + A_HYST_ALPHA],
                       params[P + A_HYST_B], params[P + A_HYST_HMAX])
             state[S_HYST + i] = h
             v = v - h
-        state[S_VPREV + i] = drive[i] if drive[i] == drive[i] else 0.0
         if creep_on:
             c0 = state[S_CREEP + 2 * i]
             c1 = state[S_CREEP + 2 * i + 1]

@@ -160,3 +160,14 @@ def test_creep_drifts_slowly_after_a_step():
             assert np.all(np.diff(y[575:]) >= -1e-12)   # monotone creep, no oscillation
         else:
             assert abs(late - early) < 1e-3
+
+
+def test_hysteresis_sees_the_clamped_drive():
+    """Drive beyond the amplifier range is clamped before the piezo: pushing further past
+    10 V changes nothing, with or without hysteresis."""
+    for eff in ({}, {"hysteresis": {"enabled": True}}):
+        a = np.vstack([np.full((200, 4), 10.0), np.full((400, 4), 4.0)])
+        b = np.vstack([np.full((100, 4), 10.0), np.full((100, 4), 25.0), np.full((400, 4), 4.0)])
+        ya = _record(eff, a, **QUIET)[:, IN_YP1]
+        yb = _record(eff, b, **QUIET)[:, IN_YP1]
+        assert np.array_equal(ya, yb)

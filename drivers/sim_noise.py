@@ -1,0 +1,42 @@
+"""Seeded, counter-based Gaussian noise for the plant kernel (no hidden global RNG state).
+
+``uniform(seed, ctr)`` hashes (seed, counter) with SplitMix64, so the noise of a step depends
+only on the seed and the draw counter kept in the plant state: same seed and same inputs give
+bit-identical records, whatever else runs in the process.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+
+_M1 = np.uint64(0x9E3779B97F4A7C15)
+_M2 = np.uint64(0xBF58476D1CE4E5B9)
+_M3 = np.uint64(0x94D049BB133111EB)
+_S30 = np.uint64(30)
+_S27 = np.uint64(27)
+_S31 = np.uint64(31)
+_S11 = np.uint64(11)
+
+
+@numba.njit(cache=True, nogil=True)
+def uniform(seed, ctr):
+    """Counter-based uniform in (0, 1): SplitMix64 of seed + ctr·golden."""
+    z = np.uint64(seed) + np.uint64(ctr) * _M1
+    z = (z ^ (z >> _S30)) * _M2
+    z = (z ^ (z >> _S27)) * _M3
+    z = z ^ (z >> _S31)
+    return (float(z >> _S11) + 0.5) * (1.0 / 9007199254740992.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def normal_pair(seed, ctr):
+    """Two independent standard normals (Box–Muller) from draws ctr and ctr + 1."""
+    u1 = uniform(seed, ctr)
+    u2 = uniform(seed, ctr + 1.0)
+    r = math.sqrt(-2.0 * math.log(u1))
+    return r * math.cos(TWO_PI * u2), r * math.sin(TWO_PI * u2)
