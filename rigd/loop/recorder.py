@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import os
+import re
 import threading
 import time
 from dataclasses import dataclass, field
@@ -47,6 +49,30 @@ class RecordSpec:
     meta: dict[str, Any] = field(default_factory=dict)
 
 
+class RecordingFailed(OSError):
+    """A recording could not be written (disk full, file too large, I/O error).
+
+    The message names the file, the reason and what the file still holds (the frames up to its
+    last successful flush); ``cause`` is the original exception.
+    """
+
+    def __init__(self, message: str, cause: BaseException | None = None):
+        super().__init__(message)
+        self.cause = cause
+
+
+def _reason(exc: BaseException) -> str:
+    """Short reason of a failed write: the OS error text when it can be found."""
+    errno_ = getattr(exc, "errno", None)
+    if not isinstance(errno_, int):
+        m = re.search(r"errno = (\d+)", str(exc))
+        errno_ = int(m.group(1)) if m else None
+    if isinstance(errno_, int) and errno_ > 0:
+        return f"{os.strerror(errno_)} (errno {errno_})"
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return text[:200]
+
+
 class Sink:
     """Destination of a contiguous range of frames ``[first_seq, last_seq]`` (inclusive).
 
@@ -62,6 +88,11 @@ class Sink:
         self.done = threading.Event()
         self.closing = False
         self.last_written_seq: int | None = None
+        self.n_flushed = 0                 # frames safely on disk (at the last good flush)
+
+    def describe_failure(self, exc: BaseException) -> str:
+        """One line: what failed and what the destination still holds."""
+        return f"recording failed: {_reason(exc)}"
 
     # called by the writer thread only
     def write(self, block: np.ndarray) -> None:
@@ -154,16 +185,28 @@ class H5Sink(Sink):
         self._ev["text"][n] = text.encode("utf-8")[:EVENT_TEXT_LEN]
 
     def flush(self) -> None:
+        n = self._ds.shape[0]
         self._ds.flush()
         for name in ("seq", "code", "text"):
             self._ev[name].flush()
         self._f.flush()
+        self.n_flushed = n
+
+    def describe_failure(self, exc: BaseException) -> str:
+        n = self.n_flushed
+        kept = (f"the file keeps every frame up to the last flush ({n} frames, seq "
+                f"{self.first_seq}..{self.first_seq + n - 1})" if n and self.first_seq is not None
+                else "no frame had been flushed to it")
+        return (f"recording {self.path} failed: {_reason(exc)}; {kept}, readable with "
+                f"rigd.loop.recorder.open_recording (h5py swmr=True)")
 
     def close(self) -> None:
         try:
             self.flush()
-        finally:
-            self._f.close()
+        except BaseException:
+            self.abandon()   # a failed final flush: keep the file as last flushed (see below)
+            raise
+        self._f.close()
 
     def abandon(self) -> None:
         """After a failed write (disk full, I/O error): freeze the file as it is on disk.
@@ -173,8 +216,8 @@ class H5Sink(Sink):
         metadata pointing past the end of the file, so the file descriptor is pointed at
         /dev/null before the h5py file is closed.
         """
-        import os
-
+        if not self._f.id.valid:
+            return
         try:
             fd = self._f.id.get_vfd_handle()
             null = os.open(os.devnull, os.O_RDWR)
@@ -328,12 +371,13 @@ class Recorder:
         try:
             fn(*args)
         except BaseException as exc:  # disk full, permission...: loud, never silent
+            sink.abandon()
+            exc = RecordingFailed(sink.describe_failure(exc), exc)
             sink.error = exc
             self.error = exc
             with self._lock:
                 if sink in self._sinks:
                     self._sinks.remove(sink)
-            sink.abandon()
             sink.done.set()
             if self._on_error is not None:
                 self._on_error(exc)
@@ -384,5 +428,8 @@ class Recorder:
             try:
                 s.close()
             except BaseException as exc:
-                s.error = exc
+                s.error = RecordingFailed(s.describe_failure(exc), exc)
+                self.error = s.error
+                if self._on_error is not None:
+                    self._on_error(s.error)
             s.done.set()

@@ -4,7 +4,6 @@ no frame lost before the fault)."""
 
 import time
 
-import h5py
 import numpy as np
 
 from rigd.config import load_config
@@ -13,6 +12,7 @@ from rigd.driver import FastDriver
 from rigd.frame import REC
 from rigd.loop.app import build_drivers
 from rigd.loop.loop import ControlLoop
+from rigd.loop.recorder import open_recording
 
 from daemon_helpers import make_config
 
@@ -94,7 +94,9 @@ def lockstep_fault(tmp_path, fault, *, at=1500, n=4000, plant=None, supervisor=N
 
 
 def read_frames(path):
-    with h5py.File(path, "r") as f:
+    """All recorded frames; SWMR-aware (a recording cut short by a crash or a full disk keeps
+    the file's write flag set, which a plain ``h5py.File(path, "r")`` refuses)."""
+    with open_recording(path) as f:
         return f["frames"][:]
 
 
