@@ -1,0 +1,142 @@
+"""Mixed-sensitivity H∞ synthesis of K∞(s) (paper Sec. 5).
+
+The generalized plant P has exogenous inputs w = [d_o, d_i] (output disturbance on p, µm;
+input disturbance on the valve command, V, scaled by W_d), control input u = r (V), error
+outputs z = [W_p p, W_u u] and measurement v = −p (the loop feeds −(p − p_eq)). With u = K v
+the closed loop w → z is::
+
+    d_o → z:  [W_p S,   −W_u K S]ᵀ              (the paper's N = [W_p S, W_u K S]ᵀ)
+    d_i → z:  [W_p S G W_d, −W_u K S G W_d]ᵀ    (only when W_d > 0)
+
+so γ = ‖F_l(P, K)‖∞ ≥ ‖N‖∞, and S = S_o = (I + G_p K)⁻¹ as Eq. 11 (negative feedback).
+Synthesis uses python-control ``hinfsyn`` (SLICOT SB10AD through slycot). The problem is
+solved in a frequency-scaled time unit (ω/ω_s) so that the Riccati equations are well
+conditioned, and the controller is scaled back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigd.design.weights import Weights, three_level
+from rigd.errors import InputError
+
+#: Frequency scale of the synthesis (rad/s): 2π·100 Hz, the bearing modes' neighbourhood.
+OMEGA_SCALE = 2.0 * np.pi * 100.0
+
+
+@dataclass
+class HinfResult:
+    """Full-order H∞ controller and what the synthesis reports.
+
+    Attributes
+    ----------
+    K : control.StateSpace
+        Continuous K∞(s), e = −p (µm) → r (V), negative-feedback convention.
+    gamma : float
+        Achieved ‖F_l(P, K)‖∞ (γ < 1: all weighted specifications met).
+    closed_loop_stable : bool
+        Closed loop (G_p, K) stable (continuous).
+    """
+
+    K: object
+    gamma: float
+    closed_loop_stable: bool
+
+
+def _freq_scale(sys, w: float):
+    import control
+
+    return control.ss(sys.A / w, sys.B / w, sys.C, sys.D)
+
+
+def generalized_plant(G, Wp, Wu, wd: float):
+    """Generalized plant P for :func:`synthesize` (see module docstring).
+
+    Parameters
+    ----------
+    G : control.StateSpace
+        Plant G_p, 2 inputs r (V) → 2 outputs p (µm), strictly proper.
+    Wp, Wu : control.StateSpace
+        2×2 weights on p (S) and on u (K S).
+    wd : float
+        Input-disturbance weight (0: no input-disturbance channel).
+
+    Returns
+    -------
+    control.StateSpace
+        Inputs [w (2 or 4), u (2)], outputs [z (4), v (2)].
+    """
+    import control
+
+    ny, nu = G.noutputs, G.ninputs
+    if np.any(np.abs(G.D) > 0):
+        raise InputError("plant model must be strictly proper (D = 0) for the H∞ design",
+                         "model")
+    Ag, Bg, Cg = G.A, G.B, G.C
+    Ap, Bp, Cp, Dp = Wp.A, Wp.B, Wp.C, Wp.D
+    Au, Bu, Cu, Du = Wu.A, Wu.B, Wu.C, Wu.D
+    ng, np_, nw = Ag.shape[0], Ap.shape[0], Au.shape[0]
+    Z = np.zeros
+    A = np.block([[Ag, Z((ng, np_)), Z((ng, nw))],
+                  [Bp @ Cg, Ap, Z((np_, nw))],
+                  [Z((nw, ng)), Z((nw, np_)), Au]])
+    Bo = np.vstack([Z((ng, ny)), Bp, Z((nw, ny))])          # output disturbance d_o
+    B2 = np.vstack([Bg, Z((np_, nu)), Bu])                  # control u
+    C1 = np.block([[Dp @ Cg, Cp, Z((ny, nw))], [Z((nu, ng)), Z((nu, np_)), Cu]])
+    C2 = np.hstack([-Cg, Z((ny, np_)), Z((ny, nw))])
+    D1o = np.vstack([Dp, Z((nu, ny))])
+    D12 = np.vstack([Z((ny, nu)), Du])
+    D2o = -np.eye(ny)
+    if wd > 0:
+        Bi = np.vstack([Bg * wd, Z((np_, nu)), Z((nw, nu))])  # input disturbance d_i
+        B1 = np.hstack([Bo, Bi])
+        D11 = np.hstack([D1o, Z((ny + nu, nu))])
+        D21 = np.hstack([D2o, Z((ny, nu))])
+    else:
+        B1, D11, D21 = Bo, D1o, D2o
+    return control.ss(A, np.hstack([B1, B2]), np.vstack([C1, C2]),
+                      np.block([[D11, D12], [D21, np.zeros((ny, nu))]]))
+
+
+def closed_loop_stable(G, K) -> bool:
+    """Is the negative-feedback loop (G, K) internally stable? (continuous or discrete)"""
+    import control
+
+    if G.dt != K.dt and not (G.dt in (None, 0) and K.dt in (None, 0)):
+        raise ValueError("G and K must both be continuous or share the sample time")
+    L = control.feedback(G * K, np.eye(G.noutputs), sign=-1)
+    poles = L.poles()
+    if len(poles) == 0:
+        return True
+    if G.dt:
+        return bool(np.max(np.abs(poles)) < 1.0)
+    return bool(np.max(poles.real) < 0.0)
+
+
+def synthesize(G, weights: Weights) -> HinfResult:
+    """Mixed-sensitivity H∞ controller for plant ``G`` with ``weights`` (γ-iteration by SLICOT).
+
+    Raises
+    ------
+    InputError
+        When the problem has no solution (e.g. weights that make it infeasible or ill-posed).
+    """
+    import control
+
+    ny, nu = G.noutputs, G.ninputs
+    if (ny, nu) != (2, 2):
+        raise InputError(f"plant must be 2x2 (r_x, r_y -> e_x, e_y), got {ny}x{nu}", "model")
+    Wp = three_level(weights.W_p, ny)
+    Wu = three_level(weights.W_u, nu)
+    w = OMEGA_SCALE
+    P = generalized_plant(_freq_scale(G, w), _freq_scale(Wp, w), _freq_scale(Wu, w), weights.W_d)
+    try:
+        Ks, _cl, gamma, _rcond = control.hinfsyn(P, ny, nu)
+    except Exception as exc:  # slycot raises its own error types with the SLICOT info code
+        raise InputError(f"H∞ synthesis failed ({type(exc).__name__}: {exc}); "
+                         "check the weights and the plant model", "design") from None
+    K = control.ss(Ks.A * w, Ks.B * w, Ks.C, Ks.D)
+    return HinfResult(K=K, gamma=float(gamma), closed_loop_stable=closed_loop_stable(G, K))

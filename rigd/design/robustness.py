@@ -1,0 +1,132 @@
+"""Robustness over the operating range (paper Sec. 5, Fig. 4).
+
+The output sensitivity S_o = (I + G_p K∞)⁻¹ (Eq. 11) is evaluated for N_r random operating
+points (Ω, P_I) of a reassembled model ``plant_at(omega_rpm, p_inj_bar) -> G_p``. For each
+realization: closed-loop stability, the worst-case reduction factor 1/max σ̄(S_o) inside the
+damping band (open loop: S = I, factor 1), the low-frequency increase max σ̄(S_o) below
+``low_hz``, and the peak max σ̄(S_o) with its frequency.
+
+With a discrete K∞(z) a continuous plant is discretised by zero-order hold at the
+controller's rate, so the figures describe the loop as it runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from rigd.design.weights import Robustness
+
+
+@dataclass
+class Realization:
+    omega_rpm: float
+    p_inj_bar: float
+    stable: bool
+    reduction_min: float      # worst in-band 1/σ̄(S_o)
+    low_increase: float       # max σ̄(S_o) below low_hz
+    peak: float               # max σ̄(S_o)
+    peak_hz: float
+
+
+@dataclass
+class RobustnessResult:
+    f_hz: np.ndarray
+    sigma: np.ndarray                         # (N_r, n_f) σ̄(S_o)
+    realizations: list[Realization] = field(default_factory=list)
+    band_hz: tuple[float, float] = (70.0, 190.0)
+
+    def summary(self) -> dict:
+        """Worst cases over all realizations (plain floats, for JSON)."""
+        r = self.realizations
+        worst = min(r, key=lambda x: x.reduction_min)
+        peak = max(r, key=lambda x: x.peak)
+        return {"n_realizations": len(r), "all_stable": all(x.stable for x in r),
+                "band_hz": list(self.band_hz),
+                "sensitivity_reduction_min": worst.reduction_min,
+                "sensitivity_reduction_min_at": {"omega_rpm": worst.omega_rpm,
+                                                 "p_inj_bar": worst.p_inj_bar},
+                "sensitivity_reduction_max": max(x.reduction_min for x in r),
+                "sensitivity_peak_max": peak.peak, "sensitivity_peak_hz": peak.peak_hz,
+                "sensitivity_low_increase_max": max(x.low_increase for x in r)}
+
+    def to_dict(self) -> dict:
+        return {"summary": self.summary(), "realizations": [asdict(x) for x in self.realizations]}
+
+
+def random_operating_points(n: int, seed: int, omega_range=(0.0, 6000.0),
+                            p_range=(3.0, 7.0)) -> np.ndarray:
+    """(n, 2) uniformly random [Ω (rpm), P_I (bar)] points (reproducible by ``seed``)."""
+    rng = np.random.default_rng(seed)
+    return np.column_stack([rng.uniform(*omega_range, n), rng.uniform(*p_range, n)])
+
+
+def freq_response(sys, f_hz: np.ndarray) -> np.ndarray:
+    """Frequency response (n_f, ny, nu) of a continuous or discrete StateSpace."""
+    w = 2 * np.pi * np.asarray(f_hz, dtype=float)
+    x = np.exp(1j * w * sys.dt) if sys.dt else 1j * w
+    return np.moveaxis(np.asarray(sys(x)).reshape(sys.noutputs, sys.ninputs, -1), 2, 0)
+
+
+def sensitivity_sigma(G, K, f_hz: np.ndarray) -> np.ndarray:
+    """σ̄(S_o(jω)) = largest singular value of (I + G K)⁻¹ at each frequency."""
+    L = freq_response(G, f_hz) @ freq_response(K, f_hz)
+    S = np.linalg.inv(np.eye(L.shape[1])[None] + L)
+    return np.linalg.svd(S, compute_uv=False)[:, 0]
+
+
+def closed_loop_poles(G, K) -> np.ndarray:
+    import control
+
+    return control.feedback(G * K, np.eye(G.noutputs), sign=-1).poles()
+
+
+def is_stable(G, K) -> bool:
+    p = closed_loop_poles(G, K)
+    if not len(p):
+        return True
+    return bool(np.max(np.abs(p)) < 1.0) if G.dt else bool(np.max(p.real) < 0.0)
+
+
+def match_domain(G, K):
+    """G discretised by ZOH at K's sample time when K is discrete and G is not."""
+    import control
+
+    if K.dt and not G.dt:
+        return control.c2d(G, K.dt, method="zoh")
+    return G
+
+
+def assess(G, K, f_hz: np.ndarray, band_hz=(70.0, 190.0), low_hz: float = 20.0,
+           omega_rpm: float = float("nan"), p_inj_bar: float = float("nan")):
+    """One realization: (Realization, σ̄(S_o) over ``f_hz``)."""
+    G = match_domain(G, K)
+    sig = sensitivity_sigma(G, K, f_hz)
+    band = (f_hz >= band_hz[0]) & (f_hz <= band_hz[1])
+    low = f_hz < low_hz
+    i = int(np.argmax(sig))
+    return Realization(float(omega_rpm), float(p_inj_bar), is_stable(G, K),
+                       float(1.0 / sig[band].max()), float(sig[low].max()) if low.any() else 1.0,
+                       float(sig[i]), float(f_hz[i])), sig
+
+
+def default_freqs(fs_hz: float | None = None) -> np.ndarray:
+    top = 0.49 * fs_hz if fs_hz else 2000.0
+    return np.unique(np.concatenate([np.logspace(0, np.log10(top), 500),
+                                     np.linspace(60.0, 200.0, 141)]))
+
+
+def analyze(plant_at: Callable[[float, float], object], K, cfg: Robustness,
+            f_hz: np.ndarray | None = None) -> RobustnessResult:
+    """S_o for ``cfg.n_realizations`` random operating points (Fig. 4)."""
+    f = default_freqs(1 / K.dt if K.dt else None) if f_hz is None else np.asarray(f_hz)
+    pts = random_operating_points(cfg.n_realizations, cfg.seed, cfg.omega_rpm, cfg.p_inj_bar)
+    res = RobustnessResult(f_hz=f, sigma=np.zeros((len(pts), len(f))),
+                           band_hz=tuple(cfg.band_hz))
+    for k, (om, p) in enumerate(pts):
+        r, sig = assess(plant_at(float(om), float(p)), K, f, cfg.band_hz, cfg.low_hz, om, p)
+        res.realizations.append(r)
+        res.sigma[k] = sig
+    return res
