@@ -1,0 +1,29 @@
+"""Helpers for tests/design: model files built from the simulated plant's truth."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rigd.design import simtruth
+from rigd.ident.mechanical import actuator_structure, bearing_structure
+from rigd.ident.modelfile import ModelFile, Submodel
+
+
+def truth_model_file(path, omega_rpm=4000.0, p_inj_bar=7.0, fs=5000.0):
+    """Write a model file whose G_p is the simulated plant's truth (actuator: 2nd-order fit)."""
+    from rigd_drivers import sim_physics as sp
+
+    bm = sp.bearing_matrices(omega_rpm, p_inj_bar)
+    bs = bearing_structure()
+    tb = bs.pack(bm.K_id, bm.D_id, bm.B_id)
+    acts = simtruth._act_fit(fs)
+    K = np.diag([p1 * p2 for _, p1, p2 in acts])
+    D = np.diag([p1 + p2 for _, p1, p2 in acts])
+    B = np.diag([k * p1 * p2 for k, p1, p2 in acts])
+    ast = actuator_structure()
+    ta = ast.pack(K, D, B)
+    mf = ModelFile(fs, {"bearing": Submodel("bearing", bs, tb, np.zeros_like(tb)),
+                        "actuator": Submodel("actuator", ast, ta, np.zeros_like(ta))},
+                   operating_point={"omega_rpm": omega_rpm, "p_inj_bar": p_inj_bar})
+    mf.save(path)
+    return path

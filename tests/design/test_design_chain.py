@@ -1,0 +1,105 @@
+"""Design chain on the simulated plant's truth: H∞, reduction, Tustin, robustness, file."""
+
+import json
+
+import numpy as np
+import pytest
+
+from rigd.cli import main
+from rigd.controller import load_controller
+from rigd.design import pipeline, robustness, simtruth
+from rigd.design.weights import load_design_config, magnitude, ThreeLevel
+from design_helpers import truth_model_file
+
+CFG = "config/design.yaml"
+
+
+@pytest.fixture(scope="module")
+def result():
+    cfg = load_design_config(CFG)
+    return cfg, pipeline.design_controller(simtruth.plant_s(4000.0, 7.0), cfg)
+
+
+def test_three_level_weight_levels():
+    w = ThreeLevel(low=0.8, mid=3.0, high=0.5, f_low_hz=50, f_high_hz=300, order=2)
+    m = magnitude(w, np.array([0.1, 120.0, 1e5]))
+    assert m[0] == pytest.approx(0.8, rel=1e-3)
+    assert m[2] == pytest.approx(0.5, rel=1e-3)
+    assert 2.0 < m[1] <= 3.0
+
+
+def test_reduced_discrete_controller_matches_full_in_band(result):
+    """K(z) (reduced, Tustin) vs full K(s): max σ̄(K_z − K_full)/σ̄(K_full) ≤ 10 % in 70–190 Hz."""
+    cfg, res = result
+    assert res.order < res.order_full
+    f = np.linspace(70, 190, 121)
+    Kf = robustness.freq_response(res.K_full, f)
+    Kz = robustness.freq_response(res.K_z, f)
+    err = (np.linalg.svd(Kz - Kf, compute_uv=False)[:, 0]
+           / np.linalg.svd(Kf, compute_uv=False)[:, 0])
+    assert err.max() <= 0.10
+    assert res.stable_full and res.stable_reduced and res.stable_discrete
+
+
+def test_reduction_rejects_orders_that_fail(result):
+    cfg, res = result
+    # every order tried below the chosen one failed a check; the chosen one passed all
+    for t in res.tried[:-1]:
+        assert not (t["stable_reduced"] and t["stable_discrete"] and t["band_error"] <= 0.1)
+    assert res.tried[-1]["order"] == res.order
+
+
+def test_robust_stability_peak_and_damping_over_range(result):
+    cfg, res = result
+    rob = robustness.analyze(simtruth.plant_z, res.K_z, cfg.robustness)
+    s = rob.summary()
+    assert s["n_realizations"] == 30 and s["all_stable"]
+    assert s["sensitivity_peak_max"] <= 2.0
+    # closed-loop poles at the impact operating points: damping >= 3x (4 bar), 4x (7 bar)
+    from rigd_drivers import sim_physics as sp
+
+    for p, factor in ((4.0, 3.0), (7.0, 4.0)):
+        G = simtruth.plant_z(0.0, p)
+        poles = np.log(robustness.closed_loop_poles(G, res.K_z).astype(complex)) * 5000.0
+        near = poles[(poles.imag > 0) & (np.abs(poles) > 2 * np.pi * 60)
+                     & (np.abs(poles) < 2 * np.pi * 260)]
+        zeta_cl = (-near.real / np.abs(near)).min()
+        zeta_ol = sp.bearing_modes(0.0, p)[1].max()
+        assert zeta_cl >= factor * zeta_ol
+
+
+@pytest.mark.xfail(strict=True, reason="H2's simulated plant: best achievable worst-case "
+                   "in-band reduction of S_o is ~1.6-1.8x on the nominal (H∞ feasibility) and "
+                   "~1x with the damping design over the range; see docs/design.md")
+def test_sensitivity_reduced_3x_in_band_for_all_realizations(result):
+    cfg, res = result
+    rob = robustness.analyze(simtruth.plant_z, res.K_z, cfg.robustness)
+    assert rob.summary()["sensitivity_reduction_min"] >= 3.0
+
+
+def test_cli_design_writes_a_loadable_controller(tmp_path, capsys):
+    model = truth_model_file(tmp_path / "G_p.yaml")
+    out = tmp_path / "controller.yaml"
+    rc = main(["design", "--model", str(model), "--weights", CFG, "-o", str(out), "--json",
+               "--report", str(tmp_path / "rep")])
+    assert rc == 0
+    s = json.loads(capsys.readouterr().out)
+    ctrl = load_controller(out, expected_fs_hz=5000.0, plant=simtruth.plant_z(4000.0, 7.0))
+    assert ctrl.order == s["controller_order"]
+    assert ctrl.meta["gamma"] == pytest.approx(s["gamma"])
+    assert ctrl.meta["model_hash"].startswith("sha256:")
+    assert s["design_point_sensitivity"]["peak"] <= 2.0
+    for name in ("weights.png", "controller.png", "index.html"):
+        assert (tmp_path / "rep" / name).exists()
+
+
+def test_cli_design_bad_weights_exit_2(tmp_path, capsys):
+    model = truth_model_file(tmp_path / "G_p.yaml")
+    bad = tmp_path / "design.yaml"
+    bad.write_text(open(CFG).read().replace("f_high_hz: 220", "f_high_hz: 20"))
+    out = tmp_path / "c.yaml"
+    rc = main(["design", "--model", str(model), "--weights", str(bad), "-o", str(out)])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "design.yaml" in err and "f_low_hz" in err
+    assert not out.exists()
