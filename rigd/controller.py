@@ -14,8 +14,9 @@ File format (YAML, see docs/ARCHITECTURE.md)::
     A: [[...]]; B: [[...]]; C: [[...]]; D: [[...]]
 
 :func:`load_controller` refuses a file that could harm the rig before it reaches the loop:
-wrong rate, wrong dimensions, non-finite numbers, an unstable K∞(z), and — when a plant model
-is given — an unstable closed loop.
+wrong rate, wrong dimensions, non-finite numbers, an unstable K∞(z), and an unstable closed
+loop — with the plant model given by the caller or, failing that, the design model
+``design_plant`` that ``rigd design`` embeds in the file.
 """
 
 from __future__ import annotations
@@ -56,6 +57,9 @@ class ControllerFile(StrictModel):
     model_hash: str | None = None
     weights: dict[str, Any] | None = None
     closed_loop_stable: bool | None = None
+    #: the design model G_p(z) (ZOH at fs_hz, r -> p); when present the loader re-checks the
+    #: closed loop with it, so an edited or mismatched K∞ is refused before it reaches the loop
+    design_plant: ContinuousSS | None = None
     gamma: float | None = None
     note: str | None = None
 
@@ -171,9 +175,20 @@ def load_controller(path: str | Path, *, expected_fs_hz: float | None = None,
     B = _as_matrix("B", spec.B, where) if spec.B else np.zeros((0, 2))
     C = _as_matrix("C", spec.C, where) if spec.C else np.zeros((2, 0))
     D = _as_matrix("D", spec.D, where)
+    if spec.closed_loop_stable is False:
+        raise InputError("controller is marked closed_loop_stable: false by its design", where)
+    if plant is None and spec.design_plant is not None:
+        import control
+
+        dp = spec.design_plant
+        mats = [_as_matrix(f"design_plant.{k}", getattr(dp, k), where) for k in "ABCD"]
+        try:
+            plant = control.ss(*mats, 1.0 / spec.fs_hz)
+        except (ValueError, TypeError) as exc:
+            raise InputError(f"design_plant is not a valid state space: {exc}", where) from None
     check_controller(A, B, C, D, fs_hz=spec.fs_hz, expected_fs_hz=expected_fs_hz,
                      where=where, plant=plant)
-    meta = spec.model_dump(exclude={"A", "B", "C", "D"})
+    meta = spec.model_dump(exclude={"A", "B", "C", "D", "design_plant"})
     return Controller(A, B, C, D, spec.fs_hz, where, meta)
 
 
