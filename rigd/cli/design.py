@@ -43,7 +43,7 @@ def run_design(model_path, weights_path, out, *, range_model=None, report=None) 
     model = load_model(model_path)
     G = model.plant()
     res = pipeline.design_controller(G, cfg)
-    pipeline.save_design(out, res, cfg, model_hash=sha256_file(model_path),
+    pipeline.save_design(out, res, cfg, model_hash=sha256_file(model_path), design_model=G,
                          note=f"designed on {Path(model_path).name} at "
                               f"{model.operating_point or 'unknown operating point'}")
     summary = {"controller": str(out), "model": str(model_path), **res.summary()}

@@ -107,14 +107,23 @@ class hinf_dt:  # noqa: N801 - tiny stand-in carrying a sample time for match_do
 
 
 def save_design(path, result: DesignResult, cfg: DesignConfig, *, model_hash: str | None = None,
-                plant=None, note: str | None = None) -> None:
-    """Write the controller YAML (discrete K∞(z), continuous reduced K∞(s), weights, γ)."""
+                design_model=None, note: str | None = None) -> None:
+    """Write the controller YAML (discrete K∞(z), continuous reduced K∞(s), weights, γ).
+
+    With ``design_model`` (continuous G_p) its ZOH discretisation is embedded as
+    ``design_plant`` and the closed loop is checked with it before writing; the loader
+    re-checks it at every load.
+    """
     from rigd.controller import save_controller
 
     Kz, Kr = result.K_z, result.K_red
+    plant = dp = None
+    if design_model is not None:
+        plant = match_domain(design_model, hinf_dt(result.fs_hz))
+        dp = {k: np.asarray(getattr(plant, k)).tolist() for k in "ABCD"}
     save_controller(path, Kz.A, Kz.B, Kz.C, Kz.D, fs_hz=result.fs_hz,
                     continuous={"A": np.asarray(Kr.A).tolist(), "B": np.asarray(Kr.B).tolist(),
                                 "C": np.asarray(Kr.C).tolist(), "D": np.asarray(Kr.D).tolist()},
                     model_hash=model_hash, weights=cfg.weights.model_dump(),
                     closed_loop_stable=bool(result.stable_discrete), gamma=float(result.gamma),
-                    note=note, plant=plant)
+                    note=note, design_plant=dp, plant=plant)
