@@ -31,21 +31,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--submodel", choices=["actuator", "bearing", "generic"], action="append",
                    help="sub-model(s) to examine (default: all the record supports)")
-    p.add_argument("--est", metavar="A:B", help="estimation samples (default first 2/3)")
-    p.add_argument("--val", metavar="A:B", help="validation samples (default last 1/3)")
+    p.add_argument("--est", metavar="A:B", help="estimation samples (default: --split)")
+    p.add_argument("--val", metavar="A:B", help="validation samples (default: --split)")
+    p.add_argument("--split", type=float, default=None,
+                   help="fraction of samples for estimation, the rest validates (default 2/3, "
+                        "as rigd identify)")
+    p.add_argument("--range", metavar="START:STOP", help="use only samples START:STOP of the "
+                   "record (as rigd identify --range)")
+    p.add_argument("--steps", type=int, default=3,
+                   help="most effects added one after the other (forward selection, default 3)")
     p.add_argument("--effects", metavar="NAME[,NAME...]", help="only test these effects")
     p.add_argument("--hold", choices=["auto", "zoh", "foh"], default="auto",
-                   help="input intersample behaviour (auto: zoh for references, foh for "
-                        "measured inputs)")
+                   help="input intersample behaviour (auto, as rigd identify: zoh for "
+                        "commanded references, foh for measured inputs)")
     p.add_argument("--no-refit", action="store_true",
                    help="signature tests only (fit_percent_with = base fit)")
-    p.add_argument("--fs", type=float, help="sample rate of a plain CSV without metadata, Hz")
+    p.add_argument("--fs", help="sample rate of a plain CSV without metadata, Hz (number or "
+                   "ratio, e.g. 10000000/16384)")
     p.add_argument("--inputs", help="input columns of a plain CSV (comma separated)")
     p.add_argument("--outputs", help="output columns of a plain CSV (comma separated)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigd.data.io import load_record
     from rigd.diagnose.engine import diagnose_record
     from rigd.effects import REGISTRY
 
@@ -59,8 +66,14 @@ def run(args: argparse.Namespace) -> int:
         if bad:
             raise InputError(f"unknown effect(s) {', '.join(bad)} (known: "
                              f"{', '.join(REGISTRY)})", "--effects")
-    rec = load_record(args.data, fs=args.fs, inputs=args.inputs, outputs=args.outputs)
-    ro = load_record(args.runout) if args.runout else None
+    if args.split is not None and est is not None:
+        raise InputError("give --split or --est/--val, not both", "--split")
+    if args.steps < 1:
+        raise InputError(f"--steps must be at least 1 (got {args.steps})", "--steps")
+    from rigd.cli.identify import apply_range, load_data
+
+    rec = apply_range(load_data(args.data, args.fs, args.inputs, args.outputs), args.range)
+    ro = load_data(args.runout) if args.runout else None
     if est is not None:
         for s, what in ((est, "est"), (val, "val")):
             a, b = s.indices(rec.n)[:2]
@@ -68,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
                 raise InputError(f"{what} range has {max(b - a, 0)} samples of {rec.n}; need "
                                  "at least 100", f"--{what}")
     diag = diagnose_record(rec, runout=ro, submodels=args.submodel, est=est, val=val,
-                           effects=effects, refit=not args.no_refit, hold=args.hold)
+                           effects=effects, refit=not args.no_refit, hold=args.hold,
+                           split=args.split, max_steps=args.steps)
     out = diag.to_json()
     if args.report:
         from rigd.diagnose.report import write_report

@@ -27,6 +27,7 @@ import numpy as np
 from rigd.diagnose import residual as R
 from rigd.effects import REGISTRY
 from rigd.effects.base import CannotReveal, Context, Finding
+from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
 
 #: share of validation error energy a refit must remove for significance
 MIN_REFIT_GAIN = 0.10
@@ -34,6 +35,8 @@ MIN_REFIT_GAIN = 0.10
 P_LEVEL = 1e-3
 #: longest stretch analysed (samples); longer records are analysed on a window
 MAX_SAMPLES = 40_000
+#: most effects added by the forward selection
+MAX_STEPS = 3
 
 
 def fit_percent(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
@@ -119,13 +122,12 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         With 2, the diagnosis is repeated on the base extended by the top significant
         effect, so a second effect masked by a stronger one is found too.
     """
-    from rigd.ident.mechanical import structure_for
 
     n = data.n
     if est is None or val is None:
         k = int(round(2 * n / 3))
         est, val = slice(0, k), slice(k, n)
-    structure = structure or structure_for(submodel, data)
+    structure = structure or structure_for(submodel, data, hold=DEFAULT_HOLD.get(submodel, "zoh"))
     data_est = data.slice(est.start, est.stop)
     base = _fit(structure, data_est, theta0=theta0, max_nfev=max_nfev)
     theta = base.theta
@@ -302,64 +304,57 @@ def submodels_of(record) -> list[str]:
     return out
 
 
-def half_sample_advance(u: np.ndarray) -> np.ndarray:
-    """Inputs advanced by half a sample, (u[k] + u[k+1]) / 2.
-
-    The base simulators hold the input constant over a sample (ZOH), right for commanded,
-    piecewise-constant references but half a sample late for band-limited *measured* inputs
-    (valve positions, the Silverbox voltage); simulating with the averaged input is the
-    trapezoidal first-order-hold equivalent.
-    """
-    u = np.asarray(u, float)
-    out = u.copy()
-    out[:-1] = 0.5 * (u[:-1] + u[1:])
-    return out
-
-
-#: input hold per sub-model: measured (band-limited) inputs -> "foh", commanded -> "zoh"
-DEFAULT_HOLD = {"actuator": "zoh", "bearing": "foh", "generic": "foh"}
-
-
 def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                     est: slice | None = None, val: slice | None = None,
                     effects: list[str] | None = None, refit: bool = True,
-                    max_samples: int = MAX_SAMPLES, prefilter: bool = True,
-                    hold: str = "auto") -> Diagnosis:
+                    max_samples: int = MAX_SAMPLES, options=None,
+                    hold: str = "auto", split: float | None = None,
+                    max_steps: int = MAX_STEPS) -> Diagnosis:
     """Diagnose a :class:`rigd.data.Record` (prefilters of §4.4, then each sub-model).
 
-    ``hold``: ``zoh`` (inputs held over a sample), ``foh`` (band-limited inputs, see
-    :func:`half_sample_advance`) or ``auto`` (:data:`DEFAULT_HOLD`).
+    The base model of each sub-model is what ``rigd identify --method oe`` fits on the same
+    samples: the same prefilters (:func:`rigd.ident.workflow.prepare`, default
+    :class:`~rigd.ident.prefilter.PrefilterOptions`), the same structure and input hold
+    (``hold="auto"``: :data:`rigd.ident.mechanical.DEFAULT_HOLD`, FOH for measured inputs,
+    ZOH for commanded references; or ``zoh``/``foh`` for every sub-model) and, without
+    ``est``/``val``, the same split (first ``split`` of the samples estimate, default 2/3).
+
+    Records longer than ``max_samples`` are analysed on their central ``max_samples``
+    samples (a note says which; ``rigd identify --range A:B`` fits the same window).
     """
     from rigd.errors import InputError
-    from rigd.ident.iddata import channels_for, from_record
-    from rigd.ident.prefilter import PrefilterOptions, apply_prefilters
+    from rigd.ident.workflow import DEFAULT_SPLIT, prepare
 
     subs = submodels or submodels_of(record)
     if not subs:
         raise InputError("record has neither inputs/outputs metadata nor the rotor columns "
                          "r_x, r_y, u_x, u_y (actuator) or u_x, u_y, e_x, e_y (bearing)",
                          record.source)
+    if hold not in ("auto", "zoh", "foh"):
+        raise InputError(f"hold must be auto, zoh or foh (got {hold!r})", "--hold")
     notes = []
     n = record.n
     window = (0, n)
     if est is None and val is None and n > max_samples:
         a = (n - max_samples) // 2
         window = (a, a + max_samples)
-        notes.append(f"long record: analysed samples {window[0]}..{window[1]} of {n}")
+        notes.append(f"long record: analysed samples {window[0]}..{window[1]} of {n} "
+                     f"(rigd identify --range {window[0]}:{window[1]} fits the same window)")
         record = record.slice(*window)
+    if est is None and val is None:
+        frac = DEFAULT_SPLIT if split is None else float(split)
+        if not 0.2 <= frac <= 0.95:
+            raise InputError(f"split must be within 0.2..0.95 (got {frac})", "--split")
+        k = int(round(record.n * frac))
+        est, val = slice(0, k), slice(k, record.n)
     parts = []
     for sub in subs:
-        ins, outs = channels_for(record, sub)
-        rec = record
-        if prefilter:
-            opts = PrefilterOptions(median=False)
-            rec, _ = apply_prefilters(record, ins, outs, opts, runout)
-        data = from_record(rec, sub)
+        data, _ = prepare(record, sub, options, runout)
         h = DEFAULT_HOLD.get(sub, "zoh") if hold == "auto" else hold
-        if h == "foh":
-            data = data.with_inputs(half_sample_advance(data.inputs))
-            notes.append(f"{sub}: inputs treated as band-limited (first-order hold)")
-        sd = diagnose_data(data, sub, est=est, val=val, effects=effects, refit=refit)
+        notes.append(f"{sub}: inputs {'linear between samples (FOH)' if h == 'foh' else 'held over each sample (ZOH)'}")
+        structure = structure_for(sub, data, hold=h)
+        sd = diagnose_data(data, sub, structure=structure, est=est, val=val, effects=effects,
+                           refit=refit)
         sd.window = window
         parts.append(sd)
     return Diagnosis(parts, record.source, notes)

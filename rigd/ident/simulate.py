@@ -5,7 +5,8 @@ All loops run in numba (``cache=True``); nothing here allocates per sample.
 Linear models are discretised exactly (zero-order hold on the input, :func:`zoh`) and run by
 :func:`lsim_kernel` (simulation, output error) or :func:`predict_kernel` (one-step-ahead
 predictor in innovation form). Models with a cubic stiffness (nonlinear) are integrated by a
-fixed-step Runge-Kutta 4 with ``nsub`` sub-steps per sample (:func:`cubic_kernel`), which can
+fixed-step Runge-Kutta 4 with ``nsub`` sub-steps per sample (:func:`cubic_kernel`, input held
+or linear between samples like the linear path), which can
 also apply the innovation correction so the same kernel predicts.
 
 The :class:`Hooks` bundle carries the optional modifications that physical effects need
@@ -86,19 +87,23 @@ def predict_kernel(Ad, Bd, Kd, C, x0, u, ymeas, yhat):  # pragma: no cover - com
 
 
 @njit(cache=True)
-def _accel(K, D, k3, p, v, f, a):  # pragma: no cover - compiled
+def _accel(K, D, k3, p, v, f, df, tau, a):  # pragma: no cover - compiled
+    """Acceleration at force f + tau·df (df: force change over the sample, FOH)."""
     n = p.shape[0]
     for i in range(n):
-        s = f[i] - k3[i] * p[i] * p[i] * p[i]
+        s = f[i] + tau * df[i] - k3[i] * p[i] * p[i] * p[i]
         for j in range(n):
             s -= K[i, j] * p[j] + D[i, j] * v[j]
         a[i] = s
 
 
 @njit(cache=True)
-def cubic_kernel(K, D, B, k3, Kd, x0, u, dt, nsub, ymeas, use_meas, y):  # pragma: no cover
-    """p̈ + D ṗ + K p + k3∘p³ = B u (u held over each sample), RK4 with ``nsub`` sub-steps.
+def cubic_kernel(K, D, B, k3, Kd, x0, u, dt, nsub, ymeas, use_meas, y,
+                 foh=False):  # pragma: no cover
+    """p̈ + D ṗ + K p + k3∘p³ = B u, RK4 with ``nsub`` sub-steps per sample.
 
+    The input is held over each sample (``foh=False``) or linear from u[k] to u[k+1]
+    (``foh=True``, the same intersample behaviour as the linear FOH discretisation).
     Output y[k] = p[k]. With ``use_meas`` the innovation correction ``Kd (y_meas - p)`` is added
     to the state after each sample (one-step-ahead predictor); otherwise it is a simulation.
     """
@@ -108,6 +113,7 @@ def cubic_kernel(K, D, B, k3, Kd, x0, u, dt, nsub, ymeas, use_meas, y):  # pragm
     p = x0[:m].copy()
     v = x0[m:].copy()
     f = np.empty(m)
+    df = np.zeros(m)
     e = np.empty(m)
     a1 = np.empty(m)
     a2 = np.empty(m)
@@ -122,25 +128,33 @@ def cubic_kernel(K, D, B, k3, Kd, x0, u, dt, nsub, ymeas, use_meas, y):  # pragm
         for i in range(m):
             y[k, i] = p[i]
             e[i] = ymeas[k, i] - p[i] if use_meas else 0.0
+        kn = k + 1 if k + 1 < n else k
         for i in range(m):
             s = 0.0
+            s1 = 0.0
             for j in range(nu):
                 s += B[i, j] * u[k, j]
+                s1 += B[i, j] * u[kn, j]
             f[i] = s
-        for _ in range(nsub):
-            _accel(K, D, k3, p, v, f, a1)
+            if foh:
+                df[i] = s1 - s
+        for q in range(nsub):
+            t0 = q / nsub
+            th = (q + 0.5) / nsub
+            t1 = (q + 1.0) / nsub
+            _accel(K, D, k3, p, v, f, df, t0, a1)
             for i in range(m):
                 k2p[i] = v[i] + 0.5 * h * a1[i]
                 pt[i] = p[i] + 0.5 * h * v[i]
-            _accel(K, D, k3, pt, k2p, f, a2)
+            _accel(K, D, k3, pt, k2p, f, df, th, a2)
             for i in range(m):
                 k3p[i] = v[i] + 0.5 * h * a2[i]
                 pt[i] = p[i] + 0.5 * h * k2p[i]
-            _accel(K, D, k3, pt, k3p, f, a3)
+            _accel(K, D, k3, pt, k3p, f, df, th, a3)
             for i in range(m):
                 k4p[i] = v[i] + h * a3[i]
                 pt[i] = p[i] + h * k3p[i]
-            _accel(K, D, k3, pt, k4p, f, a4)
+            _accel(K, D, k3, pt, k4p, f, df, t1, a4)
             for i in range(m):
                 p[i] += h / 6.0 * (v[i] + 2.0 * k2p[i] + 2.0 * k3p[i] + k4p[i])
                 v[i] += h / 6.0 * (a1[i] + 2.0 * a2[i] + 2.0 * a3[i] + a4[i])
@@ -280,7 +294,8 @@ class Hooks:
         RK4 sub-steps per sample for the nonlinear path.
     hold : {"zoh", "foh"}
         Input between samples: held (commanded signals) or linear (measured, smooth
-        signals). Set by the structure; the nonlinear path always holds.
+        signals). Set by the structure; applies to the linear and the cubic (RK4) path
+        and to the extra modes alike.
     """
 
     delay: int = 0
@@ -311,9 +326,9 @@ class Hooks:
             A = np.array([[0.0, 1.0], [-m.wn ** 2, -2 * m.zeta * m.wn]])
             Bm = np.zeros((2, u.shape[1]))
             Bm[1] = m.b
-            Ad, Bd = zoh(A, Bm, dt)
+            Ad, Bd, ue = _discrete(A, Bm, dt, self.hold, u)
             z = np.empty((u.shape[0], 1))
-            lsim_kernel(Ad, Bd, np.array([[1.0, 0.0]]), np.zeros(2), u, z)
+            lsim_kernel(Ad, Bd, np.array([[1.0, 0.0]]), np.zeros(2), ue, z)
             contrib = z * np.asarray(m.c, float)[None, :]
             out = contrib if out is None else out + contrib
         return out
@@ -353,7 +368,7 @@ def simulate_mechanical(K, D, B, x0, u, fs, hooks: Hooks | None = None) -> np.nd
     x0 = np.ascontiguousarray(x0, dtype=float)
     if hooks.k3 is not None and np.any(np.asarray(hooks.k3) != 0):
         cubic_kernel(K, D, B, np.asarray(hooks.k3, float), np.zeros((2 * m, m)), x0, uu,
-                     1.0 / fs, int(hooks.nsub), y, False, y)
+                     1.0 / fs, int(hooks.nsub), y, False, y, hooks.hold == "foh")
     else:
         A, Bc, C = mechanical_abc(K, D, B)
         Ad, Bd, ue = _discrete(A, Bc, 1.0 / fs, hooks.hold, uu)
@@ -401,7 +416,7 @@ def predict_mechanical(K, D, B, Bdist, x0, u, y, fs, hooks: Hooks | None = None)
     x0 = np.ascontiguousarray(x0, dtype=float)
     if hooks.k3 is not None and np.any(np.asarray(hooks.k3) != 0):
         cubic_kernel(K, D, B, np.asarray(hooks.k3, float), Kd, x0, uu, 1.0 / fs,
-                     int(hooks.nsub), ym, True, yhat)
+                     int(hooks.nsub), ym, True, yhat, hooks.hold == "foh")
     else:
         predict_kernel(Ad, Bd, Kd, C, x0, ue, ym, yhat)
     return yhat if add is None else yhat + add

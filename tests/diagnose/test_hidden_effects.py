@@ -8,7 +8,7 @@ import pytest
 import plant  # tests/diagnose/plant.py
 from rigd.diagnose.engine import diagnose_data, fit_percent
 from rigd.effects import REGISTRY, extend
-from rigd.ident.mechanical import MechanicalStructure
+from rigd.ident.mechanical import MechanicalStructure, structure_for
 from rigd.ident.pem import fit
 
 
@@ -18,11 +18,18 @@ def decoupled_bearing():
                                ["u_x", "u_y"], ["e_x", "e_y"])
 
 
+def held(sub, data):
+    """The private rig holds its inputs over each sample (ZOH), so its base model does too."""
+    return structure_for(sub, data, hold="zoh")
+
+
 def _data(effect, seed=0):
     if effect in ("hysteresis", "creep"):
-        return plant.actuator([effect], seed=seed), "actuator", None
-    s = decoupled_bearing() if effect == "cross_coupling" else None
-    return plant.bearing([effect], seed=seed), "bearing", s
+        d = plant.actuator([effect], seed=seed)
+        return d, "actuator", held("actuator", d)
+    d = plant.bearing([effect], seed=seed)
+    s = decoupled_bearing() if effect == "cross_coupling" else held("bearing", d)
+    return d, "bearing", s
 
 
 @pytest.mark.parametrize("effect", sorted(REGISTRY))
@@ -39,7 +46,8 @@ def test_hidden_effect_ranked_first_and_error_falls(effect):
 @pytest.mark.parametrize("point", ["low", "mid", "high"])
 def test_no_hidden_effect_nothing_significant(point):
     for seed in range(5):
-        sd = diagnose_data(plant.bearing([], seed=seed, point=point, seconds=1.0), "bearing")
+        d = plant.bearing([], seed=seed, point=point, seconds=1.0)
+        sd = diagnose_data(d, "bearing", structure=held("bearing", d))
         assert not [f.effect for f in sd.findings if f.significant], (seed, point)
         assert sd.fit_percent > 95
 
@@ -54,7 +62,7 @@ def test_no_hidden_effect_actuator_nothing_significant():
                    "signature is masked and the warm-started refit does not recover it")
 def test_two_hidden_effects_both_found_and_each_lowers_error():
     data = plant.bearing(["cubic_stiffness", "runout"], seed=3)
-    sd = diagnose_data(data, "bearing")
+    sd = diagnose_data(data, "bearing", structure=held("bearing", data))
     sig = [f.effect for f in sd.findings if f.significant]
     assert set(sig[:2]) == {"cubic_stiffness", "runout"}
     est, val = slice(0, 2 * data.n // 3), slice(2 * data.n // 3, data.n)
@@ -73,7 +81,8 @@ def test_two_hidden_effects_both_found_and_each_lowers_error():
 
 
 def test_runout_invisible_at_standstill_is_listed():
-    sd = diagnose_data(plant.bearing([], seed=1, seconds=1.0), "bearing")
+    d = plant.bearing([], seed=1, seconds=1.0)
+    sd = diagnose_data(d, "bearing", structure=held("bearing", d))
     assert any(c.effect == "runout" and c.experiment for c in sd.cannot_reveal)
 
 

@@ -41,3 +41,18 @@ def test_whiteness_and_cross_correlation_bounds():
     r = np.r_[np.zeros(3), u[:-3]] + 0.5 * e  # residual driven by the input 3 samples late
     c = R.cross_correlation(r, u)
     assert np.abs(c.rho).max() > 10 * c.bound and c.lags[np.argmax(np.abs(c.rho))] in (3, -3)
+
+
+def test_identify_and_diagnose_give_the_same_base_fit(capsys):
+    """One hold convention and one split: `rigd identify --method oe` and `rigd diagnose`
+    report the same validation fit of the base model on the same samples."""
+    path = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
+    common = [str(path), "--fs", "610.3515625", "--inputs", "V1", "--outputs", "V2",
+              "--range", "40600:58600", "--json"]
+    assert main(["identify", *common, "--method", "oe"]) == 0
+    ident = json.loads(capsys.readouterr().out)
+    assert main(["diagnose", *common, "--effects", "delay"]) == 0
+    diag = json.loads(capsys.readouterr().out)
+    assert ident["split"]["estimation"] == [0, 12000]
+    assert abs(ident["fit_percent"] - diag["fit_percent"]) < 1e-3, (ident["fit_percent"],
+                                                                    diag["fit_percent"])
