@@ -113,18 +113,13 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     t0 = time.perf_counter()
     _say("[3/5] H∞ design, reduction, Tustin, robustness")
     ctrl_path = out / "controller.yaml"
-    design = run_design(model_path, weights, ctrl_path, range_model=gbear_path,
-                        report=out / "design")
+    plant_at = None
     if gbear_path is None:
-        from rigd.design import robustness, simtruth
-        from rigd.design.report import design_report
-        from rigd.design.weights import load_design_config
-        from rigd.controller import load_controller
+        from rigd.design import simtruth
 
-        cfg = load_design_config(weights)
-        K = load_controller(ctrl_path).to_statespace()
-        rob = robustness.analyze(simtruth.plant_z, K, cfg.robustness)
-        design["robustness"] = rob.summary()
+        plant_at = simtruth.plant_z
+    design = run_design(model_path, weights, ctrl_path, range_model=gbear_path,
+                        report=out / "design", plant_at=plant_at, plant_at_label=rob_source)
     design["robustness_model"] = rob_source
     timings["design_s"] = time.perf_counter() - t0
 

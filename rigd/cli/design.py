@@ -32,8 +32,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
-def run_design(model_path, weights_path, out, *, range_model=None, report=None) -> dict:
-    """Design, check and write; returns the summary dict (also used by ``rigd demo``)."""
+def run_design(model_path, weights_path, out, *, range_model=None, report=None,
+               plant_at=None, plant_at_label: str = "") -> dict:
+    """Design, check and write; returns the summary dict (also used by ``rigd demo``).
+
+    ``plant_at(omega_rpm, p_inj_bar) -> G_p`` may replace ``range_model`` as the operating-range
+    model of the robustness check (``rigd demo --quick`` uses the simulated plant's truth).
+    """
     from rigd.design import pipeline, robustness
     from rigd.design.weights import load_design_config
     from rigd.errors import InputError
@@ -56,6 +61,10 @@ def run_design(model_path, weights_path, out, *, range_model=None, report=None) 
         rob = robustness.analyze(lambda om, p: gb.at(om, p) * Gact, res.K_z, cfg.robustness)
         summary["robustness"] = rob.summary()
         summary["robustness_model"] = f"reassembled {range_model} x actuator of {model_path}"
+    elif plant_at is not None:
+        rob = robustness.analyze(plant_at, res.K_z, cfg.robustness)
+        summary["robustness"] = rob.summary()
+        summary["robustness_model"] = plant_at_label
     else:
         r, sig = robustness.assess(G, res.K_z, robustness.default_freqs(cfg.fs_hz),
                                    cfg.robustness.band_hz, cfg.robustness.low_hz)

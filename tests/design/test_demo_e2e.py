@@ -1,0 +1,77 @@
+"""End-to-end lock-step story (slim ``rigd demo --quick``): PRBS + run-out records ->
+identified G_p -> H∞ design -> controller file loaded by the loop -> impacts K∞ off/on."""
+
+import json
+
+import pytest
+
+from rigd.cli import main
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo")
+    assert main(["demo", "--out", str(out), "--quick"]) == 0
+    return out, json.loads((out / "summary.json").read_text())
+
+
+def test_summary_has_the_contract_keys(demo):
+    out, s = demo
+    for k in ("sensitivity_reduction_min", "sensitivity_peak_max", "damping_ratio_open",
+              "damping_ratio_closed", "gamma", "controller_order"):
+        assert k in s
+    assert set(s["damping_ratio_open"]) == {"P4bar_W0rpm_x", "P4bar_W0rpm_y",
+                                            "P7bar_W0rpm_x", "P7bar_W0rpm_y"}
+    for f in ("design/weights.png", "design/sensitivity.png", "design/controller.png",
+              "impact_report/p4_x/impact_x_w0_p4.png", "index.html", "controller.yaml",
+              "G_p.yaml"):
+        assert (out / f).exists(), f
+
+
+def test_identified_models_fit(demo):
+    _, s = demo
+    assert s["fits_percent"]["actuator"]["validation_mean"] > 90
+    assert s["fits_percent"]["bearing"]["validation_mean"] > 90
+
+
+def test_open_loop_damping_matches_the_plant(demo):
+    from rigd_drivers import sim_physics as sp
+
+    _, s = demo
+    for p in (4.0, 7.0):
+        zeta = sp.bearing_modes(0.0, p)[1]
+        for ax in "xy":
+            assert s["damping_ratio_open"][f"P{p:g}bar_W0rpm_{ax}"] == pytest.approx(
+                zeta.mean(), rel=0.15)
+
+
+def test_damping_increase_3x_at_4bar_and_4x_at_7bar(demo):
+    _, s = demo
+    for ax in "xy":
+        assert s["damping_ratio_closed"][f"P4bar_W0rpm_{ax}"] >= \
+            3 * s["damping_ratio_open"][f"P4bar_W0rpm_{ax}"]
+        assert s["damping_ratio_closed"][f"P7bar_W0rpm_{ax}"] >= \
+            4 * s["damping_ratio_open"][f"P7bar_W0rpm_{ax}"]
+
+
+def test_robust_stability_and_peak(demo):
+    _, s = demo
+    assert s["robustness"]["n_realizations"] == 30
+    assert s["robustness"]["all_stable"]
+    assert s["sensitivity_peak_max"] <= 2.0
+
+
+def test_analyze_impact_cli_json(demo, capsys):
+    out, _ = demo
+    rc = main(["analyze-impact", str(out / "impacts" / "p7_x"), "--json"])
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out)
+    states = {x["controller_on"] for x in res["summary"]}
+    assert states == {True, False}
+    (inc,) = res["damping_increase"]
+    assert inc["axis"] == "x" and inc["ratio"] >= 4
+
+
+def test_analyze_impact_bad_input_exit_2(tmp_path, capsys):
+    assert main(["analyze-impact", str(tmp_path)]) == 2
+    assert "manifest.json" in capsys.readouterr().err
