@@ -98,6 +98,12 @@ def run(args: argparse.Namespace) -> int:
 def summary(out: dict) -> str:
     """Human-readable summary of the JSON result."""
     lines = [f"base model fit: {out['fit_percent']} %"]
+    steps = out.get("steps", [])
+    for sub, seq in (steps.items() if isinstance(steps, dict) else [("", steps)]):
+        if len(seq) > 1:
+            lines.append(f"error falls{' [' + sub + ']' if sub else ''}: " + " -> ".join(
+                f"{'base' if s['added'] is None else '+' + s['added']} {s['fit_percent']} %"
+                for s in seq))
     for f in out["findings"]:
         mark = "*" if f["significant"] else " "
         lines.append(f" {mark} {f['effect']:<18} [{f.get('submodel', '')}] score {f['score']:.2f}"

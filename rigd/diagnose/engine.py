@@ -31,6 +31,9 @@ from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
 
 #: share of validation error energy a refit must remove for significance
 MIN_REFIT_GAIN = 0.10
+#: share of validation error energy a refit must remove for significance on its own (with a
+#: decisive F test) when the linearised signature explains less than ``min_score``
+STRONG_REFIT_GAIN = 0.5
 #: significance level of the signature F test
 P_LEVEL = 1e-3
 #: longest stretch analysed (samples); longer records are analysed on a window
@@ -56,8 +59,27 @@ class Refit:
 
 
 @dataclass
+class Step:
+    """One forward-selection step: ``added`` effect (None: the base model) and its fit."""
+
+    added: str | None
+    fit_percent: float
+    structure: Any
+    theta: np.ndarray
+    yhat: np.ndarray
+
+    def to_json(self) -> dict[str, Any]:
+        return {"added": self.added, "fit_percent": round(float(self.fit_percent), 3)}
+
+
+@dataclass
 class SubDiagnosis:
-    """Diagnosis of one sub-model."""
+    """Diagnosis of one sub-model.
+
+    ``ctx`` is the base model's context (its residual is what the report shows as "where it
+    fails"); ``steps`` the forward selection (base first, then each added effect with the
+    validation fit of the model extended by it and every effect before it).
+    """
 
     submodel: str
     fit_percent: float
@@ -68,6 +90,12 @@ class SubDiagnosis:
     tests: dict[str, Any] = field(default_factory=dict)
     refits: dict[str, Refit] = field(default_factory=dict)
     window: tuple[int, int] = (0, 0)
+    steps: list[Step] = field(default_factory=list)
+
+    @property
+    def final(self) -> Step:
+        """The model after the last forward-selection step."""
+        return self.steps[-1]
 
 
 def _fit(structure, data, theta0=None, max_nfev=None):
@@ -96,11 +124,84 @@ def _val_err(ctx: Context, yhat: np.ndarray) -> float:
     return float(np.sum(e ** 2))
 
 
+def _refit(eff, ctx: Context, sig, data_est, max_nfev) -> Refit:
+    """Fit ``ctx.structure`` extended by ``eff``, warm-started from the signature."""
+    t0 = time.perf_counter()
+    structure, theta, data = ctx.structure, ctx.theta, ctx.data
+    ext = eff.extend(structure)
+    ws = eff.warm_start(ctx, sig)
+    te = ws if ws is not None else eff.theta0_effect(structure, data_est)
+    th0 = np.concatenate([theta, np.asarray(te, float)])
+    lo, hi = ext.bounds()
+    th0 = np.clip(th0, np.where(np.isfinite(lo), lo, -np.inf),
+                  np.where(np.isfinite(hi), hi, np.inf))
+    try:
+        res = _fit(ext, data_est, theta0=th0, max_nfev=max_nfev)
+        th = res.theta
+        yw = np.asarray(ext.simulate(th, data), float)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+        th, yw = th0, np.asarray(ext.simulate(th0, data), float)
+    if not np.all(np.isfinite(yw)):
+        th, yw = th0, ctx.yhat
+    fw = float(np.mean(fit_percent(ctx.y[ctx.val], yw[ctx.val])))
+    return Refit(ext, th, yw, fw, time.perf_counter() - t0)
+
+
+def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
+            cannot: list[CannotReveal] | None) -> tuple[list[Finding], dict[str, Refit]]:
+    """Signature test (and refit) of each effect in ``names`` on the model of ``ctx``.
+
+    ``score`` is the share of *this* model's validation error energy the effect removes;
+    effects the record cannot reveal go to ``cannot`` (when given) and are skipped.
+    """
+    findings, refits = [], {}
+    err = _val_err(ctx, ctx.yhat)
+    fp = float(np.mean(fit_percent(ctx.y[ctx.val], ctx.yhat[ctx.val])))
+    for name in names:
+        eff = REGISTRY[name]
+        why = eff.reveal(ctx)
+        if why is not None:
+            if cannot is not None:
+                why.submodel = ctx.submodel
+                cannot.append(why)
+            continue
+        sig = eff.signature(ctx)
+        text, ev = eff.explain(ctx, sig)
+        sig_ok = sig.score >= eff.min_score and sig.f_p < P_LEVEL
+        f = Finding(name, sig.score, False, text, ctx.submodel, sig.score, fp,
+                    dict(ev, signature_p=sig.f_p, signature_k=sig.k))
+        if refit and (sig.score > 0.005 or sig_ok):
+            ref = _refit(eff, ctx, sig, data_est, max_nfev)
+            refits[name] = ref
+            gain = max(0.0, 1.0 - _val_err(ctx, ref.yhat) / err) if err > 0 else 0.0
+            f.fit_percent_with = ref.fit_percent
+            f.score = gain
+            # a strong effect's first-order signature can be poor (a large cubic term
+            # shifts the resonance; the base fit absorbs part of it): a decisive F test and
+            # a refit that removes most of the error out of sample count as well
+            strong = sig.f_p < P_LEVEL and gain >= STRONG_REFIT_GAIN
+            f.significant = bool((sig_ok and gain >= MIN_REFIT_GAIN) or strong)
+            f.evidence["refit_seconds"] = ref.seconds
+        else:
+            f.evidence["refit"] = "not refitted: no signature in the residual"
+        findings.append(f)
+    findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
+    return findings, refits
+
+
 def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                   val: slice | None = None, effects: list[str] | None = None,
                   refit: bool = True, max_nfev: int | None = None,
-                  theta0: np.ndarray | None = None, rounds: int = 1) -> SubDiagnosis:
-    """Diagnose one sub-model on identification data (``rigd.ident.iddata.IdData``).
+                  theta0: np.ndarray | None = None,
+                  max_steps: int = MAX_STEPS) -> SubDiagnosis:
+    """Diagnose one sub-model on identification data by forward selection.
+
+    Like a stepwise regression: fit the base model; test every effect on its residual
+    (signature + refit); add the top significant one, refit, and test the remaining effects
+    again on the residual of the extended model; repeat until nothing significant is left
+    or ``max_steps`` effects were added. So an effect masked by a stronger one is found once
+    the stronger one is in the model, and an effect that only mimicked part of the stronger
+    one's signature is no longer significant once that one is in.
 
     Parameters
     ----------
@@ -109,104 +210,90 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     submodel : str
         ``actuator``, ``bearing`` or ``generic``.
     structure : Structure, optional
-        Base structure (default: ``rigd.ident.mechanical.structure_for(submodel)``).
+        Base structure (default: ``structure_for(submodel, hold=DEFAULT_HOLD[submodel])``,
+        what ``rigd identify`` fits).
     est, val : slice, optional
         Estimation and validation parts (default: first 2/3, last 1/3).
     effects : list of str, optional
         Effects to test (default: every registered effect concerning the sub-model).
     refit : bool
-        Refit each revealable effect (``fit_percent_with``); off: signature only.
+        Refit each revealable effect (``fit_percent_with``); off: signature only, no steps.
     theta0 : ndarray, optional
         Start values of the base fit.
-    rounds : int
-        With 2, the diagnosis is repeated on the base extended by the top significant
-        effect, so a second effect masked by a stronger one is found too.
-    """
+    max_steps : int
+        Most effects added.
 
+    Returns
+    -------
+    SubDiagnosis
+        ``findings``: the added effects first, in the order added (``significant``; score =
+        share of the base model's validation error energy their step removed;
+        ``fit_percent_with`` = fit after their step), then the others as tested on the final
+        model (not significant; score on the base model's scale; ``fit_percent_with`` = fit
+        of the final model extended by them).
+    """
     n = data.n
     if est is None or val is None:
         k = int(round(2 * n / 3))
         est, val = slice(0, k), slice(k, n)
-    structure = structure or structure_for(submodel, data, hold=DEFAULT_HOLD.get(submodel, "zoh"))
+    structure = structure or structure_for(submodel, data,
+                                           hold=DEFAULT_HOLD.get(submodel, "zoh"))
     data_est = data.slice(est.start, est.stop)
     base = _fit(structure, data_est, theta0=theta0, max_nfev=max_nfev)
     theta = base.theta
     yhat = np.asarray(structure.simulate(theta, data), float)
     omega_hz = float(getattr(data, "meta", {}).get("omega_rpm", 0.0) or 0.0) / 60.0
-    ctx = Context(submodel, data, structure, theta, yhat, est, val, omega_hz,
-                  model_resonances(structure, theta), list(data.input_names),
-                  list(data.output_names))
-    fp_base = float(np.mean(fit_percent(ctx.y[val], yhat[val])))
-    err_base = _val_err(ctx, yhat)
 
-    findings: list[Finding] = []
+    def context(st, th, yh):
+        return Context(submodel, data, st, th, yh, est, val, omega_hz,
+                       model_resonances(st, th), list(data.input_names),
+                       list(data.output_names))
+
+    ctx0 = context(structure, theta, yhat)
+    fp_base = float(np.mean(fit_percent(ctx0.y[val], yhat[val])))
+    err_base = _val_err(ctx0, yhat)
+    steps = [Step(None, fp_base, structure, theta, yhat)]
     cannot: list[CannotReveal] = []
+    names = effects or [nm for nm, e in REGISTRY.items() if submodel in e.submodels]
+    added: list[Finding] = []
     refits: dict[str, Refit] = {}
-    names = effects or [n for n, e in REGISTRY.items() if submodel in e.submodels]
-    for name in names:
-        eff = REGISTRY[name]
-        why = eff.reveal(ctx)
-        if why is not None:
-            why.submodel = submodel
-            cannot.append(why)
-            continue
-        sig = eff.signature(ctx)
-        text, ev = eff.explain(ctx, sig)
-        sig_ok = sig.score >= eff.min_score and sig.f_p < P_LEVEL
-        f = Finding(name, sig.score, False, text, submodel, sig.score, fp_base,
-                    dict(ev, signature_p=sig.f_p, signature_k=sig.k))
-        if refit and (sig.score > 0.005 or sig_ok):
-            t0 = time.perf_counter()
-            ext = eff.extend(structure)
-            ws = eff.warm_start(ctx, sig)
-            te = ws if ws is not None else eff.theta0_effect(structure, data_est)
-            th0 = np.concatenate([theta, np.asarray(te, float)])
-            lo, hi = ext.bounds()
-            th0 = np.clip(th0, np.where(np.isfinite(lo), lo, -np.inf),
-                          np.where(np.isfinite(hi), hi, np.inf))
-            try:
-                res = _fit(ext, data_est, theta0=th0, max_nfev=max_nfev)
-                th = res.theta
-                yw = np.asarray(ext.simulate(th, data), float)
-            except (np.linalg.LinAlgError, ValueError, FloatingPointError):
-                th, yw = th0, np.asarray(ext.simulate(th0, data), float)
-            if not np.all(np.isfinite(yw)):
-                yw = yhat
-            fw = float(np.mean(fit_percent(ctx.y[val], yw[val])))
-            refits[name] = Refit(ext, th, yw, fw, time.perf_counter() - t0)
-            gain = max(0.0, 1.0 - _val_err(ctx, yw) / err_base) if err_base > 0 else 0.0
-            f.fit_percent_with = fw
-            f.score = gain
-            # a signature masked by a stronger effect still counts when the refit removes a
-            # large share of the error and the F test is decisive
-            f.significant = bool(sig_ok and gain >= MIN_REFIT_GAIN)
-            f.evidence["refit_seconds"] = refits[name].seconds
-        else:
+    ctx = ctx0
+    findings, round_refits = _screen(ctx, names, refit, data_est, max_nfev, cannot)
+    revealable = [f.effect for f in findings]
+    while True:
+        err_cur = _val_err(ctx, ctx.yhat)
+        top = findings[0] if findings and findings[0].significant else None
+        if top is None or not refit or len(added) >= max_steps:
+            break
+        ref = round_refits[top.effect]
+        err_new = _val_err(ctx, ref.yhat)
+        top.score = (err_cur - err_new) / err_base if err_base > 0 else 0.0
+        if added:
+            top.explanation = (f"with {', '.join(f.effect for f in added)} added: "
+                               f"{top.explanation}")
+            top.evidence["found_after"] = [f.effect for f in added]
+        top.evidence["step"] = len(added) + 1
+        added.append(top)
+        refits[top.effect] = ref
+        steps.append(Step(top.effect, ref.fit_percent, ref.structure, ref.theta, ref.yhat))
+        ctx = context(ref.structure, ref.theta, ref.yhat)
+        rest = [nm for nm in revealable if nm not in {f.effect for f in added}]
+        if not rest:
+            findings = []
+            break
+        findings, round_refits = _screen(ctx, rest, refit, data_est, max_nfev, None)
+    # what remains, tested on the final model: not significant by the stepwise decision
+    # (when the step cap was reached, a still significant one keeps its flag)
+    scale = (err_cur / err_base) if err_base > 0 else 1.0
+    for f in findings:
+        f.score *= scale
+        if len(added) < max_steps:
             f.significant = False
-            f.evidence["refit"] = "not refitted: no signature in the residual"
-        findings.append(f)
+        if f.effect in round_refits:
+            refits.setdefault(f.effect, round_refits[f.effect])
     findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
-    top = findings[0] if findings and findings[0].significant else None
-    if rounds > 1 and refit and top is not None and top.effect in refits:
-        ref = refits[top.effect]
-        rest = [f.effect for f in findings if f.effect != top.effect and not f.significant]
-        if rest:
-            sd2 = diagnose_data(data, submodel, ref.structure, est, val, rest, refit,
-                                max_nfev, ref.theta, rounds - 1)
-            new = {f.effect: f for f in sd2.findings if f.significant}
-            for i, f in enumerate(findings):
-                if f.effect in new:
-                    g = new[f.effect]
-                    g.explanation = f"with {top.effect} added: {g.explanation}"
-                    g.evidence["found_after"] = top.effect
-                    # score on the base model's scale: share of its error energy removed by
-                    # adding this effect on top of the first one
-                    g.score = g.score * (1 - top.score)
-                    findings[i] = g
-                    refits[f.effect] = sd2.refits[f.effect]
-            findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
-    sd = SubDiagnosis(submodel, fp_base, findings, cannot, [], ctx, {}, refits,
-                      (0, data.n))
+    sd = SubDiagnosis(submodel, fp_base, added + findings, cannot, [], ctx0, {}, refits,
+                      (0, data.n), steps)
     _tests_and_unexplained(sd)
     return sd
 
@@ -225,9 +312,8 @@ def _tests_and_unexplained(sd: SubDiagnosis) -> None:
             tests["cross_correlation"][f"{ctx.label(i)}~{ctx.label(j, 'in')}"] = {
                 "passed": c.passed, "outside": c.outside}
     sd.tests = tests
-    # the best model found: the top significant refit, else the base
-    top = next((f for f in sd.findings if f.significant), None)
-    yb = sd.refits[top.effect].yhat if top is not None and top.effect in sd.refits else ctx.yhat
+    # the best model found: the last forward-selection step
+    yb = sd.final.yhat
     rb = (ctx.y - yb)[v]
     sig = {f.effect for f in sd.findings if f.significant}
     unexplained = []
@@ -279,13 +365,19 @@ class Diagnosis:
         else:
             fp = round(self.parts[0].fit_percent, 3)
         findings = [f for p in self.parts for f in p.findings]
-        findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
+        # significant (added) ones first in each part's order of addition, then by score
+        findings.sort(key=lambda f: (not f.significant, 0.0 if f.significant else -f.score,
+                                     f.evidence.get("step", 0) if f.significant else 0))
+        if multi:  # added effects of several parts: the larger step first
+            findings.sort(key=lambda f: (not f.significant, -f.score if f.significant else 0))
         return {
             "fit_percent": fp,
             "findings": [f.to_json(True) for f in findings],
             "cannot_reveal": [c.to_json(True) for p in self.parts for c in p.cannot_reveal],
             "unexplained": [dict(u, submodel=p.submodel) for p in self.parts
                             for u in p.unexplained],
+            "steps": ({p.submodel: [s.to_json() for s in p.steps] for p in self.parts}
+                      if multi else [s.to_json() for s in self.parts[0].steps]),
             "tests": {p.submodel: p.tests for p in self.parts},
             "analysed_samples": {p.submodel: list(p.window) for p in self.parts},
             "notes": list(self.notes),

@@ -25,6 +25,11 @@ def _part(rep: Report, sd) -> None:
     ctx = sd.ctx
     sub = sd.submodel
     rep.heading(f"{sub} model: validation fit {sd.fit_percent:.1f} %")
+    if len(sd.steps) > 1:
+        rep.text("Watch the error fall (forward selection, validation fit): "
+                 + " -> ".join(f"{'base' if st.added is None else '+ ' + st.added} "
+                               f"{st.fit_percent:.1f} % (error {100 - st.fit_percent:.1f})"
+                               for st in sd.steps))
     rows = [[f.effect, "yes" if f.significant else "no", f"{f.score:.2f}",
              f"{f.signature_score:.2f}",
              "" if f.fit_percent_with is None else f"{f.fit_percent_with:.1f}", f.explanation]
@@ -55,11 +60,11 @@ def _part(rep: Report, sd) -> None:
                          "dashed: model resonances")
     ax.semilogy(f, np.atleast_2d(pyy.T).T.sum(axis=1), label="measured output")
     ax.semilogy(f, np.atleast_2d(prr.T).T.sum(axis=1), label="residual (base)")
-    top = next((x for x in sd.findings if x.significant), None)
-    if top is not None and top.effect in sd.refits:
-        rw = (ctx.y - sd.refits[top.effect].yhat)[v]
+    if len(sd.steps) > 1:
+        rw = (ctx.y - sd.final.yhat)[v]
         _, pw, _ = R.spectra(rw, ctx.y[v], ctx.fs)
-        ax.semilogy(f, np.atleast_2d(pw.T).T.sum(axis=1), label=f"residual with {top.effect}")
+        ax.semilogy(f, np.atleast_2d(pw.T).T.sum(axis=1),
+                    label="residual with " + ", ".join(st.added for st in sd.steps[1:]))
     for fr in ctx.resonances_hz:
         ax.axvline(fr, ls="--", c="k", lw=0.8)
     ax.set_xlabel("Hz")
@@ -98,14 +103,12 @@ def _part(rep: Report, sd) -> None:
     ax[1].axhline(c.bound, c="r", ls="--")
     ax[1].axhline(-c.bound, c="r", ls="--")
     ax[1].set_title(f"{ctx.label(0)} residual vs {ctx.label(0, 'in')}")
-    # before/after for top findings
-    for fnd in [x for x in sd.findings if x.significant][:3]:
-        ref = sd.refits.get(fnd.effect)
-        if ref is None:
-            continue
-        fig, ax = rep.figure(f"{sub}_with_{fnd.effect}",
-                             f"Adding {fnd.effect}: fit {sd.fit_percent:.1f} % -> "
-                             f"{ref.fit_percent:.1f} %")
-        ax.plot(t[v], ctx.residual[v, 0], lw=0.5, label="residual, base model")
-        ax.plot(t[v], (ctx.y - ref.yhat)[v, 0], lw=0.5, label=f"residual with {fnd.effect}")
+    # before/after for each forward-selection step
+    for prev, st in zip(sd.steps[:-1], sd.steps[1:]):
+        fig, ax = rep.figure(f"{sub}_with_{st.added}",
+                             f"Adding {st.added}: fit {prev.fit_percent:.1f} % -> "
+                             f"{st.fit_percent:.1f} %")
+        ax.plot(t[v], (ctx.y - prev.yhat)[v, 0], lw=0.5,
+                label="residual before" if prev.added is None else f"residual with {prev.added}")
+        ax.plot(t[v], (ctx.y - st.yhat)[v, 0], lw=0.5, label=f"residual with {st.added}")
         ax.legend()

@@ -450,6 +450,10 @@ def signature_fit(ctx: Context, regs: Sequence[np.ndarray], ridge: float = 1e-9)
     r = ctx.residual * w
     Phi = np.stack([np.asarray(g, float) * w for g in regs], axis=-1)  # (n, ny, k)
     k = Phi.shape[-1]
+    if not np.all(np.isfinite(Phi)) or np.max(np.abs(Phi)) > 1e100:
+        # a regressor from a diverging simulation (unstable extended model) carries no
+        # signature
+        return SignatureFit(0.0, np.zeros(k), 1.0, k)
     re, rv = r[ctx.est].reshape(-1), r[ctx.val].reshape(-1)
     Pe, Pv = Phi[ctx.est].reshape(-1, k), Phi[ctx.val].reshape(-1, k)
     scale = np.sqrt(np.sum(Pe ** 2, axis=0))

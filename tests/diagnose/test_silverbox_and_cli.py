@@ -18,6 +18,11 @@ def test_silverbox_cubic_first_and_error_halved(capsys, tmp_path):
     top = out["findings"][0]
     assert top["effect"] == "cubic_stiffness" and top["significant"]
     assert (100 - out["fit_percent"]) >= 2 * (100 - top["fit_percent_with"])
+    # forward selection: once cubic stiffness is in, nothing else is significant
+    assert [f["effect"] for f in out["findings"] if f["significant"]] == ["cubic_stiffness"]
+    assert [s["added"] for s in out["steps"]] == [None, "cubic_stiffness"]
+    assert out["steps"][0]["fit_percent"] == out["fit_percent"]
+    assert out["steps"][1]["fit_percent"] == top["fit_percent_with"]
     assert {c["effect"] for c in out["cannot_reveal"]} >= {"runout", "cross_coupling"}
     assert (tmp_path / "index.html").exists()
 
