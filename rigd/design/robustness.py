@@ -29,6 +29,9 @@ class Realization:
     low_increase: float       # max σ̄(S_o) below low_hz
     peak: float               # max σ̄(S_o)
     peak_hz: float
+    #: resonance-peak reduction of the disturbance response (force-like input at r):
+    #: max_band σ̄(G_p) / max_band σ̄(S_o G_p) — the damping effect, not Eq. 11's measure
+    disturbance_peak_reduction: float = float("nan")
 
 
 @dataclass
@@ -50,7 +53,8 @@ class RobustnessResult:
                                                  "p_inj_bar": worst.p_inj_bar},
                 "sensitivity_reduction_max": max(x.reduction_min for x in r),
                 "sensitivity_peak_max": peak.peak, "sensitivity_peak_hz": peak.peak_hz,
-                "sensitivity_low_increase_max": max(x.low_increase for x in r)}
+                "sensitivity_low_increase_max": max(x.low_increase for x in r),
+                "disturbance_peak_reduction_min": min(x.disturbance_peak_reduction for x in r)}
 
     def to_dict(self) -> dict:
         return {"summary": self.summary(), "realizations": [asdict(x) for x in self.realizations]}
@@ -103,13 +107,17 @@ def assess(G, K, f_hz: np.ndarray, band_hz=(70.0, 190.0), low_hz: float = 20.0,
            omega_rpm: float = float("nan"), p_inj_bar: float = float("nan")):
     """One realization: (Realization, σ̄(S_o) over ``f_hz``)."""
     G = match_domain(G, K)
-    sig = sensitivity_sigma(G, K, f_hz)
+    Gf = freq_response(G, f_hz)
+    S = np.linalg.inv(np.eye(Gf.shape[1])[None] + Gf @ freq_response(K, f_hz))
+    sig = np.linalg.svd(S, compute_uv=False)[:, 0]
     band = (f_hz >= band_hz[0]) & (f_hz <= band_hz[1])
     low = f_hz < low_hz
     i = int(np.argmax(sig))
+    g_ol = np.linalg.svd(Gf[band], compute_uv=False)[:, 0].max()
+    g_cl = np.linalg.svd(S[band] @ Gf[band], compute_uv=False)[:, 0].max()
     return Realization(float(omega_rpm), float(p_inj_bar), is_stable(G, K),
                        float(1.0 / sig[band].max()), float(sig[low].max()) if low.any() else 1.0,
-                       float(sig[i]), float(f_hz[i])), sig
+                       float(sig[i]), float(f_hz[i]), float(g_ol / g_cl)), sig
 
 
 def default_freqs(fs_hz: float | None = None) -> np.ndarray:
