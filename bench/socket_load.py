@@ -9,9 +9,12 @@ arguments and oversized lines. Every reply is checked.
 Figures (keys of ``run()``): ``socket_load_rt_miss_fraction_idle``,
 ``socket_load_rt_miss_fraction_loaded``, ``socket_load_requests_served``,
 ``socket_load_requests_per_s``, ``socket_load_bad_requests_refused``,
-``socket_load_errors`` (wrong or missing replies: must be 0), ``socket_load_reply_p99_ms``.
+``socket_load_errors`` (wrong or missing replies: must be 0), ``socket_load_reply_p99_ms``,
+``socket_load_rt_miss_fraction_control``: the same load aimed at a separate server process
+(not the daemon) — what the load costs the loop through the machine alone (CPU, kernel), the
+yardstick for ``..._loaded``; ``..._idle`` is the mean of an idle window before and after.
 
-    python -m bench socket_load        # about 30 s
+    python -m bench socket_load        # about 50 s
 """
 
 from __future__ import annotations
@@ -191,22 +194,82 @@ def stop_daemon(proc: subprocess.Popen) -> int:
         return proc.wait()
 
 
+class _StubLoop:
+    """For the control measurement only: answers the same queries with fixed data."""
+
+    def status(self):
+        return {"running": True, "seq": 0, "fault": {"code": 0}}
+
+    def timing(self):
+        return {"cycles": 0, "overruns": 0}
+
+    def faults(self):
+        return []
+
+
+class _StubExperiments:
+    def status(self):
+        return {"state": "idle"}
+
+
+def _control_main(path: str) -> None:
+    """A control-socket server process that is not the daemon (same code, same niceness as the
+    daemon's socket process, a stub behind it): the same client load aimed at it shows what
+    the load costs the machine, independent of the daemon."""
+    import signal as _signal
+
+    from rigd.service.protocol import Dispatcher
+    from rigd.service.server import ControlServer
+
+    _signal.signal(_signal.SIGINT, _signal.SIG_IGN)
+    os.nice(10)
+    with ControlServer(path, Dispatcher(_StubLoop(), _StubExperiments()).handle_line):
+        _signal.sigwait([_signal.SIGTERM])
+
+
+def _window(sock: str, fn) -> float:
+    """rt miss fraction of the daemon while ``fn()`` runs."""
+    c0, o0 = _counts(sock)
+    fn()
+    c1, o1 = _counts(sock)
+    return (o1 - o0) / max(c1 - c0, 1)
+
+
 def run(seconds: float = 10.0, clients: int = 20, rate: float = 1000.0) -> dict:
+    """Windows of ``seconds``: idle, loaded (the daemon's socket), control (the same load on a
+    separate server process), idle again."""
+    import multiprocessing
+
     with tempfile.TemporaryDirectory(prefix="rigd-socket-load-") as d:
         tmp = Path(d)
         proc, sock = start_daemon(tmp)
+        other = str(tmp / "control.sock")
+        ctl = multiprocessing.get_context("spawn").Process(target=_control_main, args=(other,))
+        ctl.start()
         try:
-            c0, o0 = _counts(sock)
-            time.sleep(seconds)
-            c1, o1 = _counts(sock)
-            load = hammer(sock, clients=clients, rate=rate, seconds=seconds)
-            c2, o2 = _counts(sock)
+            while not os.path.exists(other) and ctl.is_alive():
+                time.sleep(0.05)
+            res = {}
+            idle1 = _window(sock, lambda: time.sleep(seconds))
+            loaded = _window(sock, lambda: res.update(hammer(sock, clients=clients, rate=rate,
+                                                            seconds=seconds)))
+            control_load = {}
+            control = _window(sock, lambda: control_load.update(
+                hammer(other, clients=clients, rate=rate, seconds=seconds)))
+            idle2 = _window(sock, lambda: time.sleep(seconds))
+            load = res
             alive = _call(sock, "ping")["pong"]
         finally:
             code = stop_daemon(proc)
+            if ctl.is_alive():
+                os.kill(ctl.pid, signal.SIGTERM)
+            ctl.join(10)
     return {
-        "socket_load_rt_miss_fraction_idle": (o1 - o0) / max(c1 - c0, 1),
-        "socket_load_rt_miss_fraction_loaded": (o2 - o1) / max(c2 - c1, 1),
+        "socket_load_rt_miss_fraction_idle": (idle1 + idle2) / 2,
+        "socket_load_rt_miss_fraction_idle_windows": [idle1, idle2],
+        "socket_load_rt_miss_fraction_loaded": loaded,
+        "socket_load_rt_miss_fraction_control": control,
+        "socket_load_control_errors": control_load.get("errors"),
         "socket_load_requests_served": load["served"],
         "socket_load_bad_requests_refused": load["refused"],
         "socket_load_requests_per_s": round(load["requests_per_s"], 1),

@@ -2,8 +2,10 @@
 
 ``rigd run`` wraps its run in ``with Daemon(loop, config, args): ...``:
 
-* **socket** (``--socket PATH``): :class:`~rigd.service.server.ControlServer` with the
-  :class:`~rigd.service.protocol.Dispatcher` mapping requests to the loop and to the
+* **socket** (``--socket PATH``): served by a spawned socket process
+  (:class:`~rigd.service.bridge.SocketFrontend`, :mod:`rigd.service.frontend`) that validates
+  every request and answers queries from a snapshot published here; valid commands come back
+  to the :class:`~rigd.service.protocol.Dispatcher`, mapping them to the loop and to the
   :class:`~rigd.experiments.manager.ExperimentManager` (experiments run in a worker thread);
 * **sd_notify** (unless ``--no-notify``): ``READY=1`` once the loop cycles, ``STATUS=`` on
   every change (fault latched/reset, experiment), ``WATCHDOG=1`` at half ``WATCHDOG_USEC`` —
@@ -35,11 +37,10 @@ from rigd.errors import InputError
 from rigd.log import get_logger
 from rigd.service.notify import Notifier
 from rigd.service.protocol import Dispatcher
-from rigd.service.server import ControlServer
+from rigd.service.bridge import SocketFrontend, as_helper
 
-
-#: status/timing/faults answers are reused this long under a flood of queries, s
-QUERY_CACHE_S = 0.02
+#: the timing statistics in the socket's snapshot are refreshed this often, s
+TIMING_REFRESH_S = 0.2
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -75,7 +76,7 @@ class Daemon:
         self.log = get_logger("rigd.service")
         self.notifier = Notifier(environ={} if getattr(args, "no_notify", False) else None)
         self.experiments = None
-        self.server: ControlServer | None = None
+        self.server: SocketFrontend | None = None
         self.dispatcher: Dispatcher | None = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -88,6 +89,7 @@ class Daemon:
         self.ready = threading.Event()
         self.last_reload: dict[str, Any] = {"state": "none"}
         self.exit_reason = ""
+        self._timing: tuple[float, dict] | None = None
 
     # --- life cycle -------------------------------------------------------------------
     def __enter__(self) -> "Daemon":
@@ -98,8 +100,7 @@ class Daemon:
                                                                     "runs"), log=self.log)
         except ImportError:  # experiments package absent: the commands reply an error
             self.experiments = None
-        self.dispatcher = Dispatcher(self.loop, self.experiments, info=self._info,
-                                     cache_s=QUERY_CACHE_S)
+        self.dispatcher = Dispatcher(self.loop, self.experiments, info=self._info)
         sock = getattr(self.args, "socket", None)
         if sock:
             try:
@@ -107,7 +108,9 @@ class Daemon:
             except ValueError:
                 raise InputError(f"not an octal mode: {self.args.socket_mode!r}",
                                  "--socket-mode") from None
-            self.server = ControlServer(sock, self.dispatcher.handle_line, mode=mode).start()
+            self.server = SocketFrontend(sock, mode, self.dispatcher.handle_line,
+                                         self._snapshot, log=self.log,
+                                         helper_priority=self._helper_priority()).start()
         self._faults = self.loop.subscribe()
         if threading.current_thread() is threading.main_thread():
             for s, h in ((signal.SIGTERM, self._on_stop_signal),
@@ -143,6 +146,27 @@ class Daemon:
                 "config": getattr(self.config, "path", None),
                 "clients": self.server.n_clients if self.server else 0,
                 "last_reload": dict(self.last_reload)}
+
+    def _helper_priority(self) -> int | None:
+        """SCHED_FIFO priority for the service's threads on a real-time loop: just below it."""
+        if getattr(self.loop, "clock", "") != "realtime":
+            return None
+        try:
+            return max(1, int(self.loop.config.clock.priority) - 1)
+        except (AttributeError, TypeError, ValueError):
+            return None
+
+    def _snapshot(self) -> dict[str, Any]:
+        """What the socket process answers queries from (rigd.service.bridge)."""
+        loop = self.loop
+        now = time.monotonic()
+        if self._timing is None or now - self._timing[0] >= TIMING_REFRESH_S:
+            self._timing = (now, loop.timing())   # percentiles of 2 x 20 000 bins: the
+                                                  # costly part, so refreshed less often
+        return {"status": loop.status(), "timing": self._timing[1],
+                "faults": loop.faults(), "info": self._info(),
+                "experiment": (self.experiments.status() if self.experiments is not None
+                               else None)}
 
     # --- signals (main thread; hand the work to threads and return at once) -------------
     def _on_stop_signal(self, signum, _frame) -> None:
@@ -200,10 +224,13 @@ class Daemon:
             except Exception as exc:  # noqa: BLE001 - never take the daemon down on a reload
                 self.last_reload = {"state": "refused", "error": repr(exc), "time": time.time()}
                 self.log.error("reload failed, loop unchanged", error=repr(exc))
+            if self.server is not None:
+                self.server.publish_now()
             return dict(self.last_reload)
 
     # --- the service thread: READY, WATCHDOG, STATUS -----------------------------------
     def _service_run(self) -> None:
+        as_helper(self._helper_priority())
         wd = self.notifier.watchdog_interval_s
         tick = min(wd, 0.25) if wd > 0 else 0.25
         last_seq = -1
@@ -217,7 +244,8 @@ class Daemon:
             running = bool(getattr(self.loop, "running", True))
             advancing = seq != last_seq
             last_seq = seq
-            if not self.ready.is_set() and running and advancing and seq > 0:
+            serving = self.server is None or self.server.ready.is_set()
+            if not self.ready.is_set() and running and advancing and seq > 0 and serving:
                 self.ready.set()
                 self.notifier.ready(f"loop running at {getattr(self.loop, 'fs', 0):g} Hz")
                 self.log.info("ready", seq=seq, socket=getattr(self.args, "socket", None))

@@ -218,8 +218,9 @@ class Dispatcher:
         if cmd in ("controller.enable", "controller.disable"):
             loop.enable_controller(cmd == "controller.enable")
             return {"enabled": cmd == "controller.enable"}
+        check_paths(cmd, args)
         if cmd == "controller.load":
-            path = _absolute(args.path, "controller.load: path")
+            path = args.path
             loop.load_controller(path)
             return {"loaded": path}
         if cmd == "operating_point.set":
@@ -228,9 +229,7 @@ class Dispatcher:
         if self.experiments is None:
             raise RequestError(f"{cmd}: experiments are not available in this daemon")
         if cmd == "experiment.start":
-            path = _absolute(args.path, "experiment.start: path") if args.path else None
-            run_dir = _absolute(args.run_dir, "experiment.start: run_dir") if args.run_dir else None
-            return self.experiments.start(path=path, spec=args.spec, run_dir=run_dir)
+            return self.experiments.start(path=args.path, spec=args.spec, run_dir=args.run_dir)
         if cmd == "experiment.status":
             return self.experiments.status()
         if cmd == "experiment.stop":
@@ -248,6 +247,16 @@ class Dispatcher:
         value = fn()
         self._cache[key] = (now, value)
         return value
+
+
+def check_paths(cmd: str, args: StrictModel) -> None:
+    """Paths in a request must be absolute (the daemon's working directory is not the
+    client's); RequestError otherwise. Part of validation: run before anything reaches the
+    loop (also by the socket process)."""
+    for name in ("path", "run_dir"):
+        value = getattr(args, name, None)
+        if value is not None:
+            _absolute(value, f"{cmd}: {name}")
 
 
 def _absolute(path: str, where: str) -> str:

@@ -71,55 +71,29 @@ class ControlServer:
         self._thread: threading.Thread | None = None
         self._stop_r, self._stop_w = -1, -1
         self._clients: dict[int, _Client] = {}
+        self._owns_path = False
         self.stats = {"connections": 0, "requests": 0, "dropped_clients": 0,
                       "too_long": 0, "refused_clients": 0}
 
     # --- life cycle ---------------------------------------------------------------------
-    def start(self) -> "ControlServer":
-        """Bind, set the mode, and start serving. InputError if the path is unusable."""
-        self._prepare_path()
-        ls = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM | socket.SOCK_CLOEXEC)
-        old = os.umask(0o777 & ~self.mode)  # never world-accessible, not even for an instant
-        try:
-            ls.bind(self.path)
-        except OSError as exc:
-            ls.close()
-            raise InputError(f"cannot bind control socket: {exc.strerror}", self.path) from None
-        finally:
-            os.umask(old)
-        os.chmod(self.path, self.mode)
-        ls.listen(64)
-        ls.setblocking(False)
-        self._lsock = ls
+    def start(self, lsock: socket.socket | None = None) -> "ControlServer":
+        """Bind, set the mode, and start serving. InputError if the path is unusable.
+
+        With ``lsock`` (a listening socket bound by :func:`listen`, e.g. inherited from the
+        daemon by the socket process) serve that one; the socket file then belongs to whoever
+        bound it and :meth:`stop` leaves it in place.
+        """
+        if lsock is None:
+            lsock = listen(self.path, self.mode)
+            self._owns_path = True
+        lsock.setblocking(False)
+        self._lsock = lsock
         self._stop_r, self._stop_w = os.pipe()
-        self._sel.register(ls, selectors.EVENT_READ, None)
+        self._sel.register(lsock, selectors.EVENT_READ, None)
         self._sel.register(self._stop_r, selectors.EVENT_READ, "stop")
         self._thread = threading.Thread(target=self._serve, name="rigd-ctl", daemon=True)
         self._thread.start()
         return self
-
-    def _prepare_path(self) -> None:
-        p = Path(self.path)
-        if len(os.fsencode(self.path)) > 107:
-            raise InputError("socket path too long (Unix sockets allow 107 bytes)", self.path)
-        if not p.parent.is_dir():
-            raise InputError("socket directory does not exist", str(p.parent))
-        try:
-            st = os.lstat(self.path)
-        except FileNotFoundError:
-            return
-        if not stat.S_ISSOCK(st.st_mode):
-            raise InputError("exists and is not a socket; refusing to replace it", self.path)
-        probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        try:
-            probe.settimeout(0.5)
-            probe.connect(self.path)
-        except OSError:
-            os.unlink(self.path)  # stale socket of a dead daemon
-            return
-        finally:
-            probe.close()
-        raise InputError("another daemon is listening on this socket", self.path)
 
     def stop(self) -> None:
         """Stop serving, close every client and remove the socket file."""
@@ -141,10 +115,11 @@ class ControlServer:
         self._sel.close()
         os.close(self._stop_r)
         os.close(self._stop_w)
-        try:
-            os.unlink(self.path)
-        except FileNotFoundError:
-            pass
+        if self._owns_path:
+            try:
+                os.unlink(self.path)
+            except FileNotFoundError:
+                pass
 
     def __enter__(self):
         return self.start()
@@ -269,3 +244,50 @@ class ControlServer:
                 pass
             self._clients.pop(fd, None)
         c.sock.close()
+
+
+def listen(path: str | Path, mode: int = 0o660, backlog: int = 64) -> socket.socket:
+    """Bind a listening Unix stream socket at ``path`` with permissions ``mode``.
+
+    The file never exists with wider permissions (umask set around ``bind``). A stale socket
+    file (nobody answering) is replaced; a live one, or a path that is not a socket, is refused
+    with :class:`~rigd.errors.InputError`.
+    """
+    path = str(path)
+    _prepare_path(path)
+    ls = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM | socket.SOCK_CLOEXEC)
+    old = os.umask(0o777 & ~mode)  # never world-accessible, not even for an instant
+    try:
+        ls.bind(path)
+    except OSError as exc:
+        ls.close()
+        raise InputError(f"cannot bind control socket: {exc.strerror}", path) from None
+    finally:
+        os.umask(old)
+    os.chmod(path, mode)
+    ls.listen(backlog)
+    return ls
+
+
+def _prepare_path(path: str) -> None:
+    p = Path(path)
+    if len(os.fsencode(path)) > 107:
+        raise InputError("socket path too long (Unix sockets allow 107 bytes)", path)
+    if not p.parent.is_dir():
+        raise InputError("socket directory does not exist", str(p.parent))
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return
+    if not stat.S_ISSOCK(st.st_mode):
+        raise InputError("exists and is not a socket; refusing to replace it", path)
+    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        probe.settimeout(0.5)
+        probe.connect(path)
+    except OSError:
+        os.unlink(path)  # stale socket of a dead daemon
+        return
+    finally:
+        probe.close()
+    raise InputError("another daemon is listening on this socket", path)

@@ -1,0 +1,228 @@
+"""The daemon's side of the socket process (:mod:`rigd.service.frontend`).
+
+The control socket is served by a separate, *spawned* process so that nothing a client does —
+a flood of queries, malformed lines, huge requests — competes with the real-time loop thread
+for this process's interpreter lock. This module, in the daemon (the loop's process):
+
+* binds the socket (:func:`rigd.service.server.listen`: mode 0660, stale file replaced, live
+  one refused) and keeps the listening socket open, so the socket file stays valid while the
+  socket process starts or restarts (connections wait in the listen backlog);
+* spawns the socket process with the listening socket and two connections;
+* a **publisher** thread sends a *snapshot* (status, timing, faults, experiment state, ping
+  info; pickled through a pipe) ``rate_hz`` times a second and at once after each command —
+  the only per-second cost a client can cause in this process is fixed by ``rate_hz``;
+* a **command** thread receives the requests the socket process has already validated,
+  runs them through :class:`~rigd.service.protocol.Dispatcher` (which validates again) and
+  replies with the reply line and a fresh snapshot;
+* if the socket process dies it is logged and spawned again (the loop never notices).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import threading
+import time
+from typing import Any, Callable
+
+from rigd.service import frontend
+from rigd.service.server import listen
+
+#: snapshot publication rate, Hz (queries are at most this stale)
+SNAPSHOT_HZ = 25.0
+
+
+class SocketFrontend:
+    """Run the control socket in a spawned process (see module docstring).
+
+    Parameters
+    ----------
+    path : str
+        Socket file.
+    mode : int
+        Its permissions (0o660).
+    handle_command : callable
+        ``bytes -> bytes``: one validated command line to its reply line (the daemon's
+        :meth:`Dispatcher.handle_line`); must not raise.
+    snapshot : callable
+        ``() -> dict`` with ``status``, ``timing``, ``faults``, ``experiment`` (None when
+        experiments are unavailable) and ``info`` (ping fields).
+    rate_hz : float
+        Snapshot rate.
+    log : structlog logger, optional
+    nice : int
+        Niceness increment of the socket process (it is not time-critical; the loop is).
+    helper_priority : int, optional
+        SCHED_FIFO priority of the publisher and command threads (best effort): just below
+        the loop thread's, like the loop's other helper threads. They share the interpreter
+        lock with the loop thread; preempted by ordinary processes while holding it, they
+        would stall the loop (priority inversion).
+    """
+
+    def __init__(self, path: str, mode: int, handle_command: Callable[[bytes], bytes],
+                 snapshot: Callable[[], dict[str, Any]], *, rate_hz: float = SNAPSHOT_HZ,
+                 log=None, nice: int = 10, max_clients: int = 64,
+                 helper_priority: int | None = None):
+        self.path = str(path)
+        self.mode = mode
+        self.handle_command = handle_command
+        self._snapshot_fn = snapshot
+        self.period = 1.0 / rate_hz
+        self.log = log
+        self.helper_priority = helper_priority
+        self.opts = {"path": self.path, "nice": nice, "max_clients": max_clients}
+        self.ready = threading.Event()
+        self.restarts = 0
+        self.pid: int | None = None
+        self._lsock = None
+        self._proc = None
+        self._snap_w = None
+        self._cmd = None
+        self._version = 0
+        self._vlock = threading.Lock()
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._threads: list[threading.Thread] = []
+
+    # --- life cycle ---------------------------------------------------------------------
+    def start(self) -> "SocketFrontend":
+        """Bind the socket (InputError if unusable), spawn the socket process, start threads."""
+        self._lsock = listen(self.path, self.mode)
+        self._spawn()
+        for target, name in ((self._publish_run, "rigd-snapshot"),
+                             (self._command_run, "rigd-commands")):
+            t = threading.Thread(target=target, name=name, daemon=True)
+            t.start()
+            self._threads.append(t)
+        return self
+
+    def stop(self) -> None:
+        """Stop the socket process, close the socket and remove its file."""
+        self._stop.set()
+        self._wake.set()
+        for t in self._threads:
+            t.join(5.0)
+        self._threads.clear()
+        self._end_process()
+        if self._lsock is not None:
+            self._lsock.close()
+            self._lsock = None
+            try:
+                os.unlink(self.path)
+            except FileNotFoundError:
+                pass
+
+    def _spawn(self) -> None:
+        ctx = multiprocessing.get_context("spawn")
+        snap_r, snap_w = ctx.Pipe(duplex=False)
+        cmd_here, cmd_there = ctx.Pipe(duplex=True)
+        proc = ctx.Process(target=frontend.main, name="rigd-socket", daemon=True,
+                           args=(self._lsock, snap_r, cmd_there, self.opts))
+        proc.start()
+        snap_r.close()
+        cmd_there.close()
+        self._proc, self._snap_w, self._cmd = proc, snap_w, cmd_here
+        self.ready.clear()
+        self._wake.set()   # the first snapshot at once: the process waits for it to serve
+
+    def _end_process(self) -> None:
+        proc, self._proc = self._proc, None
+        for c in (self._snap_w, self._cmd):
+            if c is not None:
+                c.close()          # EOF: the socket process stops serving and exits
+        self._snap_w = self._cmd = None
+        if proc is None:
+            return
+        proc.join(5.0)
+        if proc.is_alive():
+            proc.terminate()
+            proc.join(2.0)
+        if proc.is_alive():
+            proc.kill()
+            proc.join(2.0)
+
+    def _restart(self, why: str) -> None:
+        code = self._proc.exitcode if self._proc is not None else None
+        self._end_process()
+        if self._stop.is_set():
+            return
+        self.restarts += 1
+        if self.log is not None:
+            self.log.error("socket process died, starting it again", reason=why,
+                           exitcode=code, restarts=self.restarts)
+        time.sleep(min(0.5 * self.restarts, 5.0))  # no spawn storm if it keeps dying
+        if not self._stop.is_set():
+            self._spawn()
+
+    # --- snapshot ------------------------------------------------------------------------
+    def snapshot(self) -> dict[str, Any]:
+        with self._vlock:          # numbered when started: a later start always wins
+            self._version += 1
+            v = self._version
+        snap = self._snapshot_fn()
+        snap["v"] = v
+        return snap
+
+    def publish_now(self) -> None:
+        """Publish a snapshot at once (after a state change outside the socket's commands)."""
+        self._wake.set()
+
+    def _publish_run(self) -> None:
+        as_helper(self.helper_priority)
+        while not self._stop.is_set():
+            self._wake.wait(self.period)
+            self._wake.clear()
+            conn = self._snap_w
+            if conn is None or self._stop.is_set():
+                continue
+            try:
+                conn.send(self.snapshot())
+            except (OSError, ValueError, EOFError):
+                time.sleep(self.period)  # the process is gone; the command thread restarts it
+            except Exception as exc:  # noqa: BLE001 - a broken snapshot must not end publishing
+                if self.log is not None:
+                    self.log.error("snapshot failed", error=repr(exc))
+                time.sleep(1.0)
+
+    # --- commands --------------------------------------------------------------------------
+    def _command_run(self) -> None:
+        as_helper(self.helper_priority)
+        while not self._stop.is_set():
+            conn, proc = self._cmd, self._proc
+            if conn is None or proc is None:
+                time.sleep(0.05)
+                continue
+            try:
+                if not conn.poll(0.25):
+                    if not proc.is_alive():
+                        self._restart("exited")
+                    continue
+                kind, tag, line, _ = conn.recv()
+            except (OSError, EOFError, ValueError):
+                if not self._stop.is_set():
+                    proc.join(1.0)
+                    self._restart("connection closed")
+                continue
+            if kind == "ready":
+                self.pid = tag
+                self.ready.set()
+                continue
+            reply = self.handle_command(line)
+            try:
+                conn.send(("reply", tag, reply, self.snapshot()))
+            except (OSError, ValueError, EOFError):
+                pass
+
+    @property
+    def n_clients(self) -> int:
+        return 0  # counted by the socket process (``ping`` -> clients)
+
+
+def as_helper(priority: int | None) -> None:
+    """Give the calling thread SCHED_FIFO ``priority`` (best effort, silent; None: leave it)."""
+    if priority is None:
+        return
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(max(1, int(priority))))
+    except (OSError, AttributeError, ValueError):
+        pass

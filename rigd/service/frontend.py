@@ -1,0 +1,167 @@
+"""The socket process: the control socket served outside the loop's process.
+
+The daemon (:mod:`rigd.service.bridge`) binds the socket and *spawns* this process (a fresh
+interpreter, not a fork), handing it the listening socket and two multiprocessing
+connections. Here, in a process of its own — its own interpreter lock, a lower CPU priority
+(``nice`` +10) — :class:`~rigd.service.server.ControlServer` talks to every client:
+
+* every request line is parsed and validated here (:func:`rigd.service.protocol.parse_request`);
+  malformed, unknown or invalid requests are answered here and **never reach the loop's
+  process**;
+* ``status``, ``timing``, ``faults``, ``experiment.status`` and ``ping`` are answered from the
+  latest *snapshot* the daemon publishes (``snapshot_hz``, default 25 Hz, and after every
+  command) — a flood of queries costs the loop's process nothing;
+* valid commands (``fault.reset``, ``controller.*``, ``operating_point.set``,
+  ``experiment.start``/``stop``) are forwarded, one at a time, to the daemon's command thread,
+  which runs them through :class:`~rigd.service.protocol.Dispatcher` and replies with the
+  result and a fresh snapshot.
+
+The process ignores SIGINT, SIGTERM and SIGHUP (the daemon handles them and stops this process
+itself) and exits when its connection to the daemon closes (the daemon died or stopped).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+from typing import Any
+
+from rigd.service import protocol
+from rigd.service.protocol import RequestError, check_paths, error, parse_request
+from rigd.service.server import ControlServer
+
+#: requests answered from the snapshot (no round trip to the loop's process)
+QUERIES = ("status", "timing", "faults", "experiment.status", "ping")
+
+#: longest wait for the daemon to run a forwarded command, s
+COMMAND_TIMEOUT_S = 60.0
+
+
+class SnapshotHandler:
+    """``handle_line`` of the socket process: answer queries from the snapshot, forward commands.
+
+    Parameters
+    ----------
+    cmd_conn : multiprocessing.connection.Connection
+        Duplex connection to the daemon's command thread.
+    clients : callable
+        Number of connected clients (for ``ping``).
+    """
+
+    def __init__(self, cmd_conn, clients=lambda: 0):
+        self.cmd_conn = cmd_conn
+        self.clients = clients
+        self._lock = threading.Lock()          # snapshot
+        self._cmd_lock = threading.Lock()      # one forwarded command at a time
+        self._have = threading.Event()
+        self._snap: dict[str, Any] = {"v": -1}
+        self._encoded: dict[str, bytes] = {}   # query -> JSON of its result, for this version
+        self._tag = 0
+
+    # --- snapshot ------------------------------------------------------------------------
+    def install(self, snap: dict[str, Any]) -> None:
+        """Take ``snap`` if it is newer than the one held (snapshots carry a version)."""
+        with self._lock:
+            if snap.get("v", -1) <= self._snap.get("v", -1):
+                return
+            self._snap = snap
+            self._encoded = {}
+        self._have.set()
+
+    def _result_json(self, cmd: str) -> bytes:
+        with self._lock:
+            hit = self._encoded.get(cmd)
+            if hit is not None:
+                return hit
+            snap = self._snap
+        if cmd == "experiment.status" and snap.get("experiment") is None:
+            raise RequestError(f"{cmd}: experiments are not available in this daemon")
+        value = {"faults": snap.get("faults", [])} if cmd == "faults" else snap.get(
+            "experiment" if cmd == "experiment.status" else cmd, {})
+        enc = json.dumps(protocol._plain(value), separators=(",", ":"),
+                         allow_nan=False).encode()
+        with self._lock:
+            if self._snap is snap:
+                self._encoded[cmd] = enc
+        return enc
+
+    # --- requests ----------------------------------------------------------------------
+    def handle_line(self, line: bytes) -> bytes:
+        """One request line to one reply line; never raises (the ``ControlServer`` contract)."""
+        req_id = None
+        try:
+            req_id, cmd, args = parse_request(line)
+            if cmd not in QUERIES:
+                check_paths(cmd, args)       # the last refusal that needs no loop state
+                return self._forward(line, req_id)
+            if not self._have.wait(10.0):
+                raise RequestError("the daemon has not published its state yet")
+            if cmd == "ping":
+                with self._lock:
+                    info = dict(self._snap.get("info", {}))
+                return protocol.ok(req_id, {"pong": True, **info, "clients": self.clients(),
+                                            "socket_pid": os.getpid()})
+            body = self._result_json(cmd)
+            head = json.dumps({"id": protocol._plain(req_id)}, separators=(",", ":"))[:-1]
+            return head.encode() + b',"ok":true,"result":' + body + b"}\n"
+        except RequestError as exc:
+            return error(exc.req_id if exc.req_id is not None else req_id, str(exc))
+        except Exception as exc:  # noqa: BLE001 - a bug is reported to its client only
+            return error(req_id, f"internal error: {type(exc).__name__}: {exc}")
+
+    def _forward(self, line: bytes, req_id: Any) -> bytes:
+        with self._cmd_lock:
+            self._tag += 1
+            tag = self._tag
+            try:
+                self.cmd_conn.send(("cmd", tag, line, None))
+                end = COMMAND_TIMEOUT_S
+                while self.cmd_conn.poll(end):
+                    kind, rtag, reply, snap = self.cmd_conn.recv()
+                    if rtag != tag:
+                        continue  # the late answer to a command that timed out
+                    if snap is not None:
+                        self.install(snap)
+                    return reply
+            except (OSError, EOFError):
+                return error(req_id, "the daemon's command channel is closed (stopping?)")
+            return error(req_id, f"the daemon did not run the command within "
+                                 f"{COMMAND_TIMEOUT_S:g} s")
+
+
+def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
+    """Entry point of the spawned socket process (see module docstring)."""
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, signal.SIG_IGN)
+    try:  # never real-time (a respawn from a SCHED_FIFO helper thread would inherit it)
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (OSError, AttributeError):
+        pass
+    try:
+        os.nice(int(opts.get("nice", 10)))
+    except OSError:
+        pass
+    server = ControlServer(opts["path"], lambda line: b"",
+                           max_clients=opts.get("max_clients", 64))
+    handler = SnapshotHandler(cmd_conn, clients=lambda: server.n_clients)
+    server.handle = handler.handle_line
+    # the first snapshot before serving, then tell the daemon we are up
+    try:
+        if snap_conn.poll(30.0):
+            handler.install(snap_conn.recv())
+    except (OSError, EOFError):
+        return
+    try:
+        cmd_conn.send(("ready", os.getpid(), None, None))  # before serving: one sender at a time
+    except (OSError, EOFError):
+        return
+    server.start(lsock)
+    try:
+        while True:
+            handler.install(snap_conn.recv())
+    except (OSError, EOFError):
+        pass  # the daemon closed the connection: stop serving
+    finally:
+        server.stop()
