@@ -34,6 +34,8 @@ MIN_REFIT_GAIN = 0.10
 #: share of validation error energy a refit must remove for significance on its own (with a
 #: decisive F test) when the linearised signature explains less than ``min_score``
 STRONG_REFIT_GAIN = 0.5
+#: validation fit (percentage points) an effect must add to be significant
+MIN_FIT_GAIN = 0.5
 #: significance level of the signature F test
 P_LEVEL = 1e-3
 #: longest stretch analysed (samples); longer records are analysed on a window
@@ -170,7 +172,7 @@ def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
         sig_ok = sig.score >= eff.min_score and sig.f_p < P_LEVEL
         f = Finding(name, sig.score, False, text, ctx.submodel, sig.score, fp,
                     dict(ev, signature_p=sig.f_p, signature_k=sig.k))
-        if refit and (sig.score > 0.005 or sig_ok):
+        if refit and (sig.score > 0.005 or sig.f_p < P_LEVEL):
             ref = _refit(eff, ctx, sig, data_est, max_nfev)
             refits[name] = ref
             gain = max(0.0, 1.0 - _val_err(ctx, ref.yhat) / err) if err > 0 else 0.0
@@ -180,7 +182,9 @@ def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             # shifts the resonance; the base fit absorbs part of it): a decisive F test and
             # a refit that removes most of the error out of sample count as well
             strong = sig.f_p < P_LEVEL and gain >= STRONG_REFIT_GAIN
-            f.significant = bool((sig_ok and gain >= MIN_REFIT_GAIN) or strong)
+            # and it must matter at the scale of the output (practical significance)
+            big = ref.fit_percent - fp >= MIN_FIT_GAIN
+            f.significant = bool(((sig_ok and gain >= MIN_REFIT_GAIN) or strong) and big)
             f.evidence["refit_seconds"] = ref.seconds
         else:
             f.evidence["refit"] = "not refitted: no signature in the residual"

@@ -2,8 +2,10 @@
 
 m p̈ + d ṗ + k p + k3 p³ = b u. Signature: the residual is explained by the linear model's
 response to p̂³ (the first-order change for a small k3) and grows with amplitude.
-Extension: a cubic force −k3_i p_i³ on each axis (mass-normalised, output unit⁻² s⁻²),
-integrated by the mechanical simulator (``Hooks.k3``, RK4), fixed-point iteration otherwise.
+Extension: a cubic force −k3_i p_i³ on each axis and, with two or more axes, −k3c_i
+(Σ_{j≠i} p_j²) p_i (film stiffening grows with the eccentricity |p|: k3c = k3 is the radial
+law k3 |p|² p), mass-normalised, output unit⁻² s⁻²; integrated by the mechanical simulator
+(``Hooks.k3``, ``Hooks.k3_cross``, RK4), fixed-point iteration (per-axis part) otherwise.
 """
 
 from __future__ import annotations
@@ -32,13 +34,17 @@ class CubicStiffness(Effect):
 
     def regressors(self, ctx):
         p = ctx.yhat - ctx.yhat[ctx.est].mean(axis=0)
-        return [ctx.through_force(p[:, i] ** 3, i) for i in range(ctx.ny)]
+        regs = [ctx.through_force(p[:, i] ** 3, i) for i in range(ctx.ny)]
+        if ctx.ny > 1:
+            r2 = np.sum(p ** 2, axis=1)
+            regs += [ctx.through_force((r2 - p[:, i] ** 2) * p[:, i], i) for i in range(ctx.ny)]
+        return regs
 
     def explain(self, ctx, sig):
         edges, rms = amplitude_profile(ctx)
         ratio = float(rms[-1] / rms[0]) if rms[0] > 0 else float("inf")
-        k3 = -np.asarray(sig.beta, float)
-        ev = {"k3": k3.tolist(), "residual_rms_by_amplitude": rms.tolist(),
+        k3 = -np.asarray(sig.beta, float)[:ctx.ny]
+        ev = {"k3": k3.tolist(), "k3_cross": (-np.asarray(sig.beta, float)[ctx.ny:]).tolist(), "residual_rms_by_amplitude": rms.tolist(),
               "amplitude_edges": edges.tolist(), "large_over_small": ratio}
         sign = "stiffening" if np.sum(k3) > 0 else "softening"
         return (f"the error grows with amplitude: residual RMS {ratio:.1f}× larger in the top "
@@ -50,7 +56,8 @@ class CubicStiffness(Effect):
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):
         ny, _ = dims(base)
-        return [f"k3_{i + 1}" for i in range(ny)]
+        return ([f"k3_{i + 1}" for i in range(ny)]
+                + ([f"k3c_{i + 1}" for i in range(ny)] if ny > 1 else []))
 
     def theta0_effect(self, base, data):
         """A small stiffening (1 % of the linear force at one std of the output) as the start,
@@ -64,15 +71,22 @@ class CubicStiffness(Effect):
             f, p = sg.welch(y[:, i] - y[:, i].mean(), fs=fs, nperseg=min(len(y), 1024))
             fp = max(f[int(np.argmax(p[1:])) + 1], fs / len(y))
             out.append(0.01 * (2 * np.pi * fp) ** 2 / max(np.var(y[:, i]), 1e-300))
-        return np.asarray(out)
+        return np.asarray(out + ([0.0] * len(out) if len(out) > 1 else []))
 
     def warm_start(self, ctx, sig):
         return -np.asarray(sig.beta, float)
 
     def apply_hooks(self, theta_e, hooks, data):
-        k3 = np.asarray(theta_e, float)
+        th = np.asarray(theta_e, float)
+        ny = th.size // 2 if th.size > 1 else 1
+        k3 = th[:ny]
         hooks.k3 = k3 if hooks.k3 is None else np.asarray(hooks.k3, float) + k3
+        if th.size > ny:
+            kc = th[ny:]
+            hooks.k3_cross = (kc if hooks.k3_cross is None
+                              else np.asarray(hooks.k3_cross, float) + kc)
 
     def feedback(self, p, theta_e, fs, nu):
         # input-unit approximation for structures without hooks (square systems)
-        return -(p ** 3) * np.asarray(theta_e, float)[None, :p.shape[1]][:, :nu]
+        k3 = np.asarray(theta_e, float)[:p.shape[1]]
+        return (-(p ** 3) * k3[None, :])[:, :nu]

