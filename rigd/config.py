@@ -16,7 +16,7 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from rigd.configio import LoadedYaml, StrictModel, read_yaml, validate
+from rigd.configio import LoadedYaml, StrictModel, read_text, read_yaml, validate
 from rigd.errors import InputError
 from rigd.frame import IN_NAMES
 
@@ -262,12 +262,7 @@ def load_config(path: str | Path, *, text: str | None = None,
     """
     path = str(path)
     if text is None:
-        try:
-            text = Path(path).read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise InputError("no such file", path) from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"cannot read: {exc}", path) from None
+        text = read_text(path)
     loaded = read_yaml(path, text)
     if not isinstance(loaded.data, dict):
         raise InputError("a rig config must be a mapping of sections", path)

@@ -87,6 +87,16 @@ class LoadedYaml:
         return line
 
 
+def read_text(path: str | Path) -> str:
+    """Read a UTF-8 text file; :class:`InputError` naming the file if it cannot be read."""
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("no such file", str(path)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read: {exc}", str(path)) from None
+
+
 def read_yaml(path: str | Path, text: str | None = None) -> LoadedYaml:
     """Safe-load a YAML file (or ``text`` attributed to ``path``), keeping line numbers.
 
@@ -97,12 +107,7 @@ def read_yaml(path: str | Path, text: str | None = None) -> LoadedYaml:
     """
     path = str(path)
     if text is None:
-        try:
-            text = Path(path).read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise InputError("no such file", path) from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"cannot read: {exc}", path) from None
+        text = read_text(path)
     loader = _LineLoader(text)
     loader._rigd_lines = {}  # type: ignore[attr-defined]
     try:
