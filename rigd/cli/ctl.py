@@ -71,6 +71,27 @@ def _request(args: argparse.Namespace) -> tuple[str, dict]:
     raise InputError(f"unknown command {c!r}")  # pragma: no cover - argparse guards
 
 
+def status_summary(st: dict) -> str:
+    """Two plain lines on top of ``rigd ctl status``: the fault, and whether K∞ is really on."""
+    f = st.get("fault") or {}
+    if f.get("code"):
+        fault = (f"FAULT {f.get('name')} latched at cycle {f.get('seq')}: {f.get('text')} "
+                 f"(safe state; `rigd ctl reset` to clear)")
+    else:
+        fault = "no fault"
+    c = st.get("controller") or {}
+    blend = c.get("blend") or 0.0
+    if not c.get("loaded"):
+        k = "off (no controller loaded)"
+    elif c.get("enabled"):
+        k = "on" if blend >= 1.0 else f"switching on (blend {blend:.2f})"
+    elif c.get("requested") and f.get("code"):
+        k = "OFF: tripped by the fault (it was enabled; after a reset enable it again)"
+    else:
+        k = "off" if blend <= 0.0 else f"switching off (blend {blend:.2f})"
+    return f"state: {'running' if st.get('running') else 'stopped'}, cycle {st.get('seq')}, {fault}\nK∞: {k}"
+
+
 def format_human(value, indent: int = 0) -> str:
     """Readable ``key: value`` lines for nested dicts/lists."""
     pad = "  " * indent
@@ -119,6 +140,9 @@ def run(args: argparse.Namespace) -> int:
     result = reply.get("result")
     if args.json:
         print(json.dumps(result, indent=None, separators=(",", ":")))
+    elif args.ctl_command == "status":
+        print(status_summary(result))
+        print(format_human(result))
     elif args.ctl_command == "ping":
         print(f"rigd alive (pid {result.get('pid', '?')}, version {result.get('version', '?')})")
     else:

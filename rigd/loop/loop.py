@@ -308,7 +308,12 @@ class ControlLoop(LoopRunner):
             "controller": {"loaded": self.controller is not None,
                            "source": getattr(self.controller, "source", None),
                            "order": int(self.prm[L.P_KN]),
-                           "enabled": bool(st[L.S_K_TARGET]), "blend": float(st[L.S_RAMP]),
+                           # enabled: K∞ really in the loop (what the recording's k_on says);
+                           # requested: the operator's enable, overridden while a fault is
+                           # latched and cleared by fault.reset
+                           "enabled": bool(st[L.S_K_TARGET]) and code == 0,
+                           "requested": bool(st[L.S_K_TARGET]),
+                           "blend": float(st[L.S_RAMP]),
                            "p_eq_um": [float(st[L.S_PEQ_X]), float(st[L.S_PEQ_Y])]},
             "last_frame": {n: float(last[F.REC[n]]) for n in
                            ("e_x", "e_y", "u_x", "u_y", "r_x", "r_y", "omega_rpm", "p_inj_bar")},

@@ -88,6 +88,7 @@ def disk_full(tmp_path_factory):
         seen["st"] = d.ctl_json("status")
         time.sleep(0.3)
         seen["st2"] = d.ctl_json("status")
+        seen["human"] = d.ctl("status").stdout
         seen["logged"] = wait_for(lambda: "recording failed" in d.log(), 5)
     finally:
         seen["code"], _ = d.stop(signal.SIGTERM)
@@ -104,6 +105,12 @@ def test_disk_full_fault_latched_loop_safe_daemon_alive(disk_full):
     assert s["st2"]["seq"] > s["st"]["seq"]
     assert s["st2"]["last_frame"]["r_x"] == 0.0 and s["st2"]["last_frame"]["r_y"] == 0.0
     assert s["logged"] and s["log"].count('"event": "fault latched"') == 1  # logged once
+    # K∞ was enabled: status and `rigd ctl status` say it is off now, tripped by the fault
+    assert s["st2"]["controller"]["enabled"] is False and s["st2"]["controller"]["requested"]
+    first = s["human"].splitlines()[:2]
+    assert first[0].startswith("state: running") and "FAULT recorder_overflow" in first[0]
+    assert first[1] == ("K∞: OFF: tripped by the fault (it was enabled; after a reset enable "
+                        "it again)"), first
     assert s["rec"].stat().st_size <= 3 * 1024 * 1024
     assert "incomplete" in s["log"]  # rigd run says so in one line on the way out
 
