@@ -14,6 +14,8 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from rigd.errors import InputError
 
 HELP = "identify grey-box actuator/bearing models (PEM) from a record or a sweep run directory"
@@ -151,9 +153,21 @@ def _print_human(model, out) -> None:
             if "f_n_hz" in m:
                 print(f"  mode: f_n = {m['f_n_hz']:.2f} Hz, zeta = {m['zeta']:.4f}", file=out)
         for ax, e in ro.get("axes", {}).items():
-            print(f"  valve {ax}: gain {e['gain']:.4g}, poles {e['poles_rad_s']} rad/s", file=out)
+            print(f"  valve {ax}: gain {e['gain']:.4g}, f_n = {e['f_n_hz']:.1f} Hz, "
+                  f"zeta = {e['zeta']:.3f}, poles {_fmt_poles(e['poles_rad_s'])} rad/s", file=out)
         if "static_gain" in ro:
-            print(f"  static gain: {ro['static_gain']}", file=out)
+            g = np.asarray(ro["static_gain"], dtype=float)
+            rows = "; ".join(" ".join(f"{v:.4g}" for v in row) for row in np.atleast_2d(g))
+            print(f"  static gain (output per input): [{rows}]", file=out)
+
+
+def _fmt_poles(poles) -> str:
+    """Poles p of (s + p) as 'p1, p2' (real) or 're ± im j' (a complex pair)."""
+    vals = [complex(p) for p in poles]
+    if all(abs(v.imag) < 1e-9 for v in vals):
+        return ", ".join(f"{v.real:.5g}" for v in vals)
+    v = vals[0]
+    return f"{v.real:.5g} ± {abs(v.imag):.5g}j"
 
 
 def run(args: argparse.Namespace) -> int:
