@@ -1,10 +1,16 @@
-"""A real pymodbus TCP server on loopback playing the rig's PLC (register map of docs)."""
+"""A real pymodbus server playing the rig's PLC (register map of docs): TCP on loopback, or
+RTU on a serial device — one end of :class:`NullModem`, a pair of pseudo-terminals joined
+like a null-modem cable (the driver opens the other end)."""
 
 import asyncio
+import os
+import select
 import socket
+import termios
 import threading
+import tty
 
-from pymodbus.server import ModbusTcpServer
+from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from rigd_drivers.modbus import float_to_regs, regs_to_float
@@ -18,9 +24,63 @@ def free_port():
     return port
 
 
+class NullModem:
+    """Two pseudo-terminal pairs whose master sides are joined by a relay thread: a serial
+    cable between the device paths :attr:`a` and :attr:`b` (what ``socat pty pty`` does).
+
+    :meth:`unplug` cuts the cable (bytes either way are lost, as on a dead RS-485 line);
+    :meth:`plug` reconnects it, dropping whatever was queued meanwhile.
+    """
+
+    def __init__(self):
+        self._ma, self._sa = os.openpty()
+        self._mb, self._sb = os.openpty()
+        for fd in (self._sa, self._sb):   # the slaves stay open here too: no EIO on the
+            tty.setraw(fd)                # masters while neither end has its device open
+        self.a = os.ttyname(self._sa)
+        self.b = os.ttyname(self._sb)
+        self.connected = True
+        self.bytes = 0
+        self._stop_r, self._stop_w = os.pipe()
+        self._thread = threading.Thread(target=self._relay, daemon=True)
+        self._thread.start()
+
+    def _relay(self):
+        peer = {self._ma: self._mb, self._mb: self._ma}
+        while True:
+            ready, _, _ = select.select([self._ma, self._mb, self._stop_r], [], [])
+            if self._stop_r in ready:
+                return
+            for fd in ready:
+                try:
+                    data = os.read(fd, 4096)
+                except OSError:
+                    continue
+                if self.connected and data:
+                    os.write(peer[fd], data)
+                    self.bytes += len(data)
+
+    def unplug(self):
+        self.connected = False
+
+    def plug(self):
+        for fd in (self._sa, self._sb):
+            termios.tcflush(fd, termios.TCIOFLUSH)
+        self.connected = True
+
+    def close(self):
+        os.write(self._stop_w, b"x")
+        self._thread.join(5)
+        for fd in (self._ma, self._mb, self._sa, self._sb, self._stop_r, self._stop_w):
+            os.close(fd)
+
+
 class PlcServer:
-    def __init__(self, port=None, p_inj_bar=4.0, omega_rpm=3000.0, status=0):
-        self.port = port or free_port()
+    def __init__(self, port=None, p_inj_bar=4.0, omega_rpm=3000.0, status=0, device=None,
+                 baudrate=19200, parity="E"):
+        self.device = device            # RTU on this serial device; TCP on loopback if None
+        self.serial = {"baudrate": baudrate, "parity": parity}
+        self.port = None if device else (port or free_port())
         self.values = {"p_inj_bar": p_inj_bar, "omega_rpm": omega_rpm, "status": status}
         self.setpoints = {}
         self.reads = 0
@@ -50,7 +110,10 @@ class PlcServer:
                 dev = SimDevice(1, simdata=[SimData(0, count=200, values=0,
                                                     datatype=DataType.REGISTERS)],
                                 action=self._action)
-                self._srv = ModbusTcpServer(dev, address=("127.0.0.1", self.port))
+                if self.device:
+                    self._srv = ModbusSerialServer(dev, port=self.device, **self.serial)
+                else:
+                    self._srv = ModbusTcpServer(dev, address=("127.0.0.1", self.port))
                 task = asyncio.ensure_future(self._srv.serve_forever())
                 for _ in range(100):
                     await asyncio.sleep(0.01)

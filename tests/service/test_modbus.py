@@ -10,7 +10,7 @@ from rigd.errors import FaultError, InputError
 from rigd.frame import IN_OMEGA, IN_P_INJ, N_IN
 from rigd_drivers.modbus import ModbusDriver, ModbusOptions, float_to_regs, regs_to_float
 
-from modbus_server import PlcServer, free_port
+from modbus_server import NullModem, PlcServer, free_port
 
 
 def _wait(pred, timeout=5.0):
@@ -64,6 +64,46 @@ def test_poll_setpoints_stop_and_come_back():
         plc2.stop()
     finally:
         drv.close()
+
+
+def test_rtu_over_a_serial_line_stop_and_come_back():
+    """RTU: the driver on one end of a pseudo-terminal null-modem pair, a real pymodbus RTU
+    server on the other; the PLC goes away (server stopped, line dead) and comes back.
+    Parity 'N': a Linux pseudo-terminal refuses PARENB (EINVAL), real UARTs take 'E'."""
+    line = NullModem()
+    plc = PlcServer(device=line.b, p_inj_bar=4.5, omega_rpm=2500.0, parity="N").start()
+    drv = ModbusDriver({"transport": "rtu", "device": line.a, "baudrate": 19200, "parity": "N",
+                        "timeout_s": 0.1, "reconnect_s": 0.1, "failures_to_fault": 2})
+    drv.open()
+    drv.poll_hz = 50.0
+    drv.start_polling()
+    try:
+        assert _wait(lambda: drv.latest().ok, 10), drv.latest()
+        frame = np.zeros(N_IN)
+        assert drv.fill(frame)
+        assert frame[IN_P_INJ] == pytest.approx(4.5) and frame[IN_OMEGA] == 2500.0
+        plc.values["omega_rpm"] = 4000.0
+        assert _wait(lambda: drv.latest().omega_rpm == 4000.0)
+        drv.write_setpoints(p_inj_bar=5.5, omega_rpm=3300.0)
+        assert _wait(lambda: plc.setpoints == {"p_inj_bar": 5.5, "omega_rpm": 3300.0})
+        assert plc.reads >= 2 and line.bytes > 50      # it really went over the serial line
+        # the PLC goes away: fault after 2 failed polls (timeouts), last values kept
+        line.unplug()
+        plc.stop()
+        assert _wait(lambda: not drv.latest().ok)
+        s = drv.latest()
+        assert "modbus" in s.error and line.a in s.error and s.omega_rpm == 4000.0
+        assert drv.counters()["faults"] == 1
+        # and comes back: values flow again, counted as one reconnection
+        plc2 = PlcServer(device=line.b, p_inj_bar=6.0, omega_rpm=1000.0, parity="N").start()
+        line.plug()
+        assert _wait(lambda: drv.latest().ok and drv.latest().p_inj_bar == 6.0, 10), \
+            drv.latest()
+        assert drv.counters()["reconnects"] == 1 and drv.counters()["faults"] == 1
+        plc2.stop()
+    finally:
+        drv.close()
+        line.close()
 
 
 def test_poll_raises_fault_when_nobody_listens():
