@@ -250,6 +250,7 @@ def run(seconds: float = 10.0, clients: int = 20, rate: float = 1000.0) -> dict:
             while not os.path.exists(other) and ctl.is_alive():
                 time.sleep(0.05)
             res = {}
+            ran0 = _call(sock, "ping").get("commands_run", 0)
             idle1 = _window(sock, lambda: time.sleep(seconds))
             loaded = _window(sock, lambda: res.update(hammer(sock, clients=clients, rate=rate,
                                                             seconds=seconds)))
@@ -258,7 +259,9 @@ def run(seconds: float = 10.0, clients: int = 20, rate: float = 1000.0) -> dict:
                 hammer(other, clients=clients, rate=rate, seconds=seconds)))
             idle2 = _window(sock, lambda: time.sleep(seconds))
             load = res
-            alive = _call(sock, "ping")["pong"]
+            ping = _call(sock, "ping")
+            alive = ping["pong"]
+            reached = ping.get("commands_run", 0) - ran0
         finally:
             code = stop_daemon(proc)
             if ctl.is_alive():
@@ -270,6 +273,7 @@ def run(seconds: float = 10.0, clients: int = 20, rate: float = 1000.0) -> dict:
         "socket_load_rt_miss_fraction_loaded": loaded,
         "socket_load_rt_miss_fraction_control": control,
         "socket_load_control_errors": control_load.get("errors"),
+        "socket_load_requests_reaching_loop_process": reached,
         "socket_load_requests_served": load["served"],
         "socket_load_bad_requests_refused": load["refused"],
         "socket_load_requests_per_s": round(load["requests_per_s"], 1),

@@ -145,6 +145,9 @@ class Daemon:
                 "uptime_s": round(time.monotonic() - self._started, 3),
                 "config": getattr(self.config, "path", None),
                 "clients": self.server.n_clients if self.server else 0,
+                # requests that reached this (the loop's) process: valid commands only
+                "commands_run": (self.dispatcher.served + self.dispatcher.refused
+                                 if self.dispatcher else 0),
                 "last_reload": dict(self.last_reload)}
 
     def _helper_priority(self) -> int | None:

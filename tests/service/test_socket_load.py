@@ -11,9 +11,13 @@ def test_socket_load_short(tmp_path):
     proc, sock = start_daemon(tmp_path)
     try:
         seq0 = _call(sock, "status")["seq"]
+        ran0 = _call(sock, "ping")["commands_run"]
         res = hammer(sock, clients=12, rate=300.0, seconds=2.0, seed=7)
         assert res["errors"] == 0, res
         assert res["served"] > 100 and res["refused"] > 20
+        # queries and bad requests were all answered by the socket process: not one of them
+        # reached the loop's process
+        assert _call(sock, "ping")["commands_run"] == ran0
         # a client that never ends its line and one that vanishes mid-request change nothing
         idle = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         idle.connect(sock)

@@ -44,8 +44,11 @@ def test_socket_process_separate_and_respawned(tmp_path):
         r = _ask(d.sock, b'{"id": 4, "cmd": "experiment.start", "path": "/x.yaml", '
                          b'"run_dir": "runs"}')
         assert r["ok"] is False and "run_dir: must be an absolute path" in r["error"]
+        assert d.ctl_json("ping")["commands_run"] == ping["commands_run"], \
+            "refused requests never reached the loop's process"
         # a valid command still goes through to the loop, and the next status shows it
         d.ctl("op", "1500", "4.0")
+        assert d.ctl_json("ping")["commands_run"] == ping["commands_run"] + 1
         assert wait_for(lambda: d.ctl_json("status")["last_frame"]["omega_rpm"] == 1500.0, 10)
         seq0 = d.ctl_json("status")["seq"]
         # kill the socket process: the daemon starts a new one; nothing else changes
