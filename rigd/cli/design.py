@@ -72,7 +72,11 @@ def run_design(model_path, weights_path, out, *, range_model=None, report=None,
             raise InputError("discrete closed loop unstable on the design model", str(out))
         summary["design_point_sensitivity"] = {"reduction_min": r.reduction_min,
                                                "peak": r.peak, "peak_hz": r.peak_hz,
-                                               "low_increase": r.low_increase}
+                                               "low_increase": r.low_increase,
+                                               "lowfreq_max": r.low_increase,
+                                               "reduction_at_resonance":
+                                                   r.reduction_at_resonance,
+                                               "resonance_hz": r.resonance_hz}
     if report:
         from rigd.design.report import design_report
 

@@ -9,6 +9,12 @@ the closed loop w → z is::
     d_i → z:  [W_p S G W_d, −W_u K S G W_d]ᵀ    (only when W_d > 0)
 
 so γ = ‖F_l(P, K)‖∞ ≥ ‖N‖∞, and S = S_o = (I + G_p K)⁻¹ as Eq. 11 (negative feedback).
+
+With a high-pass H_hp = (s/(s+ω_h))^m (:class:`rigd.design.weights.HighPass`) the synthesis
+runs on the augmented plant G_p·H_hp and returns K̃; the deployed controller is
+K∞ = H_hp·K̃, which has an m-fold zero at s = 0 whatever the synthesis does: no action at DC
+and little below ω_h (the paper's "controller not active at low frequencies", Fig. 5). The
+weights W_u and W_p see K̃ and the augmented loop (G_p H_hp K̃ = G_p K∞, so S is the same).
 Synthesis uses python-control ``hinfsyn`` (SLICOT SB10AD through slycot). The problem is
 solved in a frequency-scaled time unit (ω/ω_s) so that the Riccati equations are well
 conditioned, and the controller is scaled back.
@@ -20,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rigd.design.weights import Weights, three_level
+from rigd.design.weights import HighPass, Weights, highpass_ss, three_level
 from rigd.errors import InputError
 
 #: Frequency scale of the synthesis (rad/s): 2π·100 Hz, the bearing modes' neighbourhood.
@@ -44,6 +50,8 @@ class HinfResult:
     K: object
     gamma: float
     closed_loop_stable: bool
+    K_tilde: object = None      # K̃ designed on G_p·H_hp (K = H_hp·K̃); K itself without H_hp
+    H: object = None            # H_hp (2×2), None without a high-pass
 
 
 def _freq_scale(sys, w: float):
@@ -116,8 +124,10 @@ def closed_loop_stable(G, K) -> bool:
     return bool(np.max(poles.real) < 0.0)
 
 
-def synthesize(G, weights: Weights) -> HinfResult:
+def synthesize(G, weights: Weights, highpass: HighPass | None = None) -> HinfResult:
     """Mixed-sensitivity H∞ controller for plant ``G`` with ``weights`` (γ-iteration by SLICOT).
+
+    With ``highpass`` (order m > 0) the synthesis runs on G·H_hp and K = H_hp·K̃ is returned.
 
     Raises
     ------
@@ -131,12 +141,16 @@ def synthesize(G, weights: Weights) -> HinfResult:
         raise InputError(f"plant must be 2x2 (r_x, r_y -> e_x, e_y), got {ny}x{nu}", "model")
     Wp = three_level(weights.W_p, ny)
     Wu = three_level(weights.W_u, nu)
+    H = highpass_ss(highpass, nu) if highpass is not None and highpass.order > 0 else None
+    Ga = G * H if H is not None else G
     w = OMEGA_SCALE
-    P = generalized_plant(_freq_scale(G, w), _freq_scale(Wp, w), _freq_scale(Wu, w), weights.W_d)
+    P = generalized_plant(_freq_scale(Ga, w), _freq_scale(Wp, w), _freq_scale(Wu, w), weights.W_d)
     try:
         Ks, _cl, gamma, _rcond = control.hinfsyn(P, ny, nu)
     except Exception as exc:  # slycot raises its own error types with the SLICOT info code
         raise InputError(f"H∞ synthesis failed ({type(exc).__name__}: {exc}); "
                          "check the weights and the plant model", "design") from None
-    K = control.ss(Ks.A * w, Ks.B * w, Ks.C, Ks.D)
-    return HinfResult(K=K, gamma=float(gamma), closed_loop_stable=closed_loop_stable(G, K))
+    Kt = control.ss(Ks.A * w, Ks.B * w, Ks.C, Ks.D)
+    K = H * Kt if H is not None else Kt
+    return HinfResult(K=K, gamma=float(gamma), closed_loop_stable=closed_loop_stable(G, K),
+                      K_tilde=Kt, H=H)

@@ -2,8 +2,11 @@
 
 :func:`design_controller` runs it on a plant model G_p(s) (e.g. ``ModelFile.plant()``):
 
-1. full-order K∞(s) by mixed-sensitivity H∞ (:mod:`rigd.design.hinf`), γ reported;
-2. balanced truncation to ``reduction.order`` states (:mod:`rigd.design.reduce`); when the
+1. full-order K∞(s) by mixed-sensitivity H∞ (:mod:`rigd.design.hinf`), γ reported; with a
+   high-pass (``highpass.order`` m > 0) K∞ = H_hp·K̃;
+2. balanced truncation to ``reduction.order`` states (:mod:`rigd.design.reduce`) — with a
+   high-pass, K̃ is truncated to ``order − 2m`` states and H_hp is re-applied, so the reduced
+   K∞ keeps its exact zeros at DC (truncating K∞ itself would not); when the
    reduced controller does not stabilise the design model, or its frequency response leaves
    the full one by more than ``reduction.max_band_error`` inside the damping band, the order
    is raised two states at a time (up to the full order) and the order used is reported;
@@ -40,6 +43,9 @@ class DesignResult:
     band_error: float        # max over the band of σ̄(K_z − K_full)/σ̄(K_full)
     fs_hz: float
     tried: list[dict] = field(default_factory=list)
+    hsv: list = field(default_factory=list)   # Hankel singular values of the reduced part
+    highpass: dict | None = None
+    lowfreq_gain_ratio: float = float("nan")  # σ̄(K_z) at 1 Hz / max in band
 
     def summary(self) -> dict:
         return {"gamma": self.gamma, "order_full": self.order_full,
@@ -47,6 +53,9 @@ class DesignResult:
                 "closed_loop_stable": {"full": self.stable_full, "reduced": self.stable_reduced,
                                        "discrete": self.stable_discrete},
                 "band_error": self.band_error, "fs_hz": self.fs_hz,
+                "highpass": self.highpass,
+                "controller_gain_1hz_over_band_max": self.lowfreq_gain_ratio,
+                "hankel_singular_values": self.hsv,
                 "reduction_tries": self.tried}
 
 
@@ -64,19 +73,23 @@ def design_controller(G, cfg: DesignConfig, *, max_band_error: float = 0.1) -> D
     """Run the design chain on the continuous plant model ``G`` (r → p, 2×2)."""
     if G.dt:
         raise InputError("the design model must be continuous (G_p(s))", "model")
-    syn = hinf.synthesize(G, cfg.weights)
+    hp = cfg.highpass
+    syn = hinf.synthesize(G, cfg.weights, hp)
     if not syn.closed_loop_stable:
         raise InputError(f"H∞ controller does not stabilise the design model (γ = "
                          f"{syn.gamma:.3g}); check the weights", "design")
     Kf = syn.K
+    Kt = syn.K_tilde
+    n_hp = Kf.nstates - Kt.nstates            # states of H_hp (2m), re-applied after reduction
     fs = cfg.fs_hz
     band = cfg.robustness.band_hz
     Gz = match_domain(G, hinf_dt(fs))
     tried = []
-    order = min(cfg.reduction.order, Kf.nstates)
+    order = min(max(cfg.reduction.order, n_hp + 2), Kf.nstates)
     chosen = None
     while True:
-        Kr = reduce.reduce_controller(Kf, order, cfg.reduction.method)
+        Ktr = reduce.reduce_controller(Kt, order - n_hp, cfg.reduction.method)
+        Kr = syn.H * Ktr if syn.H is not None else Ktr
         Kz = discretize.tustin(Kr, fs, cfg.discretization.prewarp_hz)
         st_r = is_stable(G, Kr)
         st_z = is_stable(Gz, Kz)
@@ -95,10 +108,16 @@ def design_controller(G, cfg: DesignConfig, *, max_band_error: float = 0.1) -> D
                          f"{Kf.nstates}) is stable in closed loop and matches the full one "
                          f"within {max_band_error:.0%} in the band; tried: {tried}", "design")
     order, Kr, Kz, st_r, st_z, err = chosen
+    f_band = np.linspace(band[0], band[1], 121)
+    k_band = np.linalg.svd(freq_response(Kz, f_band), compute_uv=False)[:, 0].max()
+    k_1hz = np.linalg.svd(freq_response(Kz, np.array([1.0])), compute_uv=False)[0, 0]
     return DesignResult(K_full=Kf, K_red=Kr, K_z=Kz, gamma=syn.gamma, order_full=Kf.nstates,
                         order_requested=cfg.reduction.order, order=order,
                         stable_full=syn.closed_loop_stable, stable_reduced=st_r,
-                        stable_discrete=st_z, band_error=err, fs_hz=fs, tried=tried)
+                        stable_discrete=st_z, band_error=err, fs_hz=fs, tried=tried,
+                        hsv=[float(v) for v in reduce.hankel_singular_values(Kt)],
+                        highpass=hp.model_dump() if hp.order else None,
+                        lowfreq_gain_ratio=float(k_1hz / k_band))
 
 
 class hinf_dt:  # noqa: N801 - tiny stand-in carrying a sample time for match_domain

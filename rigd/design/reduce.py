@@ -14,14 +14,23 @@ from rigd.design.hinf import OMEGA_SCALE
 
 
 def hankel_singular_values(K) -> np.ndarray:
-    """Hankel singular values of the stable part of K (descending)."""
-    import control
+    """Hankel singular values of K (descending; in the scaled time unit, which leaves them
+    unchanged). Empty when K is not stable.
 
-    Ks = control.ss(K.A / OMEGA_SCALE, K.B / OMEGA_SCALE, K.C, K.D)
-    stable = np.all(np.linalg.eigvals(Ks.A).real < 0)
-    if stable:
-        return np.asarray(control.hsvd(Ks))
-    return np.array([])
+    Computed by SLICOT AB09AD (square-root method, Cholesky factors of the Gramians), which
+    stays accurate where ``control.hsvd`` (eigenvalues of Wc·Wo) returns NaN for the
+    ill-conditioned Gramians of weighted H∞ controllers.
+    """
+    from slycot import ab09ad
+
+    w = OMEGA_SCALE
+    A, B, C = np.asarray(K.A) / w, np.asarray(K.B) / w, np.asarray(K.C)
+    n = A.shape[0]
+    if n == 0 or not np.all(np.linalg.eigvals(A).real < 0):
+        return np.array([])
+    *_, hsv = ab09ad("C", "B", "N", n, B.shape[1], C.shape[0], A.copy(), B.copy(), C.copy(),
+                     nr=n)
+    return np.sort(np.asarray(hsv, dtype=float))[::-1]
 
 
 def reduce_controller(K, order: int, method: str = "truncate"):

@@ -4,7 +4,9 @@ The output sensitivity S_o = (I + G_p K∞)⁻¹ (Eq. 11) is evaluated for N_r r
 points (Ω, P_I) of a reassembled model ``plant_at(omega_rpm, p_inj_bar) -> G_p``. For each
 realization: closed-loop stability, the worst-case reduction factor 1/max σ̄(S_o) inside the
 damping band (open loop: S = I, factor 1), the low-frequency increase max σ̄(S_o) below
-``low_hz``, and the peak max σ̄(S_o) with its frequency.
+``low_hz`` (``sensitivity_lowfreq_max`` over realizations), the peak max σ̄(S_o) with its
+frequency, and the reduction 1/σ̄(S_o) at the realization's own open-loop resonances (the
+lightly damped poles of G_p, ζ < 0.2: the dips of the paper's Fig. 4).
 
 With a discrete K∞(z) a continuous plant is discretised by zero-order hold at the
 controller's rate, so the figures describe the loop as it runs.
@@ -32,6 +34,12 @@ class Realization:
     #: resonance-peak reduction of the disturbance response (force-like input at r):
     #: max_band σ̄(G_p) / max_band σ̄(S_o G_p) — the damping effect, not Eq. 11's measure
     disturbance_peak_reduction: float = float("nan")
+    #: open-loop resonance frequencies (Hz) of this realization and the worst 1/σ̄(S_o) there
+    resonance_hz: list = field(default_factory=list)
+    reduction_at_resonance: float = float("nan")
+    #: the same along the resonating output direction (left singular vector u₁ of G_p at the
+    #: resonance, the mode shape): 1/‖S_o u₁‖ — the dip a single-axis plot would show
+    reduction_at_resonance_mode: float = float("nan")
 
 
 @dataclass
@@ -40,6 +48,7 @@ class RobustnessResult:
     sigma: np.ndarray                         # (N_r, n_f) σ̄(S_o)
     realizations: list[Realization] = field(default_factory=list)
     band_hz: tuple[float, float] = (70.0, 190.0)
+    low_hz: float = 20.0
 
     def summary(self) -> dict:
         """Worst cases over all realizations (plain floats, for JSON)."""
@@ -47,13 +56,20 @@ class RobustnessResult:
         worst = min(r, key=lambda x: x.reduction_min)
         peak = max(r, key=lambda x: x.peak)
         return {"n_realizations": len(r), "all_stable": all(x.stable for x in r),
-                "band_hz": list(self.band_hz),
+                "band_hz": list(self.band_hz), "low_hz": self.low_hz,
                 "sensitivity_reduction_min": worst.reduction_min,
                 "sensitivity_reduction_min_at": {"omega_rpm": worst.omega_rpm,
                                                  "p_inj_bar": worst.p_inj_bar},
                 "sensitivity_reduction_max": max(x.reduction_min for x in r),
                 "sensitivity_peak_max": peak.peak, "sensitivity_peak_hz": peak.peak_hz,
                 "sensitivity_low_increase_max": max(x.low_increase for x in r),
+                "sensitivity_lowfreq_max": max(x.low_increase for x in r),
+                "sensitivity_reduction_at_resonance_min":
+                    min((x.reduction_at_resonance for x in r
+                         if np.isfinite(x.reduction_at_resonance)), default=float("nan")),
+                "sensitivity_reduction_at_resonance_mode_direction_min":
+                    min((x.reduction_at_resonance_mode for x in r
+                         if np.isfinite(x.reduction_at_resonance_mode)), default=float("nan")),
                 "disturbance_peak_reduction_min": min(x.disturbance_peak_reduction for x in r)}
 
     def to_dict(self) -> dict:
@@ -103,6 +119,22 @@ def match_domain(G, K):
     return G
 
 
+def resonances(G, zeta_max: float = 0.2, f_range=(20.0, 1000.0)) -> np.ndarray:
+    """Peak frequencies (Hz) of the lightly damped poles of G (ζ < ``zeta_max``), ascending.
+
+    A pole s = −ζω_n ± jω_n√(1−ζ²) peaks at ω_n√(1−2ζ²). Discrete poles are mapped by
+    s = ln(z)/T.
+    """
+    p = np.asarray(G.poles(), dtype=complex)
+    s = np.log(p) / G.dt if G.dt else p
+    s = s[s.imag > 0]
+    wn = np.abs(s)
+    zeta = -s.real / np.maximum(wn, 1e-300)
+    keep = zeta < zeta_max
+    f = wn[keep] * np.sqrt(np.maximum(1 - 2 * zeta[keep] ** 2, 0.0)) / (2 * np.pi)
+    return np.sort(f[(f >= f_range[0]) & (f <= f_range[1])])
+
+
 def assess(G, K, f_hz: np.ndarray, band_hz=(70.0, 190.0), low_hz: float = 20.0,
            omega_rpm: float = float("nan"), p_inj_bar: float = float("nan")):
     """One realization: (Realization, σ̄(S_o) over ``f_hz``)."""
@@ -115,9 +147,18 @@ def assess(G, K, f_hz: np.ndarray, band_hz=(70.0, 190.0), low_hz: float = 20.0,
     i = int(np.argmax(sig))
     g_ol = np.linalg.svd(Gf[band], compute_uv=False)[:, 0].max()
     g_cl = np.linalg.svd(S[band] @ Gf[band], compute_uv=False)[:, 0].max()
+    f_res = resonances(G)
+    red_res = red_mode = float("nan")
+    if len(f_res):
+        Gr = freq_response(G, f_res)
+        Sr = np.linalg.inv(np.eye(Gr.shape[1])[None] + Gr @ freq_response(K, f_res))
+        red_res = float(1.0 / np.linalg.svd(Sr, compute_uv=False)[:, 0].max())
+        u1 = np.linalg.svd(Gr)[0][:, :, 0]                     # (n_res, ny) mode shapes
+        red_mode = float(1.0 / np.linalg.norm(np.einsum("kij,kj->ki", Sr, u1), axis=1).max())
     return Realization(float(omega_rpm), float(p_inj_bar), is_stable(G, K),
                        float(1.0 / sig[band].max()), float(sig[low].max()) if low.any() else 1.0,
-                       float(sig[i]), float(f_hz[i]), float(g_ol / g_cl)), sig
+                       float(sig[i]), float(f_hz[i]), float(g_ol / g_cl),
+                       [float(x) for x in f_res], red_res, red_mode), sig
 
 
 def default_freqs(fs_hz: float | None = None) -> np.ndarray:
@@ -132,7 +173,7 @@ def analyze(plant_at: Callable[[float, float], object], K, cfg: Robustness,
     f = default_freqs(1 / K.dt if K.dt else None) if f_hz is None else np.asarray(f_hz)
     pts = random_operating_points(cfg.n_realizations, cfg.seed, cfg.omega_rpm, cfg.p_inj_bar)
     res = RobustnessResult(f_hz=f, sigma=np.zeros((len(pts), len(f))),
-                           band_hz=tuple(cfg.band_hz))
+                           band_hz=tuple(cfg.band_hz), low_hz=cfg.low_hz)
     for k, (om, p) in enumerate(pts):
         r, sig = assess(plant_at(float(om), float(p)), K, f, cfg.band_hz, cfg.low_hz, om, p)
         res.realizations.append(r)

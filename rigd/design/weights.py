@@ -66,6 +66,18 @@ class PlantSpec(StrictModel):
     p_inj_bar: float = Field(7.0, gt=0)
 
 
+class HighPass(StrictModel):
+    """Plant augmentation H_hp(s) = (s/(s + ω_h))^m on each input, ω_h = 2π·``f_hz``.
+
+    K̃ is designed on G_p·H_hp and K∞ = H_hp·K̃ is deployed, so K∞ has an m-fold zero at
+    s = 0 (z = 1 after Tustin): the controller is inactive at DC and low frequency by
+    construction (paper Sec. 5, Fig. 5). ``order: 0`` switches it off.
+    """
+
+    f_hz: float = Field(20.0, gt=0, description="corner frequency (Hz)")
+    order: int = Field(2, ge=0, le=4, description="m: zeros at s = 0")
+
+
 class Reduction(StrictModel):
     order: int = Field(4, ge=1, le=64)
     method: str = Field("truncate", pattern="^(truncate|matchdc)$")
@@ -100,6 +112,7 @@ class DesignConfig(StrictModel):
     fs_hz: float = Field(5000.0, gt=0)
     design_point: PlantSpec = PlantSpec()
     weights: Weights
+    highpass: HighPass = HighPass(order=0)
     reduction: Reduction = Reduction()
     discretization: Discretization = Discretization()
     robustness: Robustness = Robustness()
@@ -142,6 +155,16 @@ def three_level(w: ThreeLevel, n: int = 2):
 
     num, den = three_level_tf(w)
     h = control.ss(control.tf(num, den))
+    return control.append(*([h] * n))
+
+
+def highpass_ss(hp: HighPass, n: int = 2):
+    """Diagonal n×n ``StateSpace`` H_hp(s) = (s/(s + ω_h))^m (identity when m = 0)."""
+    import control
+
+    if hp.order == 0:
+        return control.ss([], [], [], np.eye(n))
+    h = control.ss(control.tf([1.0, 0.0], [1.0, TWO_PI * hp.f_hz]) ** hp.order)
     return control.append(*([h] * n))
 
 

@@ -17,7 +17,8 @@ def demo(tmp_path_factory):
 
 def test_summary_has_the_contract_keys(demo):
     out, s = demo
-    for k in ("sensitivity_reduction_min", "sensitivity_peak_max", "damping_ratio_open",
+    for k in ("sensitivity_reduction_min", "sensitivity_peak_max", "sensitivity_lowfreq_max",
+              "sensitivity_reduction_at_resonance_min", "damping_ratio_open",
               "damping_ratio_closed", "gamma", "controller_order"):
         assert k in s
     assert set(s["damping_ratio_open"]) == {"P4bar_W0rpm_x", "P4bar_W0rpm_y",
@@ -59,6 +60,9 @@ def test_robust_stability_and_peak(demo):
     assert s["robustness"]["n_realizations"] == 30
     assert s["robustness"]["all_stable"]
     assert s["sensitivity_peak_max"] <= 2.0
+    # K∞ inactive at low frequency: |S_o| stays near 1 below 20 Hz, |K(1 Hz)| tiny
+    assert s["sensitivity_lowfreq_max"] <= 1.3
+    assert s["controller_gain_1hz_over_band_max"] <= 0.02
 
 
 def test_analyze_impact_cli_json(demo, capsys):
