@@ -11,7 +11,8 @@ Figures (keys of ``run()``): ``socket_load_rt_miss_fraction_idle``,
 ``socket_load_requests_per_s``, ``socket_load_bad_requests_refused``,
 ``socket_load_errors`` (wrong or missing replies: must be 0), ``socket_load_reply_p99_ms``,
 ``socket_load_rt_miss_fraction_control``: the same load aimed at a separate server process
-(not the daemon) — what the load costs the loop through the machine alone (CPU, kernel), the
+(not the daemon; same server code, niceness and reply sizes: it serves the daemon's own
+answers, taken once) — what the load costs the loop through the machine alone (CPU, kernel), the
 yardstick for ``..._loaded``; ``..._idle`` is the mean of an idle window before and after.
 
     python -m bench socket_load        # about 50 s
@@ -195,24 +196,31 @@ def stop_daemon(proc: subprocess.Popen) -> int:
 
 
 class _StubLoop:
-    """For the control measurement only: answers the same queries with fixed data."""
+    """For the control measurement only: answers the queries with fixed data (the daemon's
+    own answers, taken once, so replies have the same size and cost the clients the same)."""
+
+    def __init__(self, data: dict):
+        self.data = data
 
     def status(self):
-        return {"running": True, "seq": 0, "fault": {"code": 0}}
+        return self.data["status"]
 
     def timing(self):
-        return {"cycles": 0, "overruns": 0}
+        return self.data["timing"]
 
     def faults(self):
-        return []
+        return self.data["faults"]
 
 
 class _StubExperiments:
+    def __init__(self, data: dict):
+        self.data = data
+
     def status(self):
-        return {"state": "idle"}
+        return self.data["experiment"]
 
 
-def _control_main(path: str) -> None:
+def _control_main(path: str, data: dict) -> None:
     """A control-socket server process that is not the daemon (same code, same niceness as the
     daemon's socket process, a stub behind it): the same client load aimed at it shows what
     the load costs the machine, independent of the daemon."""
@@ -223,7 +231,9 @@ def _control_main(path: str) -> None:
 
     _signal.signal(_signal.SIGINT, _signal.SIG_IGN)
     os.nice(10)
-    with ControlServer(path, Dispatcher(_StubLoop(), _StubExperiments()).handle_line):
+    info = data["ping"]
+    disp = Dispatcher(_StubLoop(data), _StubExperiments(data), info=lambda: info)
+    with ControlServer(path, disp.handle_line):
         _signal.sigwait([_signal.SIGTERM])
 
 
@@ -244,7 +254,13 @@ def run(seconds: float = 10.0, clients: int = 20, rate: float = 1000.0) -> dict:
         tmp = Path(d)
         proc, sock = start_daemon(tmp)
         other = str(tmp / "control.sock")
-        ctl = multiprocessing.get_context("spawn").Process(target=_control_main, args=(other,))
+        data = {k: _call(sock, c) for k, c in (("status", "status"), ("timing", "timing"),
+                                                ("faults", "faults"), ("ping", "ping"),
+                                                ("experiment", "experiment.status"))}
+        data["faults"] = data["faults"]["faults"]
+        data["ping"].pop("pong", None)
+        ctl = multiprocessing.get_context("spawn").Process(target=_control_main,
+                                                           args=(other, data))
         ctl.start()
         try:
             while not os.path.exists(other) and ctl.is_alive():
