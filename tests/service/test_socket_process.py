@@ -67,3 +67,37 @@ def test_socket_process_separate_and_respawned(tmp_path):
         code, _ = d.stop(signal.SIGTERM)
     assert code == 0, d.log()
     assert not os.path.exists(d.sock), "socket file removed on exit"
+
+
+def _alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:  # a zombie (exited, not yet reaped by init) counts as gone
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_sigkilled_daemon_leaves_no_socket_process_and_a_new_daemon_starts(tmp_path):
+    cfg = make_config(tmp_path, clock={"spin_us": 0.0})
+    d = Daemon(tmp_path, cfg)
+    try:
+        d.wait_notify("READY=1")
+        child = d.ctl_json("ping")["socket_pid"]
+    finally:
+        code, _ = d.stop(signal.SIGKILL)
+    assert code == -signal.SIGKILL
+    # the socket process sees its pipe close and exits; the socket file stays behind, stale
+    assert wait_for(lambda: not _alive(child), 10), "socket process outlived the daemon"
+    assert os.path.exists(d.sock)
+    os.unlink(tmp_path / "notify.sock")   # the test's own notify socket, not the daemon's
+    d2 = Daemon(tmp_path, cfg)            # same control socket path: the stale file is replaced
+    try:
+        d2.wait_notify("READY=1")
+        assert d2.ctl_json("ping")["pid"] == d2.proc.pid
+    finally:
+        code, _ = d2.stop(signal.SIGTERM)
+    assert code == 0, d2.log()
