@@ -17,6 +17,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
+	rm -rf demo-out   # the demo's own output is replaced on every run (run dirs never are)
 	$(BIN)/rigd demo --out demo-out
 
 test: $(STAMP)
