@@ -12,7 +12,8 @@ connections. Here, in a process of its own — its own interpreter lock, a lower
   latest *snapshot* the daemon publishes (``snapshot_hz``, default 25 Hz, and after every
   command) — a flood of queries costs the loop's process nothing;
 * valid commands (``fault.reset``, ``controller.*``, ``operating_point.set``,
-  ``experiment.start``/``stop``) are forwarded, one at a time, to the daemon's command thread,
+  ``experiment.start``/``stop``), at most :data:`MAX_COMMANDS_PER_S` per second, are
+  forwarded, one at a time, to the daemon's command thread,
   which runs them through :class:`~rigd.service.protocol.Dispatcher` and replies with the
   result and a fresh snapshot.
 
@@ -26,6 +27,7 @@ import json
 import os
 import signal
 import threading
+import time
 from typing import Any
 
 from rigd.service import protocol
@@ -38,6 +40,11 @@ QUERIES = ("status", "timing", "faults", "experiment.status", "ping")
 #: longest wait for the daemon to run a forwarded command, s
 COMMAND_TIMEOUT_S = 60.0
 
+#: commands forwarded to the loop's process per second, all clients together (token bucket
+#: with this burst too): bounds what even a flood of *valid* commands can cost the loop's
+#: process; an operator or the experiment runner sends a few per second
+MAX_COMMANDS_PER_S = 50.0
+
 
 class SnapshotHandler:
     """``handle_line`` of the socket process: answer queries from the snapshot, forward commands.
@@ -48,11 +55,19 @@ class SnapshotHandler:
         Duplex connection to the daemon's command thread.
     clients : callable
         Number of connected clients (for ``ping``).
+    max_commands_per_s : float
+        Commands beyond this rate (burst as large) are refused with an error reply.
     """
 
-    def __init__(self, cmd_conn, clients=lambda: 0):
+    def __init__(self, cmd_conn, clients=lambda: 0,
+                 max_commands_per_s: float = MAX_COMMANDS_PER_S):
         self.cmd_conn = cmd_conn
         self.clients = clients
+        self.rate = float(max_commands_per_s)
+        self._tokens = self.rate
+        self._t_tokens = time.monotonic()
+        self.forwarded = 0
+        self.throttled = 0
         self._lock = threading.Lock()          # snapshot
         self._cmd_lock = threading.Lock()      # one forwarded command at a time
         self._have = threading.Event()
@@ -95,6 +110,11 @@ class SnapshotHandler:
             req_id, cmd, args = parse_request(line)
             if cmd not in QUERIES:
                 check_paths(cmd, args)       # the last refusal that needs no loop state
+                if not self._take_token():
+                    self.throttled += 1
+                    raise RequestError(f"{cmd}: too many commands (more than {self.rate:g} "
+                                       f"per second from all clients); not run, try again",
+                                       req_id)
                 return self._forward(line, req_id)
             if not self._have.wait(10.0):
                 raise RequestError("the daemon has not published its state yet")
@@ -111,12 +131,22 @@ class SnapshotHandler:
         except Exception as exc:  # noqa: BLE001 - a bug is reported to its client only
             return error(req_id, f"internal error: {type(exc).__name__}: {exc}")
 
+    def _take_token(self) -> bool:
+        now = time.monotonic()
+        self._tokens = min(self.rate, self._tokens + (now - self._t_tokens) * self.rate)
+        self._t_tokens = now
+        if self._tokens < 1.0:
+            return False
+        self._tokens -= 1.0
+        return True
+
     def _forward(self, line: bytes, req_id: Any) -> bytes:
         with self._cmd_lock:
             self._tag += 1
             tag = self._tag
             try:
                 self.cmd_conn.send(("cmd", tag, line, None))
+                self.forwarded += 1
                 end = COMMAND_TIMEOUT_S
                 while self.cmd_conn.poll(end):
                     kind, rtag, reply, snap = self.cmd_conn.recv()
