@@ -105,7 +105,12 @@ def run(args: argparse.Namespace) -> int:
                 try:
                     loop.stop_recording(sink)
                 except Exception as exc:  # e.g. disk full: already a latched fault, logged
-                    failed = f"recording {args.record} incomplete: {str(exc).splitlines()[0]}"
+                    from rigd.loop.recorder import RecordingFailed
+
+                    first = str(exc).splitlines()[0]
+                    # RecordingFailed already names the file, the reason and what it keeps
+                    failed = (first if isinstance(exc, RecordingFailed)
+                              else f"recording {args.record} incomplete: {first}")
                     print(f"rigd run: {failed}", file=sys.stderr)
                     status = 1
     finally:
