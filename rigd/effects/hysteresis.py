@@ -1,29 +1,80 @@
-"""``hysteresis``: piezo hysteresis in the valves.
+"""``hysteresis``: piezo hysteresis in the valves, acting on the drive inside the valve loops.
 
-Signature: the (actuator) residual depends on the direction of motion — it is explained by
-play (backlash) operators of the input, the elementary hysterons of a Prandtl–Ishlinskii
-model, i.e. loops in the r–u plane. Extension: each input replaced by
-u + Σ_m a_m (play_{w_m}(u) − u) with widths w_m fixed at fractions of the input's range and
-the weights a_m fitted.
+Physics (docs/plant.md, docs/loop.md): each valve's drive v_i passes through a
+rate-independent Bouc–Wen operator (n = 1, β = γ) before the stack, v' = v − h(v), and the
+valve is closed by a PD loop. By superposition through the closed loop (rigd.effects._drive)
 
-A two-level input cannot show it: the play operator of a two-level signal is an affine
-function of the signal (a gain change), so the diagnosis asks for multi-level excitation.
+    u = H_a(s) · (r − A · (φ_c(v_+) − φ_c(v_−)) / 2)                  (Eqs. 8–10 plus h)
+
+with H_a the actuator model (r → u), v_± the recorded drives of the axis' valve pair (Eq. 1;
+the input r itself when the record has no drives), φ_c the normalised Bouc–Wen operator
+(saturates at ±1; slope c per volt right after a reversal, exponential approach to ±1 at rate
+c) and A the loop-suppressed half-width of the loop in units of r (≈ h_max/(kff + kp)).
+A per axis and c are fitted with the rest.
+
+Signature: the residual depends on the direction of the last motion and does not decay while
+the input holds still (no drift: that is creep). The regressor is the model-filtered operator
+output for the best c of a few (estimation part); the refit starts there.
+
+A two-level input cannot show it: the operator of a two-level signal is a gain change, so the
+diagnosis asks for multi-level excitation.
 """
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
-from rigd.effects._signals import n_levels, play
-from rigd.effects.base import CannotReveal, Context, Effect, dims, replace_inputs
+from rigd.effects._drive import drive_note, valve_pairs
+from rigd.effects._signals import n_levels
+from rigd.effects.base import (CannotReveal, Context, Effect, SignatureFit, dims,
+                               replace_inputs, signature_fit)
 
-WIDTHS = (0.05, 0.15, 0.35)  # play widths, fractions of the input's 1-99 % range
+#: Bouc–Wen rates c (1/V) tried by the signature; the refit starts from the best
+GRID = (0.25, 0.5, 1.0, 2.0, 4.0)
+C_BOUNDS = (0.02, 50.0)
 
 
-def hysterons(x: np.ndarray) -> list[np.ndarray]:
-    lo, hi = np.percentile(x, [1, 99])
-    span = max(hi - lo, 1e-12)
-    return [play(np.ascontiguousarray(x), w * span) - x for w in WIDTHS]
+@numba.njit(cache=True)
+def bouc_wen(w: np.ndarray, c: float) -> np.ndarray:
+    """Normalised Bouc–Wen operator (n = 1, β = γ) of ``w``, solved exactly per sample.
+
+    The state h starts at 0; moving against h it changes linearly with slope c until it
+    crosses zero, moving with h it approaches ±1 as 1 − (1 − |h|)·exp(−c·|Δw|).
+    """
+    n = w.shape[0]
+    out = np.empty(n)
+    h = 0.0
+    out[0] = 0.0
+    for k in range(1, n):
+        dw = w[k] - w[k - 1]
+        if dw != 0.0:
+            sg = 1.0 if dw > 0.0 else -1.0
+            a = abs(dw)
+            hs = sg * h
+            if hs < 0.0:
+                need = -hs / c
+                if a <= need:
+                    h = h + sg * c * a
+                    out[k] = h
+                    continue
+                a -= need
+                hs = 0.0
+            h = sg * (1.0 - (1.0 - hs) * math.exp(-c * a))
+        out[k] = h
+    return out
+
+
+def operator_inputs(data, c: float) -> np.ndarray:
+    """(n, nu): (φ_c(v_+) − φ_c(v_−))/2 per axis from the recorded drives, else φ_c(u)."""
+    pairs = valve_pairs(data)
+    u = np.asarray(data.inputs, float)
+    if pairs is None:
+        return np.stack([bouc_wen(np.ascontiguousarray(u[:, j]), c)
+                         for j in range(u.shape[1])], axis=1)
+    return np.stack([0.5 * (bouc_wen(p, c) - bouc_wen(m, c)) for p, m in pairs], axis=1)
 
 
 class Hysteresis(Effect):
@@ -37,44 +88,75 @@ class Hysteresis(Effect):
         if lv <= 2:
             return CannotReveal(self.name, f"the input has only {lv} levels: hysteresis looks "
                                 "like a gain change", "re-run with multi-level excitation "
-                                "(multi-level PRBS or a slow triangle)", ctx.submodel)
+                                "(multi-level PRBS or a slow triangle, e.g. "
+                                "config/experiments/multilevel_slow.yaml)", ctx.submodel)
         return None
 
+    # --- signature ---------------------------------------------------------------------
+    def _regs(self, ctx: Context, c: float) -> list[np.ndarray]:
+        h = operator_inputs(ctx.data, c)
+        return [ctx.through_model(-h[:, j], j) for j in range(ctx.nu)]
+
+    def signature(self, ctx: Context) -> SignatureFit:
+        best, best_c = None, GRID[0]
+        for c in GRID:
+            s = signature_fit(ctx, self._regs(ctx, c))
+            if best is None or s.score_est > best.score_est:
+                best, best_c = s, c
+        best.extra = {"c": best_c, "operator_input": drive_note(ctx.data)}
+        return best
+
     def regressors(self, ctx):
-        regs = []
-        for j in range(ctx.nu):
-            for h in hysterons(ctx.u[:, j]):
-                regs.append(ctx.through_model(h, j))
-        return regs
+        return self._regs(ctx, 1.0)
 
     def explain(self, ctx, sig):
         du = np.gradient(ctx.u, axis=0)
         r = ctx.residual
         up, dn = du > 0, du < 0
-        diffs = [float(np.mean(r[up[:, j], j if j < ctx.ny else 0]) -
-                       np.mean(r[dn[:, j], j if j < ctx.ny else 0]))
-                 if up[:, j].any() and dn[:, j].any() else 0.0 for j in range(ctx.nu)]
+        # direction of the last motion, held while the input holds still
+        last = np.zeros_like(ctx.u)
+        for j in range(ctx.nu):
+            s = np.sign(np.diff(ctx.u[:, j], prepend=ctx.u[0, j]))
+            idx = np.maximum.accumulate(np.where(s != 0, np.arange(s.size), 0))
+            last[:, j] = s[idx]
+        diffs = []
+        for j in range(ctx.nu):
+            i = j if j < ctx.ny else 0
+            a, b = last[:, j] > 0, last[:, j] < 0
+            diffs.append(float(np.mean(r[a, i]) - np.mean(r[b, i])) if a.any() and b.any()
+                         else 0.0)
         j = int(np.argmax(np.abs(diffs)))
-        ev = {"up_minus_down": {ctx.label(i, "in"): d for i, d in enumerate(diffs)}}
-        return (f"the residual on {ctx.label(j if j < ctx.ny else 0)} is {diffs[j]:+.3g} higher "
-                f"when {ctx.label(j, 'in')} rises than when it falls: hysteresis (loops in the "
-                f"r–u plane, piezo valves); play operators explain {100 * sig.score:.0f} % of "
-                f"the residual", ev)
+        ev = {"last_up_minus_last_down": {ctx.label(i, "in"): d for i, d in enumerate(diffs)},
+              "rising_samples": int(up.sum()), "falling_samples": int(dn.sum())}
+        ev.update(sig.extra)
+        return (f"the residual on {ctx.label(j if j < ctx.ny else 0)} is {diffs[j]:+.3g} "
+                f"higher after {ctx.label(j, 'in')} last rose than after it last fell, and "
+                f"stays so while the input holds still: hysteresis (loops in the r–u plane, "
+                f"piezo valves); a Bouc–Wen operator on {sig.extra.get('operator_input', 'the input')} explains "
+                f"{100 * sig.score:.0f} % of the residual", ev)
 
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):
         _, nu = dims(base)
-        return [f"hyst_a{m}_{j}" for j in range(nu) for m in range(len(WIDTHS))]
+        return [f"hyst_A_{j}" for j in range(nu)] + ["hyst_c"]
+
+    def theta0_effect(self, base, data):
+        _, nu = dims(base)
+        return np.concatenate([np.zeros(nu), [1.0]])
+
+    def param_bounds(self, base):
+        _, nu = dims(base)
+        return (np.concatenate([np.full(nu, -np.inf), [C_BOUNDS[0]]]),
+                np.concatenate([np.full(nu, np.inf), [C_BOUNDS[1]]]))
 
     def warm_start(self, ctx, sig):
-        return np.asarray(sig.beta, float)
+        return np.concatenate([np.asarray(sig.beta, float)[:ctx.nu], [sig.extra.get("c", 1.0)]])
 
     def simulate_with(self, sim, theta_e, data, base):
         u = np.asarray(data.inputs, float)
-        a = np.asarray(theta_e, float).reshape(u.shape[1], len(WIDTHS))
-        v = u.copy()
-        for j in range(u.shape[1]):
-            if np.any(a[j]):
-                for m, h in enumerate(hysterons(u[:, j])):
-                    v[:, j] += a[j, m] * h
-        return sim(replace_inputs(data, v))
+        nu = u.shape[1]
+        te = np.asarray(theta_e, float)
+        A, c = te[:nu], max(float(te[nu]), 1e-6)
+        if not np.any(A):
+            return sim(data)
+        return sim(replace_inputs(data, u - A * operator_inputs(data, c)))

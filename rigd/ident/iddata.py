@@ -39,7 +39,8 @@ class IdData:
     input_names, output_names : list of str
         Channel names.
     aux : dict of str -> ndarray (n,)
-        Auxiliary channels, e.g. ``phi`` (shaft angle, rad) and ``omega`` (rad/s).
+        Auxiliary channels, e.g. ``phi`` (shaft angle, rad), ``omega`` (rad/s) and, for the
+        actuator, the valve drives ``v_1``..``v_4`` (V).
     meta : dict
         Operating point (``omega_rpm``, ``p_inj_bar``), source, sub-model name.
     """
@@ -141,6 +142,10 @@ def channels_for(record: Record, submodel: str) -> tuple[list[str], list[str]]:
                      record.source)
 
 
+#: per-valve PD drive voltages (V) carried as aux channels of actuator data
+DRIVE_CHANNELS = ("v_1", "v_2", "v_3", "v_4")
+
+
 def from_record(record: Record, submodel: str, min_samples: int = MIN_SAMPLES) -> IdData:
     """Build :class:`IdData` for one sub-model; missing columns or a short record -> InputError."""
     ins, outs = channels_for(record, submodel)
@@ -154,6 +159,10 @@ def from_record(record: Record, submodel: str, min_samples: int = MIN_SAMPLES) -
     aux = {}
     if "phi" in record.columns:
         aux["phi"] = np.asarray(record.columns["phi"], float)
+    if submodel == "actuator":  # the valve drives v_1..v_4 (where hysteresis/creep act)
+        for c in DRIVE_CHANNELS:
+            if c in record.columns and np.all(np.isfinite(record.columns[c])):
+                aux[c] = np.asarray(record.columns[c], float)
     bad = [c for c in ins + outs if not np.all(np.isfinite(record.columns[c]))]
     if bad:
         raise InputError(f"non-finite values in column(s) {', '.join(bad)}", record.source)
