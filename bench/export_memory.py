@@ -2,7 +2,7 @@
 
 A child process writes the recording (project HDF5 layout, all RECORD_CHANNELS, simulated-like
 signals); a second, fresh child process runs :func:`rigd.data.export.export_csv` on it and
-reports its own peak resident memory (``getrusage`` maxrss) and wall time. Bound: 200 MB.
+reports its own peak resident memory (``VmHWM``) and wall time. Bound: 200 MB.
 """
 
 from __future__ import annotations
@@ -45,14 +45,23 @@ with h5py.File(path, "w", libver="latest") as f:
         ds[s:s + m] = blk
 """
 
+# Peak resident memory from /proc/self/status VmHWM: it belongs to this process's own address
+# space (reset by execve). getrusage's ru_maxrss is NOT reset by execve on Linux, so a child
+# forked from a large parent (the bench process after other sections) would report the
+# parent's size.
 EXPORT = r"""
-import json, resource, sys, time
+import json, sys, time
+def hwm_mb():
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
 from rigd.data.export import export_csv
-base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+base = hwm_mb()
 t0 = time.perf_counter()
 rows = export_csv(sys.argv[1], sys.argv[2])
 dt = time.perf_counter() - t0
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+peak = hwm_mb()
 print(json.dumps({"rows": rows, "export_s": dt, "peak_mb": peak, "base_mb": base}))
 """
 
