@@ -11,7 +11,11 @@ strength (docs/plant.md). How the two effects the plant does not switch are pose
 * ``actuator_dynamics``: the bearing model is fed the references r instead of the valve
   positions u (the PD-controlled valves are the missing dynamics);
 * ``cross_coupling``: a decoupled bearing model (diagonal K, D, B) on a record at
-  Ω = 3000 rpm, where the film and the gyroscopic terms couple the axes.
+  Ω = 3000 rpm, where the film and the gyroscopic terms couple the axes;
+* ``hysteresis`` and ``creep`` (valve effects on the drive, inside the PD loops): the
+  actuator model (r -> u) on records with the slow multi-level excitation of
+  config/experiments/multilevel_slow.yaml (4 s, 7 levels ±1 V, holds ≥ 50 ms), long enough
+  for creep to drift and settle between steps.
 """
 
 import numpy as np
@@ -33,6 +37,11 @@ def record(effects=None, seed=1, omega=0.0, p_inj=4.0, hold_s=0.001, seconds=2.0
                      switch_probability=0.7)
     return sim.simulate_record(excitation=exc, seed=seed, omega_rpm=omega, p_inj_bar=p_inj,
                                effects=effects)
+
+
+def slow_record(effects=None, seed=1, omega=0.0, p_inj=4.0, seconds=4.0):
+    """The excitation of config/experiments/multilevel_slow.yaml (holds >= 50 ms)."""
+    return record(effects, seed=seed, omega=omega, p_inj=p_inj, hold_s=0.05, seconds=seconds)
 
 
 def decoupled_bearing():
@@ -90,3 +99,39 @@ def test_plant_two_hidden_effects_both_found_error_falls_each_step(pair, omega):
     assert all(b > a for a, b in zip(fits, fits[1:])), fits
     # the second effect's own finding carries the fit after both were added
     assert sd.findings[1].fit_percent_with == pytest.approx(fits[2])
+
+
+@pytest.mark.parametrize("effect", ["hysteresis", "creep"])
+def test_plant_valve_effect_ranked_first_and_error_falls(effect):
+    """The plant's Bouc-Wen hysteresis / two-lag creep on each valve's drive, inside the PD
+    loops, at their default strength: found first and alone, error cut >= 3x."""
+    sd = diagnose_record(slow_record([effect]), submodels=["actuator"]).parts[0]
+    top = sd.findings[0]
+    assert top.effect == effect, [(f.effect, f.score, f.significant) for f in sd.findings]
+    assert [f.effect for f in sd.findings if f.significant] == [effect]
+    assert (100 - sd.fit_percent) >= 3 * (100 - top.fit_percent_with), (
+        sd.fit_percent, top.fit_percent_with)
+    assert [s.added for s in sd.steps] == [None, effect]
+    other = "creep" if effect == "hysteresis" else "hysteresis"
+    assert not any(c.effect == other for c in sd.cannot_reveal)  # both were tested
+
+
+@pytest.mark.parametrize("omega,p_inj", [(0.0, 3.0), (1500.0, 5.0), (3000.0, 7.0)])
+def test_plant_slow_excitation_no_hidden_effect_nothing_significant(omega, p_inj):
+    """No valve effect hidden: on the slow multi-level records (where hysteresis and creep
+    are both revealable and refitted) nothing is significant, 5 seeds per point."""
+    for seed in range(5):
+        sd = diagnose_record(slow_record(None, seed=20 + seed, omega=omega, p_inj=p_inj,
+                                         seconds=3.0), submodels=["actuator"]).parts[0]
+        assert not sd.cannot_reveal, sd.cannot_reveal
+        found = [f.effect for f in sd.findings if f.significant]
+        assert not found, (seed, omega, p_inj, found)
+
+
+def test_plant_fast_excitation_cannot_reveal_creep():
+    """Holds of ~1 ms cannot show a drift of tens of ms: creep is listed as not revealable,
+    with the slow multi-level experiment named."""
+    sd = diagnose_record(record(["creep"], seconds=1.0), submodels=["actuator"],
+                         refit=False).parts[0]
+    c = [c for c in sd.cannot_reveal if c.effect == "creep"]
+    assert c and "multilevel_slow.yaml" in c[0].experiment, sd.cannot_reveal
