@@ -186,6 +186,11 @@ def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             big = ref.fit_percent - fp >= MIN_FIT_GAIN
             f.significant = bool(((sig_ok and gain >= MIN_REFIT_GAIN) or strong) and big)
             f.evidence["refit_seconds"] = ref.seconds
+            why_not = eff.implausible(ctx, np.asarray(ref.theta)[len(ctx.theta):])
+            if why_not is not None:
+                # it helps, but not as the physics its name says: unexplained, not named
+                f.evidence["implausible"] = why_not
+                f.significant = False
         else:
             f.evidence["refit"] = "not refitted: no signature in the residual"
         findings.append(f)
@@ -339,6 +344,13 @@ def _tests_and_unexplained(sd: SubDiagnosis) -> None:
                      f"({100 * pk['share']:.0f} % of the residual power"
                      f"{', near a model resonance' if near_res else ''}), "
                      "not explained by any known effect")})
+    for f in sd.findings:
+        why_not = f.evidence.get("implausible")
+        if why_not and f.fit_percent_with - sd.final.fit_percent >= MIN_FIT_GAIN:
+            unexplained.append({
+                "where": {"effect_tried": f.effect},
+                "fit_gain_percent": round(f.fit_percent_with - sd.final.fit_percent, 3),
+                "text": f"{why_not} ({f.effect} refit: fit {f.fit_percent_with:.2f} %)"})
     a = np.abs(yb[v] - yb[v].mean(axis=0)).max(axis=1)
     edges, rms = R.by_amplitude(rb, a, 4)
     if rms[0] > 0 and rms[-1] / rms[0] > 2.5 and "cubic_stiffness" not in sig and rel > 1e-3:

@@ -392,6 +392,16 @@ class Effect:
         """State-level effects without a state model: input correction u' − u from p."""
         raise NotImplementedError
 
+    def implausible(self, ctx: Context, theta_e: np.ndarray) -> str | None:
+        """Why the refitted effect is not physically what its name says, else None.
+
+        A refit can improve the fit with parameter values that do not describe the named
+        physics (e.g. a "transport delay" of a twentieth of a sample soaking up unmodelled fast
+        dynamics). Such an effect is not named significant; the improvement is reported as
+        unexplained structure with this text, never forced onto the name.
+        """
+        return None
+
     def warm_start(self, ctx: Context, sig: "SignatureFit") -> np.ndarray | None:
         """Effect parameters to start the refit from (default: theta0_effect)."""
         return None

@@ -15,6 +15,9 @@ from rigd.effects.base import CannotReveal, Context, Effect
 
 MAX_DELAY_S = 0.004   # scan range of the signature, s
 MAX_SCAN = 40         # at most this many trial delays
+#: a fitted delay below this (samples) is not called a transport delay: at the record's rate
+#: it cannot be told from unmodelled fast dynamics (a higher-order valve or sensor response)
+MIN_DELAY_SAMPLES = 0.5
 
 
 class Delay(Effect):
@@ -67,6 +70,16 @@ class Delay(Effect):
                 f"{ctx.fs:g} Hz): a transport delay (valve to film force) or sensor/computation "
                 f"latency; residual–input cross-correlation peaks at a positive lag; it explains "
                 f"{100 * sig.score:.0f} % of the residual", ev)
+
+    def implausible(self, ctx, theta_e):
+        d = float(theta_e[0])
+        if d >= MIN_DELAY_SAMPLES:
+            return None
+        return (f"a lag of {d:.2f} samples ({1e6 * d / ctx.fs:.0f} µs) improves the fit, but a "
+                f"delay shorter than {MIN_DELAY_SAMPLES:g} sample cannot be told from "
+                f"unmodelled fast dynamics at {ctx.fs:g} Hz: the model misses some "
+                "high-frequency phase lag (e.g. valve or sensor dynamics of higher order than "
+                "the model), not a transport delay")
 
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):
