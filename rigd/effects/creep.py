@@ -54,6 +54,13 @@ def creep_terms(x: np.ndarray, taus, fs: float) -> list[np.ndarray]:
     return [lag1(x, t, fs) - x for t in taus]
 
 
+def initial_terms(n: int, taus, fs: float) -> list[np.ndarray]:
+    """exp(−t/τ) for each τ: the creep states' own decay when the record starts mid-creep
+    (after a step before the record began, or the valves settling at start-up)."""
+    t = np.arange(n) / fs
+    return [np.exp(-t / max(tau, 1e-9)) for tau in taus]
+
+
 def held_share(u: np.ndarray, fs: float, min_hold_s: float = MIN_HOLD_S) -> float:
     """Share of samples inside stretches where the input holds still ≥ ``min_hold_s``."""
     u = np.asarray(u, float)
@@ -83,9 +90,11 @@ class Creep(Effect):
 
     # --- signature ---------------------------------------------------------------------
     def _regs(self, ctx: Context, taus) -> list[np.ndarray]:
+        """Per axis j: the two creep terms of its drive, then the two initial-state decays."""
         x = drives(ctx.data)
+        n = x.shape[0]
         return [ctx.through_model(h, j) for j in range(ctx.nu)
-                for h in creep_terms(x[:, j], taus, ctx.fs)]
+                for h in (*creep_terms(x[:, j], taus, ctx.fs), *initial_terms(n, taus, ctx.fs))]
 
     def signature(self, ctx: Context) -> SignatureFit:
         best, best_t = None, GRID[0]
@@ -101,7 +110,7 @@ class Creep(Effect):
 
     def explain(self, ctx, sig):
         taus = sig.extra.get("tau_s", list(GRID[0]))
-        c = np.asarray(sig.beta, float).reshape(ctx.nu, len(taus))
+        c = np.asarray(sig.beta, float).reshape(ctx.nu, 2 * len(taus))[:, :len(taus)]
         j, m = np.unravel_index(np.argmax(np.abs(c)), c.shape)
         ev = {"weights": {ctx.label(i, "in"): c[i].tolist() for i in range(ctx.nu)},
               "time_constants_ms": [1000 * t for t in taus],
@@ -115,20 +124,24 @@ class Creep(Effect):
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):
         _, nu = dims(base)
+        # weights of the two lags per axis, the creep states at the start of the record
+        # (V of drive; 0 = the record starts in creep equilibrium), the two time constants
         return ([f"creep_c{m}_{j}" for j in range(nu) for m in range(2)]
+                + [f"creep_init{m}_{j}" for j in range(nu) for m in range(2)]
                 + ["creep_tau1_s", "creep_tau2_s"])
 
     def theta0_effect(self, base, data):
         _, nu = dims(base)
-        return np.concatenate([np.zeros(2 * nu), GRID[3]])
+        return np.concatenate([np.zeros(4 * nu), GRID[3]])
 
     def param_bounds(self, base):
         _, nu = dims(base)
-        return (np.concatenate([np.full(2 * nu, -np.inf), [TAU_BOUNDS[0]] * 2]),
-                np.concatenate([np.full(2 * nu, np.inf), [TAU_BOUNDS[1]] * 2]))
+        return (np.concatenate([np.full(4 * nu, -np.inf), [TAU_BOUNDS[0]] * 2]),
+                np.concatenate([np.full(4 * nu, np.inf), [TAU_BOUNDS[1]] * 2]))
 
     def warm_start(self, ctx, sig):
-        return np.concatenate([np.asarray(sig.beta, float),
+        b = np.asarray(sig.beta, float).reshape(ctx.nu, 4)
+        return np.concatenate([b[:, :2].ravel(), b[:, 2:].ravel(),
                                sig.extra.get("tau_s", list(GRID[3]))])
 
     def simulate_with(self, sim, theta_e, data, base):
@@ -136,13 +149,15 @@ class Creep(Effect):
         nu = u.shape[1]
         te = np.asarray(theta_e, float)
         c = te[:2 * nu].reshape(nu, 2)
-        taus = te[2 * nu:2 * nu + 2]
-        if not np.any(c):
+        c_init = te[2 * nu:4 * nu].reshape(nu, 2)
+        taus = te[4 * nu:4 * nu + 2]
+        if not (np.any(c) or np.any(c_init)):
             return sim(data)
         x = drives(data)
         fs = float(data.fs)
         v = u.copy()
+        decay = initial_terms(u.shape[0], taus, fs)
         for j in range(nu):
             for m, h in enumerate(creep_terms(x[:, j], taus, fs)):
-                v[:, j] += c[j, m] * h
+                v[:, j] += c[j, m] * h + c_init[j, m] * decay[m]
         return sim(replace_inputs(data, v))
