@@ -32,7 +32,7 @@ def _data(effect, seed=0):
 
 # Fast unit-level checks on the private rig (an open-loop valve pair: no recorded drives, so
 # hysteresis and creep act on the input itself). The must-show tests run on the project's
-# plant (test_plant_effects.py), hysteresis and creep inside the PD valve loops included.
+# plant (test_diagnose_plant.py), hysteresis and creep inside the PD valve loops included.
 @pytest.mark.parametrize("effect", ["hysteresis", "creep", "cubic_stiffness"])
 def test_hidden_effect_ranked_first_and_error_falls(effect):
     data, sub, s = _data(effect)
