@@ -5,8 +5,8 @@ Figures (``make bench`` / ``python -m bench loop``):
 * ``lockstep_cycles_per_s``: loop + simulated plant + recording of every frame to an HDF5 file,
   10^6 cycles, wall time until the file is closed.
 * ``loop_compute_us`` {p50, p99, p999}: one real-time cycle call (``kernels.rt_cycle``: Eq. 1, a
-  4th-order K∞, four PD loops, supervisor, frame into the ring) timed from Python around each
-  call, dispatch included, plant excluded.
+  14th-order K∞ as ``make demo`` deploys, four PD loops, supervisor, frame into the ring) timed
+  from Python around each call, dispatch included, plant excluded.
 * ``loop_kernel_ns``: the same cycle's cost inside a compiled batch (no dispatch), mean.
 * ``rt_lateness_us`` {p50, p99, p999, max}, ``rt_compute_us`` and ``rt_miss_fraction``: 10 s at
   5 kHz on the real-time clock with the simulated plant (``ControlLoop.timing()``).
@@ -24,7 +24,8 @@ from numba import njit
 RT_SECONDS = float(os.environ.get("RIGD_BENCH_RT_S", "10"))
 
 
-def _controller(n=4, seed=0):
+def _controller(n=14, seed=0):
+    """A stable random K∞ of the order `make demo` deploys (14 states, docs/design.md)."""
     from rigd.controller import Controller
 
     rng = np.random.default_rng(seed)
