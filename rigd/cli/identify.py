@@ -38,6 +38,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="prediction error (one-step predictor, default) or output error")
     p.add_argument("--split", type=float, default=2.0 / 3.0,
                    help="fraction of samples for estimation; the rest validates (default 2/3)")
+    p.add_argument("--hold", choices=["auto", "zoh", "foh"], default="auto",
+                   help="inputs between samples: held (zoh) or linear (foh); auto: as the "
+                   "record declares (metadata 'intersample'), known for rigd recordings, "
+                   "else chosen from the data by fit (docs/identify.md)")
     p.add_argument("--no-offsets", action="store_true", help="do not subtract offsets")
     p.add_argument("--no-median", action="store_true", help="no median filter on e_x, e_y")
     p.add_argument("--no-runout-filter", action="store_true",
@@ -146,6 +150,8 @@ def _print_human(model, out) -> None:
               + ", ".join(f"{o} {v:.2f} %" for o, v in zip(fp["outputs"], fp["validation"]))
               + "   (estimation: " + ", ".join(f"{v:.2f} %" for v in fp["estimation"]) + ")",
               file=out)
+        if "input_hold" in fp:
+            print(f"  inputs between samples: {_hold_text(fp['input_hold'])}", file=out)
         for n, v, s in zip(sm.structure.names, sm.theta, sm.std):
             print(f"  {n:>16s} = {v: .6g} ± {s:.2g}", file=out)
         ro = sm.readouts
@@ -159,6 +165,12 @@ def _print_human(model, out) -> None:
             g = np.asarray(ro["static_gain"], dtype=float)
             rows = "; ".join(" ".join(f"{v:.4g}" for v in row) for row in np.atleast_2d(g))
             print(f"  static gain (output per input): [{rows}]", file=out)
+
+
+def _hold_text(d: dict) -> str:
+    from rigd.ident.hold import HoldChoice
+
+    return HoldChoice(d["hold"], d["source"], d.get("fits", {})).describe()
 
 
 def _fmt_poles(poles) -> str:
@@ -192,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
     init = load_model(args.init) if args.init else None
     model = identify_record(record, args.model, runout=runout, options=prefilter_options(args),
                             method=args.method, init=init, effects=effects, split=args.split,
-                            data_hash=sha256_file(args.data))
+                            data_hash=sha256_file(args.data), hold=args.hold)
     if args.out:
         model.save(args.out)
     if args.json:

@@ -21,7 +21,8 @@ import numpy as np
 from rigd.data.record import Record
 from rigd.errors import InputError
 from rigd.ident.iddata import IdData, channels_for, from_record
-from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
+from rigd.ident.hold import choose_hold
+from rigd.ident.mechanical import structure_for
 from rigd.ident.modelfile import ModelFile, Submodel, apply_effects
 from rigd.ident.pem import fit, fit_percent
 from rigd.ident.prefilter import PrefilterOptions, apply_prefilters
@@ -122,7 +123,7 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                     runout: Record | None = None, options: PrefilterOptions | None = None,
                     method: str = "pem", init: ModelFile | None = None,
                     effects: list[str] | None = None, split: float = DEFAULT_SPLIT,
-                    data_hash: str | None = None) -> ModelFile:
+                    data_hash: str | None = None, hold: str | None = None) -> ModelFile:
     """Identify the asked sub-models of ``record``; returns a :class:`ModelFile`.
 
     Parameters
@@ -142,6 +143,9 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         Fraction of samples used for estimation (rest: validation).
     data_hash : str, optional
         ``sha256:...`` of the data file.
+    hold : {"zoh", "foh", "auto"}, optional
+        How the inputs behave between samples; default/``"auto"``: declared by the record,
+        known for rigd recordings, else chosen from the data (:mod:`rigd.ident.hold`).
     """
     if isinstance(submodels, str):
         submodels = resolve_submodels(record, submodels)
@@ -156,7 +160,8 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         prefilter_reports[sm] = rep
         k = int(round(data.n * split))
         est = data.slice(0, k)
-        base = structure_for(sm, data, hold=DEFAULT_HOLD[sm])
+        choice = choose_hold(sm, est, record.meta, hold, where=record.source)
+        base = structure_for(sm, data, hold=choice.hold)
         th0 = _start_values(base, init, sm, est)
         res = fit(base, est, method=method, theta0=th0)
         structure, theta, std, used = base, res.theta, res.std, res.method
@@ -176,7 +181,8 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         subs[sm] = Submodel(sm, structure, theta, std, used,
                             {"estimation": fe.tolist(), "validation": fv.tolist(),
                              "validation_mean": float(np.mean(fv)),
-                             "outputs": data.output_names},
+                             "outputs": data.output_names,
+                             "input_hold": choice.as_dict()},
                             readouts, residual_stats(data.y[k:], ysim[k:], data.output_names))
         subs[sm].residual["iterations"] = {"nfev": res.nfev, "status": res.status}
         split_info = {"estimation": [0, k], "validation": [k, data.n], "fraction": split}
