@@ -42,8 +42,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="most effects added one after the other (forward selection, default 3)")
     p.add_argument("--effects", metavar="NAME[,NAME...]", help="only test these effects")
     p.add_argument("--hold", choices=["auto", "zoh", "foh"], default="auto",
-                   help="input intersample behaviour (auto, as rigd identify: zoh for "
-                        "commanded references, foh for measured inputs)")
+                   help="inputs between samples: held (zoh) or linear (foh); auto, as rigd "
+                        "identify: declared by the record, known for rigd recordings, else "
+                        "chosen from the data by fit")
     p.add_argument("--no-refit", action="store_true",
                    help="signature tests only (fit_percent_with = base fit)")
     p.add_argument("--fs", help="sample rate of a plain CSV without metadata, Hz (number or "

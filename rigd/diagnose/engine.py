@@ -27,6 +27,7 @@ import numpy as np
 from rigd.diagnose import residual as R
 from rigd.effects import REGISTRY
 from rigd.effects.base import CannotReveal, Context, Finding
+from rigd.ident.hold import choose_hold
 from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
 
 #: share of validation error energy a refit must remove for significance
@@ -423,8 +424,9 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
     The base model of each sub-model is what ``rigd identify --method oe`` fits on the same
     samples: the same prefilters (:func:`rigd.ident.workflow.prepare`, default
     :class:`~rigd.ident.prefilter.PrefilterOptions`), the same structure and input hold
-    (``hold="auto"``: :data:`rigd.ident.mechanical.DEFAULT_HOLD`, FOH for measured inputs,
-    ZOH for commanded references; or ``zoh``/``foh`` for every sub-model) and, without
+    (``hold="auto"``: as :func:`rigd.ident.hold.choose_hold` resolves it — declared by the
+    record, known for rigd recordings, else chosen from the data; or ``zoh``/``foh`` for every
+    sub-model) and, without
     ``est``/``val``, the same split (first ``split`` of the samples estimate, default 2/3).
 
     Records longer than ``max_samples`` are analysed on their central ``max_samples``
@@ -458,9 +460,10 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
     parts = []
     for sub in subs:
         data, _ = prepare(record, sub, options, runout)
-        h = DEFAULT_HOLD.get(sub, "zoh") if hold == "auto" else hold
-        notes.append(f"{sub}: inputs {'linear between samples (FOH)' if h == 'foh' else 'held over each sample (ZOH)'}")
-        structure = structure_for(sub, data, hold=h)
+        choice = choose_hold(sub, data.slice(est.start, est.stop), record.meta, hold,
+                             where=record.source)
+        notes.append(f"{sub}: inputs between samples: {choice.describe()}")
+        structure = structure_for(sub, data, hold=choice.hold)
         sd = diagnose_data(data, sub, structure=structure, est=est, val=val, effects=effects,
                            refit=refit)
         sd.window = window

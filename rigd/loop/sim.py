@@ -11,6 +11,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from rigd import __version__
 from rigd.config import LoadedConfig, RigConfig, default_config, load_config
 from rigd.data.record import Record
 from rigd.frame import RECORD_NAMES
@@ -102,6 +103,7 @@ def simulate_record(config=None, excitation=None, *, effects=None, seed: int | N
                          "p_inj_bar": info.get("p_inj_bar", p_inj_bar),
                          "kind": kind, "seed": info.get("seed", seed),
                          "effects": info.get("effects_enabled", []),
-                         "first_seq": res.first_seq, "faults": res.faults}
+                         "first_seq": res.first_seq, "faults": res.faults,
+                         "rigd_version": __version__}   # made by rigd's loop, as a recording
     m.update(meta or {})
     return Record(cols, lc.config.loop.fs_hz, m, source="<simulate_record>")

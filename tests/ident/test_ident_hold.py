@@ -112,3 +112,26 @@ def test_cli_hold_declared_in_csv_and_forced(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["identify", str(tmp_path / "d.csv"), "--hold", "cubic"])
     assert e.value.code == 2 and "--hold" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("hold", ["zoh", "foh"])
+def test_diagnose_no_false_delay_and_a_real_delay_named(hold):
+    """Without the choice, a held input read as linear looked like a half-sample ``delay``
+    (significant, fit 94 -> 99 %). Now nothing is significant on the plain record, and a
+    real 3-sample delay is still named. A held input is itself about T/2 late against a
+    linear one, so the delay found is compared in one convention (linear inputs): with the
+    hold the data chose, d + 0.5 if held, against 3 + 0.5 if the input was made held."""
+    from rigd.diagnose.engine import diagnose_record
+
+    plain = diagnose_record(_record(hold, seed=3)).parts[0]
+    assert not [f.effect for f in plain.findings if f.significant]
+    assert plain.fit_percent >= 99.0
+    delayed = diagnose_record(_record(hold, seed=3, delay=3)).parts[0]
+    top = delayed.findings[0]
+    assert top.effect == "delay" and top.significant
+    last = delayed.steps[-1]
+    assert last.structure.names[-1] == "delay_samples"
+    used = delayed.ctx.structure.hold
+    found = last.theta[-1] + (0.5 if used == "zoh" else 0.0)
+    truth = 3.0 + (0.5 if hold == "zoh" else 0.0)
+    assert abs(found - truth) < 0.2, (used, last.theta[-1])
