@@ -13,7 +13,8 @@ from __future__ import annotations
 from typing import Any, Iterable
 
 from rigd.effects.actuator_dynamics import ActuatorDynamics
-from rigd.effects.base import CannotReveal, Context, Effect, ExtendedStructure, Finding
+from rigd.effects.base import Effect, ExtendedStructure
+from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.effects.creep import Creep
 from rigd.effects.cross_coupling import CrossCoupling
 from rigd.effects.cubic_stiffness import CubicStiffness

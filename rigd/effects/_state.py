@@ -22,7 +22,7 @@ import numba
 import numpy as np
 from scipy.linalg import expm
 
-from rigd.effects.base import replace_inputs
+from rigd.effects.context import replace_inputs
 
 
 def zoh(A: np.ndarray, B: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:

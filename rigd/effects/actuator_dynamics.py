@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from rigd.effects._signals import derivative, lag1
-from rigd.effects.base import Context, Effect, dims, replace_inputs
+from rigd.effects.base import Effect, dims
+from rigd.effects.context import Context, replace_inputs
 
 TAU_MAX_S = 0.05
 

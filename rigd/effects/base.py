@@ -17,222 +17,30 @@ An *effect* is one physical phenomenon a grey-box model may leave out (catalogue
 Structures follow the contract of ``docs/ARCHITECTURE.md``: ``names``, ``theta0(data)``,
 ``simulate(theta, data) -> (n, ny)``; data carry ``inputs`` (n, nu), ``outputs`` (n, ny),
 ``fs`` and optionally the shaft angle ``phi``.
+
+This module holds :class:`Effect`, :class:`ExtendedStructure` and the helpers
+:func:`accepts_hooks` / :func:`dims`; the context and results live in
+:mod:`rigd.effects.context`, the signature regression in :mod:`rigd.effects.signature`, and
+both are re-exported here (``from rigd.effects.base import Context, Finding, ...`` keeps working).
 """
 
 from __future__ import annotations
 
 import copy
-import dataclasses
-from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Callable
 
 import numpy as np
 
+from .context import CannotReveal, Context, Finding, get_phi, replace_inputs
+from .signature import SignatureFit, effective_n, signature_fit
 
-# --------------------------------------------------------------------------------------
-# results
-# --------------------------------------------------------------------------------------
-@dataclass
-class Finding:
-    """What the diagnosis concluded about one effect on one sub-model.
-
-    Attributes
-    ----------
-    effect : str
-        Canonical effect name.
-    score : float
-        Share (0..1) of the base model's validation residual energy the effect removes:
-        from the refit when one was made, else from the signature regression.
-    significant : bool
-        Signature significant *and* (when refitted) the refit lowers the validation error.
-    explanation : str
-        Plain-language physics and evidence.
-    submodel : str
-        ``actuator``, ``bearing`` or ``generic``.
-    signature_score : float
-        Out-of-sample share of residual energy explained by the linearised signature.
-    fit_percent_with : float or None
-        Validation fit (%) after adding the effect and refitting.
-    evidence : dict
-        Numbers behind the explanation (frequencies, amplitudes, lags...).
-    """
-
-    effect: str
-    score: float
-    significant: bool
-    explanation: str
-    submodel: str = "generic"
-    signature_score: float = 0.0
-    fit_percent_with: float | None = None
-    evidence: dict[str, Any] = field(default_factory=dict)
-
-    def to_json(self, with_submodel: bool = True) -> dict[str, Any]:
-        d: dict[str, Any] = {
-            "effect": self.effect,
-            "significant": bool(self.significant),
-            "score": round(float(self.score), 4),
-            "explanation": self.explanation,
-            "fit_percent_with": (None if self.fit_percent_with is None
-                                 else round(float(self.fit_percent_with), 3)),
-            "signature_score": round(float(self.signature_score), 4),
-        }
-        if with_submodel:
-            d["submodel"] = self.submodel
-        return d
-
-
-@dataclass
-class CannotReveal:
-    """An effect this record cannot show, why, and the experiment that would."""
-
-    effect: str
-    why: str
-    experiment: str
-    submodel: str = "generic"
-
-    def to_json(self, with_submodel: bool = True) -> dict[str, Any]:
-        d = {"effect": self.effect, "why": self.why, "experiment": self.experiment}
-        if with_submodel:
-            d["submodel"] = self.submodel
-        return d
-
-
-# --------------------------------------------------------------------------------------
-# data helpers (work with rigd.ident.IdData or any object with inputs/outputs/fs)
-# --------------------------------------------------------------------------------------
-def replace_inputs(data: Any, u: np.ndarray) -> Any:
-    """A shallow copy of ``data`` whose ``inputs`` are ``u`` (n, nu)."""
-    u = np.asarray(u, dtype=float)
-    if hasattr(data, "with_inputs"):
-        return data.with_inputs(u)
-    if dataclasses.is_dataclass(data):
-        return dataclasses.replace(data, inputs=u)
-    new = copy.copy(data)
-    new.inputs = u
-    return new
-
-
-def get_phi(data: Any) -> np.ndarray | None:
-    """The shaft angle (rad) carried by ``data``, or None."""
-    phi = getattr(data, "phi", None)
-    if phi is None:
-        aux = getattr(data, "aux", None) or {}
-        phi = aux.get("phi") if isinstance(aux, dict) else None
-    return None if phi is None else np.asarray(phi, dtype=float)
-
-
-# --------------------------------------------------------------------------------------
-# diagnosis context
-# --------------------------------------------------------------------------------------
-@dataclass
-class Context:
-    """Everything an effect's signature needs about one sub-model fitted to one record.
-
-    Attributes
-    ----------
-    submodel : str
-        ``actuator`` (r -> u), ``bearing`` (u -> e) or ``generic``.
-    data : object
-        Identification data (inputs, outputs, fs, phi) of the whole record.
-    structure : object
-        The fitted base structure; ``theta`` its parameters.
-    yhat : ndarray (n, ny)
-        Base model simulation over the whole record.
-    est, val : slice
-        Estimation and validation parts (the base was fitted on ``est``).
-    omega_hz : float
-        Shaft speed Ω / 2π, Hz (0 for non-rotor records).
-    resonances_hz : list of float
-        Resonance frequencies of the base model.
-    input_names, output_names : list of str
-    """
-
-    submodel: str
-    data: Any
-    structure: Any
-    theta: np.ndarray
-    yhat: np.ndarray
-    est: slice
-    val: slice
-    omega_hz: float = 0.0
-    resonances_hz: list[float] = field(default_factory=list)
-    input_names: list[str] = field(default_factory=list)
-    output_names: list[str] = field(default_factory=list)
-    _zero_response: np.ndarray | None = None
-
-    # derived ---------------------------------------------------------------------------
-    @property
-    def fs(self) -> float:
-        return float(self.data.fs)
-
-    @property
-    def u(self) -> np.ndarray:
-        return np.asarray(self.data.inputs, dtype=float)
-
-    @property
-    def y(self) -> np.ndarray:
-        return np.asarray(self.data.outputs, dtype=float)
-
-    @property
-    def residual(self) -> np.ndarray:
-        return self.y - self.yhat
-
-    @property
-    def phi(self) -> np.ndarray | None:
-        return get_phi(self.data)
-
-    @property
-    def n(self) -> int:
-        return self.y.shape[0]
-
-    @property
-    def ny(self) -> int:
-        return self.y.shape[1]
-
-    @property
-    def nu(self) -> int:
-        return self.u.shape[1]
-
-    def through_model(self, v: np.ndarray, channel: int | None = None) -> np.ndarray:
-        """Response (n, ny) of the fitted base model to ``v`` fed in place of its inputs.
-
-        ``v`` is (n, nu), or (n,) fed into input ``channel`` only. The free response (initial
-        state) is removed, so the result is linear in ``v``: the model-filtered regressor of
-        an effect acting where the input acts (force, valve position).
-        """
-        v = np.asarray(v, dtype=float)
-        if v.ndim == 1:
-            full = np.zeros((v.shape[0], self.nu))
-            full[:, channel or 0] = v
-            v = full
-        if self._zero_response is None:
-            zero = replace_inputs(self.data, np.zeros_like(self.u))
-            self._zero_response = np.asarray(self.structure.simulate(self.theta, zero))
-        out = np.asarray(self.structure.simulate(self.theta, replace_inputs(self.data, v)))
-        return out - self._zero_response
-
-    def through_force(self, v: np.ndarray, axis: int) -> np.ndarray:
-        """Response (n, ny) of the fitted mechanical model to ``v`` (n,) added to the
-        mass-normalised force (acceleration) of output axis ``axis``: p̈ + D ṗ + K p = B u + e_axis v.
-
-        Falls back to :meth:`through_model` on input ``axis`` for structures without a
-        continuous state-space form.
-        """
-        from rigd.effects._state import simulate_state
-
-        cont = getattr(self.structure, "continuous", None)
-        if not callable(cont):
-            return self.through_model(v, min(axis, self.nu - 1))
-        A, B, C, _, _ = cont(self.theta)
-        nx = A.shape[0]
-        Bf = np.zeros((nx, 1))
-        Bf[nx // 2 + axis, 0] = 1.0  # states [p, ṗ]
-        return simulate_state(A, Bf, C, None, None, None, self.fs,
-                              np.asarray(v, float).reshape(-1, 1))
-
-    def label(self, i: int, kind: str = "out") -> str:
-        names = self.output_names if kind == "out" else self.input_names
-        return names[i] if i < len(names) else f"{kind}{i + 1}"
+__all__ = [
+    "ExtendedStructure", "Effect", "accepts_hooks", "dims",
+    # re-exported from rigd.effects.context
+    "Finding", "CannotReveal", "replace_inputs", "get_phi", "Context",
+    # re-exported from rigd.effects.signature
+    "SignatureFit", "effective_n", "signature_fit",
+]
 
 
 # --------------------------------------------------------------------------------------
@@ -405,84 +213,6 @@ class Effect:
     def warm_start(self, ctx: Context, sig: "SignatureFit") -> np.ndarray | None:
         """Effect parameters to start the refit from (default: theta0_effect)."""
         return None
-
-
-# --------------------------------------------------------------------------------------
-# signature regression
-# --------------------------------------------------------------------------------------
-@dataclass
-class SignatureFit:
-    """Result of regressing the residual on an effect's regressors.
-
-    ``score`` is 1 − ‖r_val − Φ_val β‖² / ‖r_val‖² clipped to [0, 1] (out of sample), ``f_p``
-    the p-value of the F test on the estimation part with an effective sample size
-    corrected for the residual's autocorrelation.
-    """
-
-    score: float
-    beta: np.ndarray
-    f_p: float
-    k: int
-    score_est: float = 0.0
-    extra: dict[str, Any] = field(default_factory=dict)
-
-
-def _weights(ctx: Context) -> np.ndarray:
-    """Per-output weights 1/std(y) so that every output counts alike (as the mean fit)."""
-    s = np.std(ctx.y[ctx.est], axis=0)
-    s[s == 0] = 1.0
-    return 1.0 / s
-
-
-def effective_n(r: np.ndarray, max_lag: int = 200) -> float:
-    """Effective number of independent samples of a (n,) series (Bartlett's formula)."""
-    r = r - r.mean()
-    n = r.shape[0]
-    if n < 4 or not np.any(r):
-        return float(n)
-    nfft = 1 << int(np.ceil(np.log2(2 * n)))
-    f = np.fft.rfft(r, nfft)
-    ac = np.fft.irfft(f * np.conj(f), nfft)[:min(max_lag, n - 1) + 1]
-    rho = ac / ac[0]
-    # sum until the first non-positive value (initial positive sequence)
-    stop = np.argmax(rho[1:] <= 0) + 1 if np.any(rho[1:] <= 0) else len(rho)
-    tau = 1.0 + 2.0 * np.sum(rho[1:stop])
-    return float(n / max(tau, 1.0))
-
-
-def signature_fit(ctx: Context, regs: Sequence[np.ndarray], ridge: float = 1e-9) -> SignatureFit:
-    """Least-squares fit of the (weighted, stacked) residual on the regressors."""
-    from scipy import stats
-
-    if not regs:
-        return SignatureFit(0.0, np.zeros(0), 1.0, 0)
-    w = _weights(ctx)
-    r = ctx.residual * w
-    Phi = np.stack([np.asarray(g, float) * w for g in regs], axis=-1)  # (n, ny, k)
-    k = Phi.shape[-1]
-    if not np.all(np.isfinite(Phi)) or np.max(np.abs(Phi)) > 1e100:
-        # a regressor from a diverging simulation (unstable extended model) carries no
-        # signature
-        return SignatureFit(0.0, np.zeros(k), 1.0, k)
-    re, rv = r[ctx.est].reshape(-1), r[ctx.val].reshape(-1)
-    Pe, Pv = Phi[ctx.est].reshape(-1, k), Phi[ctx.val].reshape(-1, k)
-    scale = np.sqrt(np.sum(Pe ** 2, axis=0))
-    scale[scale == 0] = 1.0
-    A = Pe / scale
-    beta_s = np.linalg.solve(A.T @ A + ridge * np.eye(k), A.T @ re)
-    beta = beta_s / scale
-    e_est = re - Pe @ beta
-    e_val = rv - Pv @ beta
-    ss0_e, ss0_v = float(re @ re), float(rv @ rv)
-    score = 0.0 if ss0_v == 0 else max(0.0, 1.0 - float(e_val @ e_val) / ss0_v)
-    score_est = 0.0 if ss0_e == 0 else max(0.0, 1.0 - float(e_est @ e_est) / ss0_e)
-    # F test with effective n from the autocorrelation of the estimation residual
-    neff = min(effective_n(ctx.residual[ctx.est, i]) for i in range(ctx.ny)) * ctx.ny
-    dof = max(neff - k, 1.0)
-    sse = max(float(e_est @ e_est), 1e-300)
-    F = ((ss0_e - sse) / k) / (sse / dof)
-    p = float(stats.f.sf(max(F, 0.0), k, dof))
-    return SignatureFit(score, beta, p, k, score_est)
 
 
 def accepts_hooks(structure: Any) -> bool:

@@ -16,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from rigd.effects._signals import derivative
-from rigd.effects.base import CannotReveal, Context, Effect, dims
+from rigd.effects.base import Effect, dims
+from rigd.effects.context import CannotReveal, Context
 
 
 def _offdiag(n: int) -> list[tuple[int, int]]:

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigd.effects.base import CannotReveal, Context, Effect, dims, get_phi
+from rigd.effects.base import Effect, dims
+from rigd.effects.context import CannotReveal, Context, get_phi
 
 HARMONICS = (1, 2)
 
