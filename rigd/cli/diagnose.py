@@ -54,7 +54,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigd.diagnose.engine import diagnose_record
+    from rigd.diagnose.record import diagnose_record
     from rigd.effects import REGISTRY
 
     est, val = _slice(args.est, "est"), _slice(args.val, "val")

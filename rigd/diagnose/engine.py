@@ -14,6 +14,9 @@ For one sub-model (``actuator`` r→u, ``bearing`` u→e, ``generic``):
    and its refit lowers the validation error energy by at least ``MIN_REFIT_GAIN``;
 5. what is left in the residual of the best model (narrow spectral peaks, amplitude
    dependence) and matches no significant effect is reported as *unexplained*, with where.
+
+This module is the per-data stepwise engine (:func:`diagnose_data`); whole records (sub-models,
+window, split, input hold) are diagnosed by :func:`rigd.diagnose.record.diagnose_record`.
 """
 
 from __future__ import annotations
@@ -26,8 +29,7 @@ import numpy as np
 
 from rigd.diagnose import residual as R
 from rigd.effects import REGISTRY
-from rigd.effects.base import CannotReveal, Context, Finding
-from rigd.ident.hold import choose_hold
+from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
 
 #: share of validation error energy a refit must remove for significance
@@ -39,8 +41,6 @@ STRONG_REFIT_GAIN = 0.5
 MIN_FIT_GAIN = 0.5
 #: significance level of the signature F test
 P_LEVEL = 1e-3
-#: longest stretch analysed (samples); longer records are analysed on a window
-MAX_SAMPLES = 40_000
 #: most effects added by the forward selection
 MAX_STEPS = 3
 
@@ -365,107 +365,15 @@ def _tests_and_unexplained(sd: SubDiagnosis) -> None:
 
 
 # --------------------------------------------------------------------------------------
-# records
+# the record level moved to rigd.diagnose.record; its names stay importable from here
 # --------------------------------------------------------------------------------------
-@dataclass
-class Diagnosis:
-    """Diagnosis of a record: one :class:`SubDiagnosis` per sub-model examined."""
-
-    parts: list[SubDiagnosis]
-    source: str = ""
-    notes: list[str] = field(default_factory=list)
-
-    def to_json(self) -> dict[str, Any]:
-        multi = len(self.parts) > 1
-        if multi:
-            fp: Any = {p.submodel: round(p.fit_percent, 3) for p in self.parts}
-        else:
-            fp = round(self.parts[0].fit_percent, 3)
-        findings = [f for p in self.parts for f in p.findings]
-        # significant (added) ones first in each part's order of addition, then by score
-        findings.sort(key=lambda f: (not f.significant, 0.0 if f.significant else -f.score,
-                                     f.evidence.get("step", 0) if f.significant else 0))
-        if multi:  # added effects of several parts: the larger step first
-            findings.sort(key=lambda f: (not f.significant, -f.score if f.significant else 0))
-        return {
-            "fit_percent": fp,
-            "findings": [f.to_json(True) for f in findings],
-            "cannot_reveal": [c.to_json(True) for p in self.parts for c in p.cannot_reveal],
-            "unexplained": [dict(u, submodel=p.submodel) for p in self.parts
-                            for u in p.unexplained],
-            "steps": ({p.submodel: [s.to_json() for s in p.steps] for p in self.parts}
-                      if multi else [s.to_json() for s in self.parts[0].steps]),
-            "tests": {p.submodel: p.tests for p in self.parts},
-            "analysed_samples": {p.submodel: list(p.window) for p in self.parts},
-            "notes": list(self.notes),
-        }
+_MOVED_TO_RECORD = ("Diagnosis", "diagnose_record", "submodels_of", "MAX_SAMPLES")
 
 
-def submodels_of(record) -> list[str]:
-    """Sub-models a record supports: generic, or actuator and/or bearing."""
-    if record.is_generic:
-        return ["generic"]
-    out = []
-    if record.has("r_x", "r_y", "u_x", "u_y"):
-        out.append("actuator")
-    if record.has("u_x", "u_y", "e_x", "e_y"):
-        out.append("bearing")
-    return out
+def __getattr__(name: str) -> Any:
+    """Lazy re-export of :mod:`rigd.diagnose.record` names (that module imports this one)."""
+    if name in _MOVED_TO_RECORD:
+        from rigd.diagnose import record
 
-
-def diagnose_record(record, runout=None, submodels: list[str] | None = None,
-                    est: slice | None = None, val: slice | None = None,
-                    effects: list[str] | None = None, refit: bool = True,
-                    max_samples: int = MAX_SAMPLES, options=None,
-                    hold: str = "auto", split: float | None = None,
-                    max_steps: int = MAX_STEPS) -> Diagnosis:
-    """Diagnose a :class:`rigd.data.Record` (prefilters of §4.4, then each sub-model).
-
-    The base model of each sub-model is what ``rigd identify --method oe`` fits on the same
-    samples: the same prefilters (:func:`rigd.ident.workflow.prepare`, default
-    :class:`~rigd.ident.prefilter.PrefilterOptions`), the same structure and input hold
-    (``hold="auto"``: as :func:`rigd.ident.hold.choose_hold` resolves it — declared by the
-    record, known for rigd recordings, else chosen from the data; or ``zoh``/``foh`` for every
-    sub-model) and, without
-    ``est``/``val``, the same split (first ``split`` of the samples estimate, default 2/3).
-
-    Records longer than ``max_samples`` are analysed on their central ``max_samples``
-    samples (a note says which; ``rigd identify --range A:B`` fits the same window).
-    """
-    from rigd.errors import InputError
-    from rigd.ident.workflow import DEFAULT_SPLIT, prepare
-
-    subs = submodels or submodels_of(record)
-    if not subs:
-        raise InputError("record has neither inputs/outputs metadata nor the rotor columns "
-                         "r_x, r_y, u_x, u_y (actuator) or u_x, u_y, e_x, e_y (bearing)",
-                         record.source)
-    if hold not in ("auto", "zoh", "foh"):
-        raise InputError(f"hold must be auto, zoh or foh (got {hold!r})", "--hold")
-    notes = []
-    n = record.n
-    window = (0, n)
-    if est is None and val is None and n > max_samples:
-        a = (n - max_samples) // 2
-        window = (a, a + max_samples)
-        notes.append(f"long record: analysed samples {window[0]}..{window[1]} of {n} "
-                     f"(rigd identify --range {window[0]}:{window[1]} fits the same window)")
-        record = record.slice(*window)
-    if est is None and val is None:
-        frac = DEFAULT_SPLIT if split is None else float(split)
-        if not 0.2 <= frac <= 0.95:
-            raise InputError(f"split must be within 0.2..0.95 (got {frac})", "--split")
-        k = int(round(record.n * frac))
-        est, val = slice(0, k), slice(k, record.n)
-    parts = []
-    for sub in subs:
-        data, _ = prepare(record, sub, options, runout)
-        choice = choose_hold(sub, data.slice(est.start, est.stop), record.meta, hold,
-                             where=record.source)
-        notes.append(f"{sub}: inputs between samples: {choice.describe()}")
-        structure = structure_for(sub, data, hold=choice.hold)
-        sd = diagnose_data(data, sub, structure=structure, est=est, val=val, effects=effects,
-                           refit=refit)
-        sd.window = window
-        parts.append(sd)
-    return Diagnosis(parts, record.source, notes)
+        return getattr(record, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -12,7 +12,7 @@ from rigd.report import Report
 
 
 def write_report(diag, out: str | Path) -> Path:
-    """Write ``index.html`` and figures for a :class:`rigd.diagnose.engine.Diagnosis`."""
+    """Write ``index.html`` and figures for a :class:`rigd.diagnose.record.Diagnosis`."""
     rep = Report(out, f"Diagnosis of {Path(diag.source).name}")
     for note in diag.notes:
         rep.text(note)
