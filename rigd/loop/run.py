@@ -21,7 +21,8 @@ from rigd.loop import faults as FC
 from rigd.loop import kernels as K
 from rigd.loop import layout as L
 from rigd.loop.realtime import RealTimeRunner
-from rigd.loop.recorder import H5Sink, MemorySink, RecordSpec, Sink
+from rigd.loop.recorder import RecordSpec
+from rigd.loop.sinks import H5Sink, MemorySink, Sink
 
 _NO_EXC = np.zeros((1, 2))
 
