@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -106,6 +108,33 @@ def _config(args):
     return default_config()
 
 
+class _SigintStop(threading.Event):
+    """The stop flag of an in-process run, set by SIGINT (Ctrl-C).
+
+    SIGINT still raises KeyboardInterrupt, which ends the run at once in the usual case. A
+    KeyboardInterrupt can however be swallowed when the signal lands inside a finaliser
+    (``__del__``, a weakref callback — Python prints "Exception ignored" and carries on), and
+    the sweep would then run to its end. The flag makes the runner stop at its next check
+    (between segments) even then: the result is "interrupted", exit 130, either way.
+    """
+
+    reason = "interrupted by SIGINT"
+
+    def __enter__(self):
+        self._old = None
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.signal(signal.SIGINT, self._on_sigint)
+        return self
+
+    def __exit__(self, *exc):
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+
+    def _on_sigint(self, signum, frame):
+        self.set()
+        raise KeyboardInterrupt
+
+
 def _in_process(exp, args) -> int:
     from rigd.experiments.runner import run_experiment
     from rigd.loop.app import build_loop
@@ -116,12 +145,13 @@ def _in_process(exp, args) -> int:
     from rigd.log import get_logger
 
     log = None if sys.stderr.isatty() else get_logger("rigd.experiment")
+    stop = _SigintStop()
     try:
-        with loop:
+        with loop, stop:
             man = run_experiment(exp, loop, args.out, cb, runs_root=args.runs_root,
                                  config_path=getattr(lc, "path", None),
                                  config_text=getattr(lc, "text", None), confirm=_confirm,
-                                 log=log)
+                                 log=log, stop=stop)
     finally:
         close()
     return _report(man.status, man.message, str(man.path))

@@ -197,7 +197,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         raise
     _restore_controller(loop, k_was)
     if should_stop():
-        _finish(man, "interrupted", current, "stopped on request")
+        _finish(man, "interrupted", current, getattr(stop, "reason", "") or "stopped on request")
     else:
         failed = [p["index"] for p in man.points if p["status"] != "done"]
         _finish(man, "complete" if not failed else "failed", None,

@@ -92,3 +92,42 @@ def test_sweep_sigint_keeps_completed_points(tmp_path):
         assert rec.n == int(1.05 * 5000) and rec.omega_rpm == pt["omega_rpm"]
     names = {x.name for x in out.iterdir()}
     assert names == {"manifest.json"} | {pt["files"][0] for pt in done}   # no partial file
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_sigint_swallowed_by_a_finaliser_still_interrupts(tmp_path):
+    """A SIGINT that lands in a finaliser raises a KeyboardInterrupt Python only prints
+    ("Exception ignored") — without the stop flag the sweep ran on to the end and exited 0.
+    The flag the handler sets stops it at the next check: interrupted, points kept."""
+    import os
+
+    from rigd.cli.experiment import _SigintStop
+    from rigd.config import default_config
+    from rigd.experiments.runner import run_experiment
+    from rigd.experiments.runner import load
+    from rigd.loop.app import build_loop
+
+    class Finaliser:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):       # bytecode for the handler to run on, inside __del__
+                pass
+
+    p = tmp_path / "sweep.yaml"
+    p.write_text("kind: sweep\ngrid: {omega_rpm: [0, 1000], p_inj_bar: [3, 4]}\n"
+                 "settle: {hold_s: 0.02}\nat_each: {kind: prbs, amplitude_v: 1, "
+                 "duration_s: 0.1, lead_in_s: 0.02}\n")
+    fired = []
+
+    def progress(done, total, segment):
+        man = json.loads((tmp_path / "run" / "manifest.json").read_text())
+        if not fired and any(pt["status"] == "done" for pt in man["points"]):
+            fired.append(segment)
+            Finaliser()                 # dropped at once: __del__ runs, the interrupt is lost
+
+    with _SigintStop() as stop, build_loop(default_config(), clock="lockstep") as loop:
+        man = run_experiment(load(str(p)), loop, tmp_path / "run", progress, stop=stop)
+    assert fired and stop.is_set()
+    assert man.status == "interrupted" and man.message.startswith("interrupted by SIGINT")
+    done = [pt for pt in man.points if pt["status"] == "done"]
+    assert 1 <= len(done) < 4 and man.missing
