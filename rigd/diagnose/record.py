@@ -117,7 +117,7 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
         notes.append(f"{sub}: inputs between samples: {choice.describe()}")
         structure = structure_for(sub, data, hold=choice.hold)
         sd = diagnose_data(data, sub, structure=structure, est=est, val=val, effects=effects,
-                           refit=refit)
+                           refit=refit, max_steps=max_steps)
         sd.window = window
         parts.append(sd)
     return Diagnosis(parts, record.source, notes)

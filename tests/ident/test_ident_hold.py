@@ -135,3 +135,13 @@ def test_diagnose_no_false_delay_and_a_real_delay_named(hold):
     found = last.theta[-1] + (0.5 if used == "zoh" else 0.0)
     truth = 3.0 + (0.5 if hold == "zoh" else 0.0)
     assert abs(found - truth) < 0.2, (used, last.theta[-1])
+
+
+def test_diagnose_record_honours_max_steps():
+    """``max_steps`` (``rigd diagnose --steps``) reaches the forward selection: with 0 the
+    real delay is still tested and ranked, but not added."""
+    from rigd.diagnose.record import diagnose_record
+
+    sd = diagnose_record(_record("zoh", seed=3, delay=3), max_steps=0).parts[0]
+    assert [s.added for s in sd.steps] == [None]
+    assert sd.findings[0].effect == "delay"
