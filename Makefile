@@ -10,11 +10,13 @@ export MPLBACKEND ?= Agg
 
 venv: $(STAMP)
 
+# recipes that precede `bench` print nothing on stdout: `make bench` stdout is one JSON object
 $(STAMP): pyproject.toml
-	test -x $(BIN)/python || $(PY) -m venv $(VENV)
-	$(BIN)/python -m pip install -q --upgrade pip setuptools wheel
-	$(BIN)/python -m pip install -q -e '.[test]'
-	touch $(STAMP)
+	@echo "make: creating $(VENV) and installing rigd into it" >&2
+	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
+	@$(BIN)/python -m pip install -q --upgrade pip setuptools wheel >&2
+	@$(BIN)/python -m pip install -q -e '.[test]' >&2
+	@touch $(STAMP)
 
 demo: $(STAMP)
 	rm -rf demo-out   # the demo's own output is replaced on every run (run dirs never are)
@@ -24,7 +26,7 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)
-	$(BIN)/python -m bench
+	@$(BIN)/python -m bench
 
 clean:
 	rm -rf $(VENV) demo-out build *.egg-info
