@@ -46,7 +46,7 @@ def _plant():
 def lockstep_throughput(n: int = 1_000_000) -> float:
     from rigd.config import default_config
     from rigd.loop.loop import ControlLoop
-    from rigd.loop.recorder import RecordSpec
+    from rigd.loop.sinks import RecordSpec
 
     cfg = default_config(clock={"mode": "lockstep", "batch_cycles": 16384})
     loop = ControlLoop(cfg, _plant(), controller=_controller())
@@ -70,7 +70,7 @@ def compute_samples(n: int = 200_000, order: int = 4):
     """Per-call times (ns) of ``rt_cycle`` from Python with an ``order``-state K∞, and the
     in-batch mean (ns)."""
     from rigd.config import default_config
-    from rigd.loop import kernels as K
+    from rigd.loop import cycle as K
     from rigd.loop import layout as L
     from rigd.loop.loop import ControlLoop
 

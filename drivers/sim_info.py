@@ -23,7 +23,7 @@ QUIET = {"noise": {"e_um": 0.0, "y_p_v": 0.0}}
 def run_pd(driver: SimPlantDriver, r_p: np.ndarray, kp: float = phys.PD_KP,
            kd: float = phys.PD_KD, tau: float = phys.PD_TAU_D,
            kff: float = phys.PD_KFF) -> np.ndarray:
-    """Run ``driver`` under four PD loops as ``rigd.loop.kernels.pd_step`` does.
+    """Run ``driver`` under four PD loops as ``rigd.loop.cycle.pd_step`` does.
 
     Feed-forward, derivative of the error filtered by backward Euler, drive clamped to
     [0, 10] V; per-valve references ``r_p`` (n, 4) V. Returns the frames (n, N_IN): row i is

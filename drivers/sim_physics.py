@@ -231,7 +231,7 @@ def valve_closed_loop(valve: ValveParams, kp: float = PD_KP, kd: float = PD_KD,
     The valve is discretised exactly (ZOH on the drive, which the plant holds over a period);
     the PD acts on the error e = r − y with a backward-Euler filtered derivative
     ``d_k = (τ_d·d_{k-1} + (e_k − e_{k-1}))/(τ_d + T)``, drive ``Kff·r_k + Kp·e_k + Kd·d_k``
-    (the loop's ``rigd.loop.kernels.pd_step``), no clamp. The static gain is
+    (the loop's ``rigd.loop.cycle.pd_step``), no clamp. The static gain is
     ``g·(Kff + Kp)/(1 + Kp·g)`` (no integral action: Eq. 8's κ_a).
 
     Returns

@@ -32,6 +32,8 @@ from rigd.configio import StrictModel, dump_yaml, read_yaml, validate
 from rigd.errors import InputError
 
 FORMAT_VERSION = 1
+#: largest K∞ order the loop runs (it reserves room for this many states; rigd.loop.layout)
+MAX_ORDER = 64
 Matrix = list[list[float]]
 
 
@@ -130,8 +132,9 @@ def check_controller(A, B, C, D, *, fs_hz: float, expected_fs_hz: float | None,
     n = A.shape[0]
     if A.shape != (n, n):
         raise InputError(f"A must be square, got {A.shape[0]}x{A.shape[1]}", where)
-    if n > 64:
-        raise InputError(f"controller order {n} is too high for the loop (at most 64)", where)
+    if n > MAX_ORDER:
+        raise InputError(f"controller order {n} is too high for the loop (at most {MAX_ORDER})",
+                         where)
     if B.shape != (n, 2):
         raise InputError(f"B must be {n}x2 (states x inputs e_x, e_y), got "
                          f"{B.shape[0]}x{B.shape[1]}", where)

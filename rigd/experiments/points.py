@@ -133,7 +133,7 @@ class PointRunner:
     # -- recording with .part + rename ---------------------------------------------------
     def _record(self, path: Path, meta: dict[str, Any], exc: np.ndarray, *, controller_on: bool,
                 events=()) -> Any:
-        from rigd.loop.recorder import RecordSpec
+        from rigd.loop.sinks import RecordSpec
 
         part = path.with_name(path.name + ".part")
         self._part = part

@@ -47,7 +47,7 @@ def settle_check(loop: Any, op: OperatingPoint, settle: SettleSpec, fs: float,
         ``{"settled": bool, "omega_rpm": mean, "p_inj_bar": mean, "waited_s": s}``.
     """
     from rigd.data.h5io import read_h5
-    from rigd.loop.recorder import RecordSpec
+    from rigd.loop.sinks import RecordSpec
 
     n = max(1, int(round(settle.hold_s * fs)))
     t0 = time.monotonic()

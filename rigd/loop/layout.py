@@ -1,6 +1,6 @@
 """Index layout of the loop's preallocated float64 arrays (parameters ``prm``, state ``st``).
 
-The numba kernels (:mod:`rigd.loop.kernels`) take a handful of flat float64 arrays instead of
+The numba kernels (:mod:`rigd.loop.cycle`) take a handful of flat float64 arrays instead of
 many small ones: every argument costs dispatch time on the real-time path. These module-level
 integers are compile-time constants inside the kernels.
 
@@ -10,10 +10,11 @@ integers are compile-time constants inside the kernels.
 
 from __future__ import annotations
 
+from rigd.controller import MAX_ORDER
 from rigd.frame import N_IN
 
-#: largest K∞ order the loop reserves room for (the controller loader refuses more).
-K_NMAX = 64
+#: largest K∞ order the loop reserves room for (the controller checks refuse more).
+K_NMAX = MAX_ORDER
 
 # --- parameters ---------------------------------------------------------------------------
 P_FS = 0            # loop rate, Hz

@@ -1,6 +1,6 @@
 """``ControlLoop``: the cycle on a clock, with thread-safe commands (docs/ARCHITECTURE.md).
 
-One ``ControlLoop`` per process. The same compiled cycle (:mod:`rigd.loop.kernels`) runs on:
+One ``ControlLoop`` per process. The same compiled cycle (:mod:`rigd.loop.cycle`) runs on:
 
 * the **real-time clock** (``start()``): a loop thread calls the fast driver's ``read``, the
   cycle kernel and ``write`` once per period (see :mod:`rigd.loop.clock`);
@@ -28,7 +28,7 @@ from rigd.config import LoadedConfig, RigConfig, default_config
 from rigd.errors import InputError
 from rigd.log import get_logger
 from rigd.loop import faults as FC
-from rigd.loop import kernels as K
+from rigd.loop import cycle as K
 from rigd.loop import layout as L
 from rigd.loop.recorder import Recorder
 from rigd.loop.run import LoopRunner, SegmentResult  # noqa: F401 (re-exported)

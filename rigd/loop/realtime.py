@@ -2,7 +2,7 @@
 
 The loop thread sets itself up (SCHED_FIFO, mlockall, CPU pinning, gc frozen; see
 :mod:`rigd.loop.clock`), then per period: wait for the deadline (sleep, then spin) → fast
-driver ``read`` → commands/segment bookkeeping → :func:`rigd.loop.kernels.rt_cycle` → fast
+driver ``read`` → commands/segment bookkeeping → :func:`rigd.loop.cycle.rt_cycle` → fast
 driver ``write`` → publish the frame to the recorder → overrun accounting (skip or catch up).
 """
 
@@ -16,7 +16,7 @@ import numpy as np
 
 from rigd.loop import clock as CLK
 from rigd.loop import faults as FC
-from rigd.loop import kernels as K
+from rigd.loop import cycle as K
 from rigd.loop import layout as L
 
 _NO_EXC = np.zeros((1, 2))

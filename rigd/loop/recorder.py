@@ -15,42 +15,22 @@ attributes ``channels`` and ``units``; root attributes ``fs``, ``omega_rpm``, ``
 flushed every ``flush_interval_s``: after a crash (even SIGKILL) it is readable up to the last
 flush. Open such a file with :func:`open_recording` (``swmr=True``).
 
-The sinks (:class:`H5Sink`, :class:`MemorySink`) and :func:`open_recording` live in
-:mod:`rigd.loop.sinks` and are re-exported here.
+The sinks (:class:`~rigd.loop.sinks.H5Sink`, :class:`~rigd.loop.sinks.MemorySink`), the
+:class:`~rigd.loop.sinks.RecordSpec` and :func:`~rigd.loop.sinks.open_recording` live in
+:mod:`rigd.loop.sinks`.
 """
 
 from __future__ import annotations
 
 import threading
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
-
 import numpy as np
 
 from rigd.frame import N_REC, REC
 from rigd.loop.layout import S_RD
-from rigd.loop.sinks import EVENT_TEXT_LEN, H5Sink, MemorySink, Sink, open_recording
-
-__all__ = [
-    "RecordSpec", "RecordingFailed", "Recorder",
-    # re-exported from rigd.loop.sinks
-    "Sink", "MemorySink", "H5Sink", "open_recording", "EVENT_TEXT_LEN",
-]
+from rigd.loop.sinks import Sink
 
 _SEQ = REC["seq"]
-
-
-@dataclass
-class RecordSpec:
-    """Where and with which metadata to record (``run_segment(record=...)``).
-
-    ``meta`` goes into the file's root attributes (``kind``, ``experiment``, ``omega_rpm``...).
-    """
-
-    path: str | Path
-    meta: dict[str, Any] = field(default_factory=dict)
 
 
 class RecordingFailed(OSError):

@@ -18,10 +18,10 @@ import numpy as np
 from rigd.errors import InputError
 from rigd.frame import REC
 from rigd.loop import faults as FC
-from rigd.loop import kernels as K
+from rigd.loop import cycle as K
 from rigd.loop import layout as L
 from rigd.loop.realtime import RealTimeRunner
-from rigd.loop.recorder import RecordSpec
+from rigd.loop.sinks import RecordSpec
 from rigd.loop.sinks import H5Sink, MemorySink, Sink
 
 _NO_EXC = np.zeros((1, 2))

@@ -3,9 +3,9 @@
 :class:`Sink` (a destination of a contiguous sequence range), :class:`MemorySink` (frames in
 memory) and :class:`H5Sink` (an HDF5 file in SWMR mode, layout in ``docs/ARCHITECTURE.md``:
 ``/frames`` float64 (N, N_REC) with ``channels``/``units``, root attributes, ``/events``;
-flushed periodically so a crashed file is readable up to the last flush), and
-:func:`open_recording` to read such a file. Used by :class:`rigd.loop.recorder.Recorder`,
-which re-exports these names.
+flushed periodically so a crashed file is readable up to the last flush), :class:`RecordSpec`
+(where and with which metadata a loop records) and :func:`open_recording` to read such a file.
+Used by :class:`rigd.loop.recorder.Recorder`.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import json
 import os
 import re
 import threading
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,17 @@ from rigd import __version__
 from rigd.frame import N_REC, RECORD_NAMES, RECORD_UNITS
 
 EVENT_TEXT_LEN = 120
+
+
+@dataclass
+class RecordSpec:
+    """Where and with which metadata to record (``run_segment(record=...)``).
+
+    ``meta`` goes into the file's root attributes (``kind``, ``experiment``, ``omega_rpm``...).
+    """
+
+    path: str | Path
+    meta: dict[str, Any] = field(default_factory=dict)
 
 
 def _reason(exc: BaseException) -> str:
@@ -163,7 +175,7 @@ class H5Sink(Sink):
                 f"{self.first_seq}..{self.first_seq + n - 1})" if n and self.first_seq is not None
                 else "no frame had been flushed to it")
         return (f"recording {self.path} failed: {_reason(exc)}; {kept}, readable with "
-                f"rigd.loop.recorder.open_recording (h5py swmr=True)")
+                f"rigd.loop.sinks.open_recording (h5py swmr=True)")
 
     def close(self) -> None:
         try:

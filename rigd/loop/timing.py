@@ -2,7 +2,7 @@
 
 The real-time cycle kernel adds every cycle's compute time (read -> write, drivers included)
 and wake-up lateness (wake-up time - deadline) to an int64 histogram of
-:data:`~rigd.loop.layout.H_BIN_NS` ns bins (:func:`rigd.loop.kernels.rt_cycle`). This module
+:data:`~rigd.loop.layout.H_BIN_NS` ns bins (:func:`rigd.loop.cycle.rt_cycle`). This module
 turns it into percentiles; values are bin upper edges (conservative), in µs.
 """
 

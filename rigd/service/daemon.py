@@ -93,13 +93,10 @@ class Daemon:
 
     # --- life cycle -------------------------------------------------------------------
     def __enter__(self) -> "Daemon":
-        try:
-            from rigd.experiments.manager import ExperimentManager
+        from rigd.experiments.manager import ExperimentManager
 
-            self.experiments = ExperimentManager(self.loop, getattr(self.args, "runs_dir",
-                                                                    "runs"), log=self.log)
-        except ImportError:  # experiments package absent: the commands reply an error
-            self.experiments = None
+        self.experiments = ExperimentManager(self.loop, getattr(self.args, "runs_dir", "runs"),
+                                             log=self.log)
         self.dispatcher = Dispatcher(self.loop, self.experiments, info=self._info)
         sock = getattr(self.args, "socket", None)
         if sock:

@@ -14,7 +14,7 @@ from loop_helpers import make_plant
 from rigd.config import default_config
 from rigd.frame import REC
 from rigd.loop.loop import ControlLoop
-from rigd.loop.recorder import open_recording
+from rigd.loop.sinks import open_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 RIGD = [sys.executable, "-c", "import sys; from rigd.cli import main; sys.exit(main())"]

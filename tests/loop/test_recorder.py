@@ -17,7 +17,7 @@ from loop_helpers import make_plant
 from rigd.config import default_config
 from rigd.frame import RECORD_NAMES, REC
 from rigd.loop.loop import ControlLoop
-from rigd.loop.recorder import RecordSpec, open_recording
+from rigd.loop.sinks import RecordSpec, open_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 RIGD = [sys.executable, "-c", "import sys; from rigd.cli import main; sys.exit(main())"]
@@ -102,7 +102,7 @@ def test_memory_and_file_sinks_get_identical_frames(tmp_path):
 
 def test_failed_recording_latches_fault_loop_goes_on_file_keeps_flushed_frames(tmp_path):
     from rigd.loop import faults as FC
-    from rigd.loop.recorder import H5Sink
+    from rigd.loop.sinks import H5Sink
 
     class FailingSink(H5Sink):
         """Fails like a full disk once 20000 frames are in (after flushing them)."""

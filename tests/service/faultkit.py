@@ -12,7 +12,7 @@ from rigd.driver import FastDriver
 from rigd.frame import REC
 from rigd.loop.app import build_drivers
 from rigd.loop.loop import ControlLoop
-from rigd.loop.recorder import open_recording
+from rigd.loop.sinks import open_recording
 
 from daemon_helpers import make_config
 

@@ -6,7 +6,7 @@ import numpy as np
 from loop_helpers import random_stable_controller
 from numba import njit
 
-from rigd.loop import kernels as K
+from rigd.loop import cycle as K
 from rigd.loop import layout as L
 
 
