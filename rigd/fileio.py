@@ -1,26 +1,63 @@
-"""Atomic file writing: a file appears whole or not at all."""
+"""Atomic file writing: a file appears whole or not at all, with the caller's umask.
+
+The temporary file is created beside the target with ``os.open(..., O_CREAT | O_EXCL, 0o666)``
+so the kernel applies the process umask exactly as for a plain ``open(path, "w")`` (0644
+under umask 022, 0640 under 027). ``tempfile.mkstemp`` is not used: it creates 0600 and the
+renamed file would keep it — a controller designed by an engineer unreadable by the ``rigd``
+service user, a report that cannot be served. (Reading the umask with ``os.umask`` would
+briefly change it for every thread of the process, so it is never touched here.)
+"""
 
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Iterator
+
+#: permission bits asked of the kernel for a new file, before the umask (as ``open()`` does)
+NEW_FILE_MODE = 0o666
+
+
+def create_temp_beside(path: str | Path) -> tuple[int, Path]:
+    """Create a new, empty, uniquely named hidden file beside ``path``.
+
+    Returns
+    -------
+    (fd, tmp)
+        An open write-only descriptor and the temporary file's path. Its permissions are
+        ``0o666 & ~umask``.
+    """
+    path = Path(path)
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(100):
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp"
+        try:
+            return os.open(tmp, flags, NEW_FILE_MODE), tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free temporary name beside {path}")  # pragma: no cover
 
 
 @contextmanager
 def atomic_open(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
     """Open a temporary file beside ``path``; rename it onto ``path`` only on success.
 
-    On any exception the temporary file is removed and ``path`` is left untouched.
+    On any exception the temporary file is removed and ``path`` is left untouched. The file
+    gets the caller's umask (see the module docstring); ``mode`` is a write mode of
+    :func:`open` (``"w"``, ``"wb"``).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    fd, tmp = create_temp_beside(path)
     try:
-        with open(tmp, mode, **kwargs) as fh:
+        try:
+            fh = open(fd, mode, **kwargs)
+        except BaseException:
+            os.close(fd)
+            raise
+        with fh:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
