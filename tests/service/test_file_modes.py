@@ -74,7 +74,7 @@ def test_recordings(tmp_path, umask):
     from rigd.data.h5io import write_h5
     from rigd.data.io import load_record
     from rigd.loop.loop import ControlLoop
-    from rigd.loop.recorder import RecordSpec
+    from rigd.loop.sinks import RecordSpec
     from rigd_drivers.sim_plant import SimPlantDriver
 
     loop = ControlLoop(default_config(clock={"mode": "lockstep"}),
