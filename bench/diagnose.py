@@ -1,5 +1,5 @@
 """Benchmark: ``diagnose_60s_s`` — full diagnosis of a 60 s bearing record at 5 kHz
-(300,000 samples; analysed on a 40,000-sample window, see rigd.diagnose.record.MAX_SAMPLES)."""
+(300,000 samples; analysed on a 40,000-sample window, see rigd.diagnose.diagnosis.MAX_SAMPLES)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ def run() -> dict:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "diagnose"))
     import plant
     from rigd.data.record import Record
-    from rigd.diagnose.record import diagnose_record
+    from rigd.diagnose.diagnosis import diagnose_record
 
     d = plant.bearing(["cubic_stiffness"], seed=0, seconds=60.0)
     rec = Record({"u_x": d.u[:, 0], "u_y": d.u[:, 1], "e_x": d.y[:, 0], "e_y": d.y[:, 1]},

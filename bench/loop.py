@@ -44,7 +44,7 @@ def _plant():
 
 
 def lockstep_throughput(n: int = 1_000_000) -> float:
-    from rigd.config import default_config
+    from rigd.rigconfig import default_config
     from rigd.loop.loop import ControlLoop
     from rigd.loop.sinks import RecordSpec
 
@@ -69,7 +69,7 @@ def _null_plant(state, params, drive, frame_in):
 def compute_samples(n: int = 200_000, order: int = 4):
     """Per-call times (ns) of ``rt_cycle`` from Python with an ``order``-state K∞, and the
     in-batch mean (ns)."""
-    from rigd.config import default_config
+    from rigd.rigconfig import default_config
     from rigd.loop import cycle as K
     from rigd.loop import layout as L
     from rigd.loop.loop import ControlLoop
@@ -114,7 +114,7 @@ def compute_samples(n: int = 200_000, order: int = 4):
 
 
 def realtime(seconds: float = RT_SECONDS) -> dict:
-    from rigd.config import default_config
+    from rigd.rigconfig import default_config
     from rigd.loop.loop import ControlLoop
 
     cfg = default_config(clock={"mode": "realtime"})

@@ -95,8 +95,8 @@ def analyze(run: str | Path, *, window_s: float = 0.08, report: str | None = Non
                                "ratio": s["zeta"] / off[0]["zeta"]})
     out = {"impacts": impacts, "summary": summary, "damping_increase": ratios}
     if report:
-        from rigd.design.report import fig_impact
-        from rigd.report import Report
+        from rigd.design.figures import fig_impact
+        from rigd.htmlreport import Report
 
         rep = Report(report, "rigd analyze-impact")
         rep.table(["Ω (rpm)", "P_I (bar)", "axis", "K∞", "n", "ζ", "±", "f (Hz)"],

@@ -186,7 +186,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
 
 
 def _write_index(out: Path, s: dict) -> None:
-    from rigd.report import Report
+    from rigd.htmlreport import Report
 
     rep = Report(out, "rigd demo: identify, design, deploy, impacts (simulated plant)")
     rep.text("Design report (Figs. 3-5): design/index.html. Impact reports (Figs. 6-7): "

@@ -78,7 +78,7 @@ def run_design(model_path, weights_path, out, *, range_model=None, report=None,
                                                    r.reduction_at_resonance,
                                                "resonance_hz": r.resonance_hz}
     if report:
-        from rigd.design.report import design_report
+        from rigd.design.figures import design_report
 
         design_report(report, cfg, res, rob, title=f"rigd design: {Path(out).name}")
         summary["report"] = str(report)

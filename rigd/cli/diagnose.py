@@ -54,7 +54,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigd.diagnose.record import diagnose_record
+    from rigd.diagnose.diagnosis import diagnose_record
     from rigd.effects import REGISTRY
 
     est, val = _slice(args.est, "est"), _slice(args.val, "val")
@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
                            split=args.split, max_steps=args.steps)
     out = diag.to_json()
     if args.report:
-        from rigd.diagnose.report import write_report
+        from rigd.diagnose.report_page import write_report
 
         out["report"] = str(write_report(diag, args.report))
     if args.json:

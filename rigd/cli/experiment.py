@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _config(args):
-    from rigd.config import default_config, load_config
+    from rigd.rigconfig import default_config, load_config
 
     if args.config:
         return load_config(args.config)

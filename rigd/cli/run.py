@@ -48,7 +48,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from rigd import log
-    from rigd.config import load_config
+    from rigd.rigconfig import load_config
     from rigd.errors import InputError
     from rigd.loop.app import build_loop
     from rigd.loop.timing import format_summary

@@ -16,7 +16,7 @@ For one sub-model (``actuator`` r→u, ``bearing`` u→e, ``generic``):
    dependence) and matches no significant effect is reported as *unexplained*, with where.
 
 This module is the per-data stepwise engine (:func:`diagnose_data`); whole records (sub-models,
-window, split, input hold) are diagnosed by :func:`rigd.diagnose.record.diagnose_record`.
+window, split, input hold) are diagnosed by :func:`rigd.diagnose.diagnosis.diagnose_record`.
 """
 
 from __future__ import annotations
@@ -362,18 +362,3 @@ def _tests_and_unexplained(sd: SubDiagnosis) -> None:
                      f"(|y| in {edges[-2]:.3g}..{edges[-1]:.3g}) than at small; no catalogue "
                      "effect explains it")})
     sd.unexplained = unexplained
-
-
-# --------------------------------------------------------------------------------------
-# the record level moved to rigd.diagnose.record; its names stay importable from here
-# --------------------------------------------------------------------------------------
-_MOVED_TO_RECORD = ("Diagnosis", "diagnose_record", "submodels_of", "MAX_SAMPLES")
-
-
-def __getattr__(name: str) -> Any:
-    """Lazy re-export of :mod:`rigd.diagnose.record` names (that module imports this one)."""
-    if name in _MOVED_TO_RECORD:
-        from rigd.diagnose import record
-
-        return getattr(record, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

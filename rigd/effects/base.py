@@ -88,7 +88,7 @@ class ExtendedStructure:
         mechanical base simulator; a base that takes no hooks gets the effect by fixed-point
         iteration on its batch simulation instead.
         """
-        from rigd.effects._state import fixed_point
+        from rigd.effects.state_level import fixed_point
 
         theta = np.asarray(theta, dtype=float)
         tb, te = theta[:self.nb], theta[self.nb:]

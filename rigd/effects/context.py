@@ -205,7 +205,7 @@ class Context:
         Falls back to :meth:`through_model` on input ``axis`` for structures without a
         continuous state-space form.
         """
-        from rigd.effects._state import simulate_state
+        from rigd.effects.state_level import simulate_state
 
         cont = getattr(self.structure, "continuous", None)
         if not callable(cont):

@@ -120,7 +120,7 @@ def model_frequency_response(structure, theta, f_hz: np.ndarray) -> np.ndarray:
 def write_report(comps: dict[str, Comparison], out: str | Path, title: str = "Model vs "
                  "measurement", zoom_s: float | None = None) -> Path:
     """HTML report with Fig.-2-like plots and Bode over empirical FRF; returns index path."""
-    from rigd.report import Report
+    from rigd.htmlreport import Report
 
     rep = Report(out, title)
     rep.text("Fit = 100·(1 − ‖y − ŷ‖/‖y − mean(y)‖) per output, ŷ simulated from the inputs "

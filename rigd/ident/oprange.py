@@ -244,7 +244,7 @@ def identify_sweep(run_dir, out=None, jobs: int | None = None, method: str = "pe
 
 def _report(ok: list[dict], outdir: Path) -> Path:
     """Parameter tables and plots versus (Ω, P_I)."""
-    from rigd.report import Report
+    from rigd.htmlreport import Report
 
     rep = Report(outdir, "Bearing parameters over the operating range")
     names = bearing_structure().names[:12]

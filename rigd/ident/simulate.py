@@ -14,7 +14,7 @@ The :class:`Hooks` bundle carries the optional modifications that physical effec
 additive changes of the K/D/B matrices); :func:`simulate_mechanical` and
 :func:`predict_mechanical` apply them around the base model.
 
-The compiled kernels live in :mod:`rigd.ident.kernels`.
+The compiled kernels live in :mod:`rigd.ident.sim_kernels`.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from rigd.ident.kernels import cubic_kernel, expm_kernel, lsim_kernel, predict_kernel
+from rigd.ident.sim_kernels import cubic_kernel, expm_kernel, lsim_kernel, predict_kernel
 
 
 # --------------------------------------------------------------------------------------

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from rigd.config import LoadedConfig, load_config
+from rigd.rigconfig import LoadedConfig, load_config
 from rigd.errors import InputError
 from rigd.loop.loop import ControlLoop
 

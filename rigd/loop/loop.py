@@ -24,7 +24,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from rigd import frame as F
-from rigd.config import LoadedConfig, RigConfig, default_config
+from rigd.rigconfig import LoadedConfig, RigConfig, default_config
 from rigd.errors import InputError
 from rigd.log import get_logger
 from rigd.loop import faults as FC
@@ -40,7 +40,7 @@ class ControlLoop(LoopRunner):
     Parameters
     ----------
     config : LoadedConfig or RigConfig
-        The rig configuration (``rigd.config.load_config``).
+        The rig configuration (``rigd.rigconfig.load_config``).
     fast_driver : rigd.driver.FastDriver
         Per-cycle I/O. A driver with ``kernel``/``state``/``params`` (the simulated plant) runs
         lock-step inside the compiled batch.
@@ -229,7 +229,7 @@ class ControlLoop(LoopRunner):
 
     def set_operating_point(self, omega_rpm: float, p_inj_bar: float) -> None:
         """Sim: plant operating point (at a cycle boundary); rig: slow-driver setpoints."""
-        from rigd.config import OperatingPoint
+        from rigd.rigconfig import OperatingPoint
 
         OperatingPoint(omega_rpm=omega_rpm, p_inj_bar=p_inj_bar)   # range check
         if hasattr(self.fast, "set_operating_point"):

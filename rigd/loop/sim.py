@@ -12,7 +12,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from rigd import __version__
-from rigd.config import LoadedConfig, RigConfig, default_config, load_config
+from rigd.rigconfig import LoadedConfig, RigConfig, default_config, load_config
 from rigd.data.record import Record
 from rigd.frame import RECORD_NAMES
 

@@ -63,7 +63,7 @@ class Daemon:
     Parameters
     ----------
     loop : rigd.loop.ControlLoop
-    config : rigd.config.LoadedConfig
+    config : rigd.rigconfig.LoadedConfig
         The configuration the loop was built from (its path is re-read on SIGHUP).
     args : argparse.Namespace
         ``socket``, ``socket_mode``, ``no_notify``, ``runs_dir``, ``controller`` (optional).
@@ -195,7 +195,7 @@ class Daemon:
 
     def reload(self) -> dict[str, Any]:
         """Re-read config and controller, validated first; never disturbs the loop on error."""
-        from rigd.config import load_config
+        from rigd.rigconfig import load_config
 
         with self._reload_lock:
             path = getattr(self.config, "path", None)

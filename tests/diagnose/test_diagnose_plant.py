@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from rigd.diagnose.engine import diagnose_data
-from rigd.diagnose.record import diagnose_record
+from rigd.diagnose.diagnosis import diagnose_record
 from rigd.experiments.signals import multilevel
 from rigd.ident.mechanical import MechanicalStructure
 from rigd.ident.workflow import prepare

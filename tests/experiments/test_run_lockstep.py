@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from rigd.config import default_config
+from rigd.rigconfig import default_config
 from rigd.controller import save_controller
 from rigd.data import load_record
 from rigd.errors import InputError

@@ -121,7 +121,7 @@ def test_diagnose_no_false_delay_and_a_real_delay_named(hold):
     real 3-sample delay is still named. A held input is itself about T/2 late against a
     linear one, so the delay found is compared in one convention (linear inputs): with the
     hold the data chose, d + 0.5 if held, against 3 + 0.5 if the input was made held."""
-    from rigd.diagnose.engine import diagnose_record
+    from rigd.diagnose.diagnosis import diagnose_record
 
     plain = diagnose_record(_record(hold, seed=3)).parts[0]
     assert not [f.effect for f in plain.findings if f.significant]
@@ -140,7 +140,7 @@ def test_diagnose_no_false_delay_and_a_real_delay_named(hold):
 def test_diagnose_record_honours_max_steps():
     """``max_steps`` (``rigd diagnose --steps``) reaches the forward selection: with 0 the
     real delay is still tested and ranked, but not added."""
-    from rigd.diagnose.record import diagnose_record
+    from rigd.diagnose.diagnosis import diagnose_record
 
     sd = diagnose_record(_record("zoh", seed=3, delay=3), max_steps=0).parts[0]
     assert [s.added for s in sd.steps] == [None]

@@ -2,7 +2,7 @@
 
 import pytest
 
-from rigd.config import default_config
+from rigd.rigconfig import default_config
 
 
 @pytest.fixture

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from loop_helpers import make_plant
 
-from rigd.config import default_config
+from rigd.rigconfig import default_config
 from rigd.frame import REC
 from rigd.loop.loop import ControlLoop
 from rigd.loop.sinks import open_recording

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from rigd.cli import main
-from rigd.config import load_config
+from rigd.rigconfig import load_config
 
 ROOT = Path(__file__).resolve().parents[2]
 SIM = (ROOT / "config" / "sim.yaml").read_text()

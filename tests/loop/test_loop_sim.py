@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from loop_helpers import make_plant
 
-from rigd.config import default_config
+from rigd.rigconfig import default_config
 from rigd.controller import Controller
 from rigd.frame import REC
 from rigd.loop.loop import ControlLoop

@@ -14,7 +14,7 @@ import pytest
 import yaml
 from loop_helpers import make_plant
 
-from rigd.config import default_config
+from rigd.rigconfig import default_config
 from rigd.frame import RECORD_NAMES, REC
 from rigd.loop.loop import ControlLoop
 from rigd.loop.sinks import RecordSpec, open_recording

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from loop_helpers import InjectingDriver, make_plant
 
-from rigd.config import default_config
+from rigd.rigconfig import default_config
 from rigd.frame import IN_E_X, IN_OMEGA, IN_PHI, IN_SEQ, IN_YP1, REC
 from rigd.loop import faults as FC
 from rigd.loop import cycle as K

@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from rigd.config import load_config
+from rigd.rigconfig import load_config
 from rigd.controller import save_controller
 from rigd.driver import FastDriver
 from rigd.frame import REC

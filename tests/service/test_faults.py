@@ -87,7 +87,7 @@ def test_fault_overrun_storm_realtime(tmp_path):
 
 
 def _realtime_loop(tmp_path, drivers, **sections):
-    from rigd.config import load_config
+    from rigd.rigconfig import load_config
     from rigd.loop.app import build_drivers
     from rigd.loop.loop import ControlLoop
 

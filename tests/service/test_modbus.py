@@ -128,7 +128,7 @@ def test_shipped_rig_config_validates_with_these_drivers():
     """config/rig.yaml (written by the loop engineer) against the drivers' Options models."""
     from pathlib import Path
 
-    from rigd.config import load_config
+    from rigd.rigconfig import load_config
     from rigd_drivers.serial_frame import SerialFrameDriver, SerialFrameOptions
 
     lc = load_config(Path(__file__).resolve().parents[2] / "config" / "rig.yaml")

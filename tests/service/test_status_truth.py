@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from rigd.cli.ctl import status_summary
-from rigd.config import load_config
+from rigd.rigconfig import load_config
 from rigd.frame import IN_E_X, REC
 from rigd.loop.app import build_drivers
 from rigd.loop.loop import ControlLoop

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from rigd.diagnose import residual as R
-from rigd.report import Report
+from rigd.htmlreport import Report
 
 
 def write_report(diag, out: str | Path) -> Path:
-    """Write ``index.html`` and figures for a :class:`rigd.diagnose.record.Diagnosis`."""
+    """Write ``index.html`` and figures for a :class:`rigd.diagnose.diagnosis.Diagnosis`."""
     rep = Report(out, f"Diagnosis of {Path(diag.source).name}")
     for note in diag.notes:
         rep.text(note)

@@ -1,4 +1,4 @@
-"""Design and impact figures (paper Figs. 3–7) on a :class:`rigd.report.Report`."""
+"""Design and impact figures (paper Figs. 3–7) on a :class:`rigd.htmlreport.Report`."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 
 from rigd.design.robustness import freq_response
 from rigd.design.weights import magnitude
-from rigd.report import Report
+from rigd.htmlreport import Report
 
 
 def fig_weights(rep: Report, cfg) -> None:
