@@ -5,7 +5,7 @@ before these records were made)."""
 import pytest
 
 import benchmarks as B  # tests/diagnose/benchmarks.py
-from rigd.diagnose.record import diagnose_record
+from rigd.diagnose.diagnosis import diagnose_record
 
 
 def significant(d):

@@ -58,7 +58,7 @@ def test_model_file(tmp_path, umask):
 
 
 def test_report_page_and_figures(tmp_path, umask):
-    from rigd.report import Report
+    from rigd.htmlreport import Report
 
     rep = Report(tmp_path / "rep", "modes")
     fig, ax = rep.figure("curve", "a line")
@@ -70,7 +70,7 @@ def test_report_page_and_figures(tmp_path, umask):
 
 
 def test_recordings(tmp_path, umask):
-    from rigd.config import default_config
+    from rigd.rigconfig import default_config
     from rigd.data.h5io import write_h5
     from rigd.data.io import load_record
     from rigd.loop.loop import ControlLoop
