@@ -15,7 +15,15 @@ Figures (keys of ``run()``): ``socket_load_rt_miss_fraction_idle``,
 answers, taken once) — what the load costs the loop through the machine alone (CPU, kernel), the
 yardstick for ``..._loaded``; ``..._idle`` is the mean of an idle window before and after.
 
-    python -m bench socket_load        # about 50 s
+``socket_busy_status_ms`` {p50, p99, max}: ``status`` latency while a slow command is pending
+(target p99 <= 50 ms). The daemon side of the socket (:class:`rigd.service.bridge.SocketFrontend`,
+spawning the real socket process) runs in this process in front of a stub loop whose
+``controller.load`` takes ``slow_s`` = 2 s; ``loads`` such loads are sent one after the other
+while 20 clients hammer the socket (queries, bad requests and 10 % commands, which queue
+behind the load) and a probe asks ``status`` every 10 ms while a load is pending (``socket_busy_status_n``
+probes). Before the forwarding was made asynchronous, each of them waited for the load.
+
+    python -m bench socket_load        # about 70 s
 """
 
 from __future__ import annotations
@@ -50,6 +58,8 @@ BAD = [
     (b"\xff\xfe\xfd", "UTF-8"),
 ]
 GOOD = ["status", "timing", "faults", "ping", "experiment.status"]
+#: error replies that are a correct answer to a valid command under load (refused, not run)
+BUSY_REFUSALS = ("too many commands", "already waiting")
 
 
 def _config(tmp: Path) -> Path:
@@ -79,9 +89,10 @@ def _counts(sock_path: str) -> tuple[int, int]:
 
 
 class _Client(threading.Thread):
-    def __init__(self, sock_path, rate, until, seed):
+    def __init__(self, sock_path, rate, until, seed, commands=0.0):
         super().__init__(daemon=True)
         self.sock_path, self.rate, self.until = sock_path, rate, until
+        self.commands = commands
         self.rng = random.Random(seed)
         self.served = self.refused = self.errors = 0
         self.latency: list[float] = []
@@ -124,6 +135,14 @@ class _Client(threading.Thread):
                     rep, buf = self._reply(s, buf)
                     ok = rep["ok"] is False and needle in rep["error"]
                     self.refused += ok
+                elif r < 0.25 + self.commands:  # a valid command, forwarded to the daemon
+                    s.sendall((json.dumps({"id": rid, "cmd": "operating_point.set",
+                                           "omega_rpm": 1000.0 + self.rng.random(),
+                                           "p_inj_bar": 4.0}) + "\n").encode())
+                    rep, buf = self._reply(s, buf)
+                    ok = rep.get("id") == rid and (rep.get("ok") is True or any(
+                        m in rep.get("error", "") for m in BUSY_REFUSALS))
+                    self.served += ok
                 else:
                     cmd = self.rng.choice(GOOD)
                     s.sendall((json.dumps({"id": rid, "cmd": cmd}) + "\n").encode())
@@ -147,10 +166,12 @@ class _Client(threading.Thread):
 
 
 def hammer(sock_path: str, *, clients: int = 20, rate: float = 1000.0,
-           seconds: float = 10.0, seed: int = 0) -> dict:
-    """``clients`` connections sending ``rate`` requests/s in total for ``seconds``."""
+           seconds: float = 10.0, seed: int = 0, commands: float = 0.0) -> dict:
+    """``clients`` connections sending ``rate`` requests/s in total for ``seconds``; a fraction
+    ``commands`` of the requests are valid commands (``operating_point.set``)."""
     until = time.monotonic() + seconds
-    ts = [_Client(sock_path, rate / clients, until, seed + i) for i in range(clients)]
+    ts = [_Client(sock_path, rate / clients, until, seed + i, commands)
+          for i in range(clients)]
     t0 = time.monotonic()
     for t in ts:
         t.start()
@@ -237,6 +258,93 @@ def _control_main(path: str, data: dict) -> None:
         _signal.sigwait([_signal.SIGTERM])
 
 
+class _SlowLoop(_StubLoop):
+    """For ``busy()``: the loop's command API with a ``load_controller`` that takes ``slow_s``."""
+
+    def __init__(self, data: dict, slow_s: float):
+        super().__init__(data)
+        self.slow_s = slow_s
+        self.pending = threading.Event()
+
+    def load_controller(self, path):
+        self.pending.set()
+        time.sleep(self.slow_s)          # a slow command (the stand-in for a large validation)
+        self.pending.clear()
+
+    def set_operating_point(self, omega_rpm, p_inj_bar):
+        pass
+
+
+def busy(loads: int = 5, slow_s: float = 2.0, clients: int = 20, rate: float = 400.0,
+         probe_period_s: float = 0.01) -> dict:
+    """``status`` latency while a slow command is pending (see the module docstring)."""
+    from rigd.service.bridge import SocketFrontend
+    from rigd.service.protocol import Dispatcher
+
+    data = {"status": {"running": True, "seq": 1}, "timing": {"cycles": 1}, "faults": [],
+            "experiment": {"state": "idle"}}
+    loop = _SlowLoop(data, slow_s)
+    disp = Dispatcher(loop, info=lambda: {"pid": os.getpid()})
+
+    def snapshot():
+        return {"status": loop.status(), "timing": loop.timing(), "faults": loop.faults(),
+                "info": {"pid": os.getpid()}, "experiment": data["experiment"]}
+
+    lat: list[float] = []
+    load_errors = 0
+    with tempfile.TemporaryDirectory(prefix="rigd-socket-busy-") as d:
+        path = str(Path(d) / "rigd.sock")
+        fe = SocketFrontend(path, 0o660, disp.handle_line, snapshot).start()
+        try:
+            if not fe.ready.wait(60):
+                raise RuntimeError("socket process did not come up")
+            res: dict = {}
+            h = threading.Thread(target=lambda: res.update(hammer(
+                path, clients=clients, rate=rate, seconds=loads * (slow_s + 0.3) + 1.0,
+                commands=0.1, seed=100)), daemon=True)
+            h.start()
+            probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            probe.settimeout(30)
+            probe.connect(path)
+            pbuf = b""
+            for i in range(loads):
+                a = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+                a.settimeout(60)
+                a.connect(path)
+                a.sendall((json.dumps({"id": i, "cmd": "controller.load",
+                                       "path": "/bench/k.yaml"}) + "\n").encode())
+                while not loop.pending.wait(0.005):
+                    pass
+                while loop.pending.is_set():
+                    t0 = time.perf_counter()   # sent while the load is pending
+                    probe.sendall(b'{"id": 0, "cmd": "status"}\n')
+                    while b"\n" not in pbuf:
+                        pbuf += probe.recv(65536)
+                    line, pbuf = pbuf.split(b"\n", 1)
+                    dt = time.perf_counter() - t0
+                    if json.loads(line).get("ok") is not True:
+                        load_errors += 1
+                    lat.append(dt)
+                    time.sleep(probe_period_s)
+                rbuf = b""
+                while b"\n" not in rbuf:
+                    rbuf += a.recv(65536)
+                load_errors += json.loads(rbuf).get("ok") is not True
+                a.close()
+            probe.close()
+            h.join(loads * (slow_s + 0.3) + 60)
+        finally:
+            fe.stop()
+    ms = np.asarray(lat) * 1e3
+    return {"socket_busy_status_ms": {"p50": round(float(np.percentile(ms, 50)), 3),
+                                      "p99": round(float(np.percentile(ms, 99)), 3),
+                                      "max": round(float(ms.max()), 3)},
+            "socket_busy_status_n": int(ms.size),
+            "socket_busy_slow_command_s": slow_s,
+            "socket_busy_errors": load_errors + res.get("errors", 0),
+            "socket_busy_hammer_requests": res.get("served", 0) + res.get("refused", 0)}
+
+
 def _window(sock: str, fn) -> float:
     """rt miss fraction of the daemon while ``fn()`` runs."""
     c0, o0 = _counts(sock)
@@ -299,8 +407,9 @@ def run(seconds: float = 10.0, clients: int = 20, rate: float = 1000.0) -> dict:
         "socket_load_seconds": seconds,
         "socket_load_daemon_alive_after": bool(alive),
         "socket_load_daemon_exit_code": code,
+        **busy(),
     }
 
 
 if __name__ == "__main__":  # pragma: no cover
-    print(json.dumps(run(), indent=2))
+    print(json.dumps(busy() if sys.argv[1:] == ["busy"] else run(), indent=2))

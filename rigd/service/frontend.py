@@ -12,10 +12,13 @@ connections. Here, in a process of its own — its own interpreter lock, a lower
   latest *snapshot* the daemon publishes (``snapshot_hz``, default 25 Hz, and after every
   command) — a flood of queries costs the loop's process nothing;
 * valid commands (``fault.reset``, ``controller.*``, ``operating_point.set``,
-  ``experiment.start``/``stop``), at most :data:`MAX_COMMANDS_PER_S` per second, are
-  forwarded, one at a time, to the daemon's command thread,
-  which runs them through :class:`~rigd.service.protocol.Dispatcher` and replies with the
-  result and a fresh snapshot.
+  ``experiment.start``/``stop``), at most :data:`MAX_COMMANDS_PER_S` per second and
+  :data:`MAX_IN_FLIGHT` at once, are forwarded to the daemon's command thread, which runs
+  them in order through :class:`~rigd.service.protocol.Dispatcher` and replies with the
+  result and a fresh snapshot. Forwarding never holds the server's thread: the handler
+  returns a future of the reply (the server serves every other client meanwhile, queries
+  included), a sender thread writes to the daemon and a receiver thread completes the futures
+  as the replies come back (or with an error after :data:`COMMAND_TIMEOUT_S`).
 
 The process ignores SIGINT, SIGTERM and SIGHUP (the daemon handles them and stops this process
 itself) and exits when its connection to the daemon closes (the daemon died or stopped).
@@ -25,9 +28,11 @@ from __future__ import annotations
 
 import json
 import os
+import queue
 import signal
 import threading
 import time
+from concurrent.futures import Future
 from typing import Any
 
 from rigd.service import protocol
@@ -45,6 +50,10 @@ COMMAND_TIMEOUT_S = 60.0
 #: process; an operator or the experiment runner sends a few per second
 MAX_COMMANDS_PER_S = 50.0
 
+#: forwarded commands waiting for the daemon at once, all clients together; beyond it a
+#: command is refused at once (the daemon runs them one after the other)
+MAX_IN_FLIGHT = 32
+
 
 class SnapshotHandler:
     """``handle_line`` of the socket process: answer queries from the snapshot, forward commands.
@@ -57,23 +66,51 @@ class SnapshotHandler:
         Number of connected clients (for ``ping``).
     max_commands_per_s : float
         Commands beyond this rate (burst as large) are refused with an error reply.
+    max_in_flight : int
+        Commands forwarded and not yet answered, at most; beyond, refused with an error reply.
+    timeout_s : float
+        A forwarded command not answered by the daemon within this time gets an error reply.
     """
 
     def __init__(self, cmd_conn, clients=lambda: 0,
-                 max_commands_per_s: float = MAX_COMMANDS_PER_S):
+                 max_commands_per_s: float = MAX_COMMANDS_PER_S,
+                 max_in_flight: int = MAX_IN_FLIGHT, timeout_s: float = COMMAND_TIMEOUT_S):
         self.cmd_conn = cmd_conn
         self.clients = clients
         self.rate = float(max_commands_per_s)
+        self.max_in_flight = int(max_in_flight)
+        self.timeout_s = float(timeout_s)
         self._tokens = self.rate
         self._t_tokens = time.monotonic()
         self.forwarded = 0
         self.throttled = 0
         self._lock = threading.Lock()          # snapshot
-        self._cmd_lock = threading.Lock()      # one forwarded command at a time
         self._have = threading.Event()
         self._snap: dict[str, Any] = {"v": -1}
         self._encoded: dict[str, bytes] = {}   # query -> JSON of its result, for this version
         self._tag = 0
+        # forwarded commands: tag -> (future of the reply line, request id, deadline)
+        self._pending: dict[int, tuple[Future, Any, float]] = {}
+        self._plock = threading.Lock()
+        self._channel_closed = False
+        self._outq: queue.SimpleQueue = queue.SimpleQueue()
+        self._threads = [threading.Thread(target=self._send_run, name="rigd-cmd-send",
+                                          daemon=True),
+                         threading.Thread(target=self._receive_run, name="rigd-cmd-recv",
+                                          daemon=True)]
+        for t in self._threads:
+            t.start()
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Stop the sender; commands still waiting get an error reply."""
+        self._outq.put(None)
+        self._fail_all("the socket process is stopping")
+        self._threads[0].join(timeout)
+
+    @property
+    def in_flight(self) -> int:
+        """Commands forwarded and not yet answered."""
+        return len(self._pending)
 
     # --- snapshot ------------------------------------------------------------------------
     def install(self, snap: dict[str, Any]) -> None:
@@ -103,8 +140,9 @@ class SnapshotHandler:
         return enc
 
     # --- requests ----------------------------------------------------------------------
-    def handle_line(self, line: bytes) -> bytes:
-        """One request line to one reply line; never raises (the ``ControlServer`` contract)."""
+    def handle_line(self, line: bytes) -> bytes | Future:
+        """One request line to one reply line, or to a future of it for a forwarded command;
+        never raises (the ``ControlServer`` contract)."""
         req_id = None
         try:
             req_id, cmd, args = parse_request(line)
@@ -115,14 +153,15 @@ class SnapshotHandler:
                     raise RequestError(f"{cmd}: too many commands (more than {self.rate:g} "
                                        f"per second from all clients); not run, try again",
                                        req_id)
-                return self._forward(line, req_id)
+                return self._forward(line, req_id, cmd)
             if not self._have.wait(10.0):
                 raise RequestError("the daemon has not published its state yet")
             if cmd == "ping":
                 with self._lock:
                     info = dict(self._snap.get("info", {}))
                 return protocol.ok(req_id, {"pong": True, **info, "clients": self.clients(),
-                                            "socket_pid": os.getpid()})
+                                            "socket_pid": os.getpid(),
+                                            "commands_waiting": self.in_flight})
             body = self._result_json(cmd)
             head = json.dumps({"id": protocol._plain(req_id)}, separators=(",", ":"))[:-1]
             return head.encode() + b',"ok":true,"result":' + body + b"}\n"
@@ -140,25 +179,68 @@ class SnapshotHandler:
         self._tokens -= 1.0
         return True
 
-    def _forward(self, line: bytes, req_id: Any) -> bytes:
-        with self._cmd_lock:
+    def _forward(self, line: bytes, req_id: Any, cmd: str) -> Future | bytes:
+        """Queue ``line`` for the daemon; a future of its reply line (an error line at once if
+        the channel is closed or too many commands are waiting)."""
+        fut: Future = Future()
+        with self._plock:
+            if self._channel_closed:
+                return error(req_id, "the daemon's command channel is closed (stopping?)")
+            if len(self._pending) >= self.max_in_flight:
+                return error(req_id, f"{cmd}: {len(self._pending)} commands are already "
+                                     f"waiting for the daemon; not run, try again")
             self._tag += 1
             tag = self._tag
+            self._pending[tag] = (fut, req_id, time.monotonic() + self.timeout_s)
+        self.forwarded += 1
+        self._outq.put(("cmd", tag, line, None))
+        return fut
+
+    def _finish(self, tag: int, reply: bytes) -> None:
+        with self._plock:
+            entry = self._pending.pop(tag, None)
+        if entry is not None:          # None: the late answer to a command that timed out
+            entry[0].set_result(reply)
+
+    def _fail_all(self, why: str) -> None:
+        with self._plock:
+            self._channel_closed = True
+            entries, self._pending = list(self._pending.values()), {}
+        for fut, req_id, _ in entries:
+            fut.set_result(error(req_id, why))
+
+    def _send_run(self) -> None:
+        """Sender thread: the only writer of commands to the daemon (never the server's)."""
+        while True:
+            item = self._outq.get()
+            if item is None:
+                return
             try:
-                self.cmd_conn.send(("cmd", tag, line, None))
-                self.forwarded += 1
-                end = COMMAND_TIMEOUT_S
-                while self.cmd_conn.poll(end):
-                    kind, rtag, reply, snap = self.cmd_conn.recv()
-                    if rtag != tag:
-                        continue  # the late answer to a command that timed out
+                self.cmd_conn.send(item)
+            except (OSError, EOFError, ValueError, TypeError):
+                self._fail_all("the daemon's command channel is closed (stopping?)")
+                return
+
+    def _receive_run(self) -> None:
+        """Receiver thread: replies to their futures; commands past their deadline to an error."""
+        while True:
+            try:
+                if self.cmd_conn.poll(0.25):
+                    kind, tag, reply, snap = self.cmd_conn.recv()
                     if snap is not None:
                         self.install(snap)
-                    return reply
-            except (OSError, EOFError):
-                return error(req_id, "the daemon's command channel is closed (stopping?)")
-            return error(req_id, f"the daemon did not run the command within "
-                                 f"{COMMAND_TIMEOUT_S:g} s")
+                    if kind == "reply":
+                        self._finish(tag, reply)
+            except (OSError, EOFError, ValueError, TypeError):
+                self._fail_all("the daemon's command channel is closed (stopping?)")
+                return
+            now = time.monotonic()
+            with self._plock:
+                late = [t for t, (_, _, end) in self._pending.items() if end < now]
+                entries = [(t, self._pending.pop(t)) for t in late]
+            for _, (fut, req_id, _) in entries:
+                fut.set_result(error(req_id, f"the daemon did not run the command within "
+                                             f"{self.timeout_s:g} s"))
 
 
 def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
@@ -195,3 +277,4 @@ def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
         pass  # the daemon closed the connection: stop serving
     finally:
         server.stop()
+        handler.close()

@@ -8,7 +8,13 @@ silent or hostile client can never block another one or the loop:
 * a client that does not read its replies is disconnected once ``max_pending`` bytes of
   replies are waiting;
 * beyond ``max_clients`` connections, new ones get one error line and are closed;
-* any exception while handling a request becomes an error reply to that client only.
+* any exception while handling a request becomes an error reply to that client only;
+* a request whose answer takes time (a command the socket process forwards to the daemon)
+  does not hold the thread: ``handle`` returns a :class:`concurrent.futures.Future` of the
+  reply line instead of the line, the server goes on serving every other client, and appends
+  the reply when the future is done. That client's later (pipelined) lines wait behind it, so
+  its replies stay in request order; while it waits, at most ``max_pending`` bytes of further
+  requests are buffered (beyond: dropped).
 
 The socket file is created with mode ``0660`` (owner and group only; see docs/service.md for
 the ``rigd`` group). A stale socket file left by a crashed daemon is replaced; a live one
@@ -19,6 +25,8 @@ from __future__ import annotations
 
 import errno
 import os
+from collections import deque
+from concurrent.futures import Future
 import selectors
 import socket
 import stat
@@ -32,13 +40,15 @@ from rigd.service import protocol
 
 
 class _Client:
-    __slots__ = ("sock", "rbuf", "wbuf", "closing")
+    __slots__ = ("sock", "rbuf", "wbuf", "closing", "closed", "waiting")
 
     def __init__(self, sock: socket.socket):
         self.sock = sock
         self.rbuf = bytearray()
         self.wbuf = bytearray()
         self.closing = False
+        self.closed = False
+        self.waiting: Future | None = None   # the reply still being worked on
 
 
 class ControlServer:
@@ -49,8 +59,9 @@ class ControlServer:
     path : str or Path
         Socket file.
     handle : callable
-        ``bytes -> bytes``: one request line (without ``\\n``) to one reply line; must not
-        raise (see :meth:`rigd.service.protocol.Dispatcher.handle_line`).
+        ``bytes -> bytes | Future``: one request line (without ``\\n``) to one reply line, or
+        to a future of it (set from any thread; see the module docstring); must not raise
+        (see :meth:`rigd.service.protocol.Dispatcher.handle_line`).
     mode : int
         Permissions of the socket file (default 0o660).
     max_line, max_clients, max_pending : int
@@ -70,10 +81,12 @@ class ControlServer:
         self._lsock: socket.socket | None = None
         self._thread: threading.Thread | None = None
         self._stop_r, self._stop_w = -1, -1
+        self._wake_r, self._wake_w = -1, -1
+        self._done: deque[_Client] = deque()   # clients whose future is done (any thread)
         self._clients: dict[int, _Client] = {}
         self._owns_path = False
         self.stats = {"connections": 0, "requests": 0, "dropped_clients": 0,
-                      "too_long": 0, "refused_clients": 0}
+                      "too_long": 0, "refused_clients": 0, "deferred": 0}
 
     # --- life cycle ---------------------------------------------------------------------
     def start(self, lsock: socket.socket | None = None) -> "ControlServer":
@@ -89,8 +102,12 @@ class ControlServer:
         lsock.setblocking(False)
         self._lsock = lsock
         self._stop_r, self._stop_w = os.pipe()
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
         self._sel.register(lsock, selectors.EVENT_READ, None)
         self._sel.register(self._stop_r, selectors.EVENT_READ, "stop")
+        self._sel.register(self._wake_r, selectors.EVENT_READ, "wake")
         self._thread = threading.Thread(target=self._serve, name="rigd-ctl", daemon=True)
         self._thread.start()
         return self
@@ -113,8 +130,10 @@ class ControlServer:
             pass
         self._lsock.close()
         self._sel.close()
-        os.close(self._stop_r)
-        os.close(self._stop_w)
+        fds = (self._stop_r, self._stop_w, self._wake_r, self._wake_w)
+        self._stop_r = self._stop_w = self._wake_r = self._wake_w = -1  # no late wake-up
+        for fd in fds:                                                   # hits a reused fd
+            os.close(fd)
         if self._owns_path:
             try:
                 os.unlink(self.path)
@@ -137,6 +156,9 @@ class ControlServer:
             for key, events in self._sel.select():
                 if key.data == "stop":
                     return
+                if key.data == "wake":
+                    self._deliver()
+                    continue
                 if key.data is None:
                     self._accept()
                     continue
@@ -180,13 +202,23 @@ class ControlServer:
             return
         if not data:
             c.closing = True
-            if not c.wbuf:
+            if not c.wbuf and c.waiting is None:
                 self._close(c)
             else:
-                self._want_write(c)
+                self._flush(c)   # the replies still due, then close
             return
         c.rbuf += data
-        while True:
+        if c.waiting is not None:
+            # its lines wait behind the reply being worked on; bounded like unread replies
+            if len(c.rbuf) > self.max_pending:
+                self.stats["dropped_clients"] += 1
+                self._close(c)
+            return
+        self._process(c)
+
+    def _process(self, c: _Client) -> None:
+        """Answer the complete lines in ``c.rbuf`` until one is deferred, then flush."""
+        while c.waiting is None:
             nl = c.rbuf.find(b"\n")
             if nl < 0:
                 break
@@ -198,9 +230,15 @@ class ControlServer:
             if not line:
                 continue
             self.stats["requests"] += 1
-            c.wbuf += self.handle(line)
+            reply = self.handle(line)
+            if isinstance(reply, Future):
+                self.stats["deferred"] += 1
+                c.waiting = reply
+                reply.add_done_callback(lambda _f, c=c: self._wake(c))
+            else:
+                c.wbuf += reply
             time.sleep(0)  # hand the GIL to the loop thread if it is waiting
-        if len(c.rbuf) > self.max_line:
+        if c.waiting is None and len(c.rbuf) > self.max_line:
             self._too_long(c)
             return
         if len(c.wbuf) > self.max_pending:
@@ -209,6 +247,41 @@ class ControlServer:
             return
         if c.wbuf:
             self._flush(c)
+        elif c.closing and c.waiting is None:
+            self._close(c)
+
+    def _wake(self, c: _Client) -> None:
+        """Future callback (any thread): hand ``c`` to the serving thread."""
+        self._done.append(c)
+        fd = self._wake_w
+        if fd < 0:
+            return
+        try:
+            os.write(fd, b"w")
+        except (BlockingIOError, OSError):
+            pass  # the pipe is full (a wake-up is already pending) or the server stopped
+
+    def _deliver(self) -> None:
+        """In the serving thread: append the replies of finished futures, serve what follows."""
+        try:
+            while os.read(self._wake_r, 4096):
+                pass
+        except (BlockingIOError, InterruptedError):
+            pass
+        while self._done:
+            c = self._done.popleft()
+            fut = c.waiting
+            if c.closed or fut is None or not fut.done():
+                continue
+            c.waiting = None
+            try:
+                c.wbuf += fut.result()
+            except Exception as exc:  # noqa: BLE001 - a failed future is an error reply
+                c.wbuf += protocol.error(None, f"internal error: {type(exc).__name__}: {exc}")
+            try:
+                self._process(c)
+            except OSError:
+                self._close(c)
 
     def _too_long(self, c: _Client) -> None:
         self.stats["too_long"] += 1
@@ -227,15 +300,32 @@ class ControlServer:
             del c.wbuf[:n]
         if c.wbuf:
             self._want_write(c)
-        elif c.closing:
+        elif c.closing and c.waiting is None:
             self._close(c)
         else:
-            self._sel.modify(c.sock, selectors.EVENT_READ, c)
+            # a closing client (EOF read) waiting for its reply: nothing to wait for on it
+            # until the reply comes (its end-of-file would make it readable for ever)
+            self._events(c, 0 if c.closing else selectors.EVENT_READ)
 
     def _want_write(self, c: _Client) -> None:
-        self._sel.modify(c.sock, selectors.EVENT_READ | selectors.EVENT_WRITE, c)
+        self._events(c, selectors.EVENT_WRITE if c.closing
+                     else selectors.EVENT_READ | selectors.EVENT_WRITE)
+
+    def _events(self, c: _Client, events: int) -> None:
+        """Watch ``c`` for ``events`` (0: not at all, for now)."""
+        if events == 0:
+            try:
+                self._sel.unregister(c.sock)
+            except (KeyError, ValueError):
+                pass
+            return
+        try:
+            self._sel.modify(c.sock, events, c)
+        except KeyError:
+            self._sel.register(c.sock, events, c)
 
     def _close(self, c: _Client) -> None:
+        c.closed = True
         fd = c.sock.fileno()
         if fd >= 0:
             try:

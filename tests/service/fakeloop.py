@@ -47,3 +47,20 @@ class FakeLoop:
         if omega_rpm == 13.0:
             raise RuntimeError("boom")  # a bug in the loop: must become an error reply
         self.op = (omega_rpm, p_inj_bar)
+
+
+class GatedLoop(FakeLoop):
+    """A loop whose ``load_controller`` is slow: it blocks until the test opens :attr:`gate`
+    (as a large controller being validated would), so a test can hold a forwarded command
+    pending for as long as it needs — no sleeping, no timing."""
+
+    def __init__(self):
+        super().__init__()
+        self.gate = threading.Event()
+        self.entered = threading.Event()
+
+    def load_controller(self, path):
+        self.entered.set()
+        if not self.gate.wait(60.0):
+            raise RuntimeError("gate never opened")
+        super().load_controller(path)

@@ -6,6 +6,7 @@ import json
 import multiprocessing
 import threading
 import time
+from concurrent.futures import Future
 
 from rigd.service.frontend import SnapshotHandler
 
@@ -17,7 +18,7 @@ def _daemon_side(conn, seen):
     while True:
         try:
             kind, tag, line, _ = conn.recv()
-        except (EOFError, OSError):
+        except (EOFError, OSError, TypeError):  # TypeError: closed under it
             return
         seen.append(line)
         req = json.loads(line)
@@ -35,7 +36,10 @@ def _handler(rate=50.0):
 
 
 def _ask(h, obj):
-    return json.loads(h.handle_line(json.dumps(obj).encode()))
+    r = h.handle_line(json.dumps(obj).encode())
+    if isinstance(r, Future):     # a forwarded command: its reply comes from the daemon side
+        r = r.result(30)
+    return json.loads(r)
 
 
 def test_queries_from_snapshot_and_bad_requests_never_forwarded():
@@ -76,4 +80,61 @@ def test_flood_of_valid_commands_is_throttled():
         assert all("too many commands" in r["error"] for r in refused)
         assert refused[0]["id"] is not None
     finally:
+        conn.close()
+
+
+def _mute_daemon(conn, seen, hangup):
+    """A daemon side that takes commands and never answers them; closes its end on ``hangup``
+    (itself: a close from another thread would not end its blocked recv)."""
+    while not hangup.is_set():
+        try:
+            if conn.poll(0.02):
+                seen.append(conn.recv()[2])
+        except (EOFError, OSError):
+            return
+    conn.close()
+
+
+def _mute_handler(**kw):
+    here, there = multiprocessing.Pipe()
+    seen, hangup = [], threading.Event()
+    threading.Thread(target=_mute_daemon, args=(there, seen, hangup), daemon=True).start()
+    h = SnapshotHandler(here, **kw)
+    h.install(dict(SNAP, v=1))
+    return h, here, seen, hangup
+
+
+def test_forwarded_commands_limited_and_timed_out():
+    h, conn, seen, hangup = _mute_handler(max_in_flight=2, timeout_s=0.5)
+    try:
+        f1 = h.handle_line(b'{"id": 1, "cmd": "fault.reset"}')
+        f2 = h.handle_line(b'{"id": 2, "cmd": "controller.enable"}')
+        assert isinstance(f1, Future) and isinstance(f2, Future)
+        r = json.loads(h.handle_line(b'{"id": 3, "cmd": "controller.disable"}'))
+        assert r["id"] == 3 and "2 commands are already waiting" in r["error"]
+        # queries are answered at once meanwhile
+        assert _ask(h, {"id": 4, "cmd": "status"})["ok"] is True
+        # no answer from the daemon: an error reply after timeout_s, then room again
+        r1 = json.loads(f1.result(30))
+        assert r1["id"] == 1 and "did not run the command within 0.5 s" in r1["error"]
+        assert json.loads(f2.result(30))["ok"] is False and h.in_flight == 0
+        assert len(seen) == 2
+    finally:
+        hangup.set()
+        h.close()
+        conn.close()
+
+
+def test_waiting_commands_fail_when_the_daemon_goes_away():
+    h, conn, seen, hangup = _mute_handler()
+    try:
+        f5 = h.handle_line(b'{"id": 5, "cmd": "fault.reset"}')
+        assert isinstance(f5, Future) and h.in_flight == 1
+        hangup.set()                        # the daemon's end closes: waiting commands fail
+        r5 = json.loads(f5.result(30))
+        assert r5["id"] == 5 and "command channel is closed" in r5["error"]
+        r6 = json.loads(h.handle_line(b'{"id": 6, "cmd": "fault.reset"}'))
+        assert "command channel is closed" in r6["error"]
+    finally:
+        h.close()
         conn.close()

@@ -197,3 +197,49 @@ def test_query_cache_bounded_and_invalidated_by_commands():
     d0.handle_line(b'{"cmd": "status"}')
     assert len(calls) == 4
     assert _t.monotonic() > 0
+
+
+def test_deferred_replies_keep_order_and_do_not_hold_other_clients(tmp_path):
+    """``handle`` may return a Future: the server serves others meanwhile, the waiting
+    client's pipelined lines stay behind it, and a client gone before its reply is harmless."""
+    from concurrent.futures import Future
+
+    futures = []
+
+    def handle(line):
+        req = json.loads(line)
+        if req["cmd"] == "slow":
+            f = Future()
+            futures.append((req["id"], f))
+            return f
+        return json.dumps({"id": req["id"], "ok": True}).encode() + b"\n"
+
+    with ControlServer(tmp_path / "s.sock", handle) as srv:
+        a = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        a.settimeout(10)
+        a.connect(srv.path)
+        a.sendall(b'{"id": 1, "cmd": "slow"}\n{"id": 2, "cmd": "fast"}\n')
+        gone = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        gone.connect(srv.path)
+        gone.sendall(b'{"id": 9, "cmd": "slow"}\n')
+        gone.shutdown(socket.SHUT_WR)         # half-closed: still gets its reply
+        other = _raw(srv.path, b'{"id": 3, "cmd": "fast"}\n')
+        assert other == [{"id": 3, "ok": True}]          # served while 1 and 9 wait
+        assert srv.stats["deferred"] == 2 and srv.stats["requests"] == 3  # 2 waits behind 1
+        ids = dict(futures)
+        ids[9].set_result(b'{"id": 9, "late": true}\n')
+        gone.settimeout(10)
+        assert json.loads(gone.recv(4096)) == {"id": 9, "late": True}
+        assert gone.recv(4096) == b""                    # then closed by the server
+        gone.close()
+        ids[1].set_result(b'{"id": 1, "ok": true}\n')
+        buf = b""
+        while buf.count(b"\n") < 2:
+            buf += a.recv(4096)
+        assert [json.loads(x)["id"] for x in buf.splitlines()] == [1, 2]
+        a.sendall(b'{"id": 4, "cmd": "slow"}\n')
+        while len(futures) < 3:
+            assert _raw(srv.path, b'{"id": 0, "cmd": "fast"}\n')[0]["ok"]
+        a.close()                                        # gone before its reply
+        futures[-1][1].set_result(b'{"id": 4}\n')        # delivered to nobody, no error
+        assert _raw(srv.path, b'{"id": 5, "cmd": "fast"}\n') == [{"id": 5, "ok": True}]
