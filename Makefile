@@ -6,7 +6,7 @@ STAMP   := $(VENV)/.installed
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test bench venv clean
+.PHONY: demo test lint bench venv clean
 
 venv: $(STAMP)
 
@@ -22,7 +22,11 @@ demo: $(STAMP)
 	rm -rf demo-out   # the demo's own output is replaced on every run (run dirs never are)
 	$(BIN)/rigd demo --out demo-out
 
-test: $(STAMP)
+# style/correctness rules and the layering contracts (pyproject.toml: tool.ruff, tool.importlinter)
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
+test: lint
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)

@@ -7,12 +7,11 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 
 def run() -> dict:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "diagnose"))
     import plant
+
     from rigd.data.record import Record
     from rigd.diagnose.diagnosis import diagnose_record
 

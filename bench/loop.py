@@ -27,7 +27,8 @@ RT_SECONDS = float(os.environ.get("RIGD_BENCH_RT_S", "10"))
 
 
 def _controller(n=4, seed=0):
-    """A stable random discrete K∞ with n states (4: the issue's figure; 14: what `make demo` deploys)."""
+    """A stable random discrete K∞ with n states (4: the issue's figure; 14: what `make demo`
+    deploys)."""
     from rigd.controller import Controller
 
     rng = np.random.default_rng(seed)
@@ -44,9 +45,9 @@ def _plant():
 
 
 def lockstep_throughput(n: int = 1_000_000) -> float:
-    from rigd.rigconfig import default_config
     from rigd.loop.loop import ControlLoop
     from rigd.loop.sinks import RecordSpec
+    from rigd.rigconfig import default_config
 
     cfg = default_config(clock={"mode": "lockstep", "batch_cycles": 16384})
     loop = ControlLoop(cfg, _plant(), controller=_controller())
@@ -69,10 +70,10 @@ def _null_plant(state, params, drive, frame_in):
 def compute_samples(n: int = 200_000, order: int = 4):
     """Per-call times (ns) of ``rt_cycle`` from Python with an ``order``-state K∞, and the
     in-batch mean (ns)."""
-    from rigd.rigconfig import default_config
     from rigd.loop import cycle as K
     from rigd.loop import layout as L
     from rigd.loop.loop import ControlLoop
+    from rigd.rigconfig import default_config
 
     plant = _plant()
     cfg = default_config(clock={"mode": "lockstep"}, recorder={"ring_frames": 1 << 18})
@@ -114,8 +115,8 @@ def compute_samples(n: int = 200_000, order: int = 4):
 
 
 def realtime(seconds: float = RT_SECONDS) -> dict:
-    from rigd.rigconfig import default_config
     from rigd.loop.loop import ControlLoop
+    from rigd.rigconfig import default_config
 
     cfg = default_config(clock={"mode": "realtime"})
     loop = ControlLoop(cfg, _plant(), controller=_controller())

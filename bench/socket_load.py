@@ -190,9 +190,10 @@ def start_daemon(tmp: Path, *extra: str) -> tuple[subprocess.Popen, str]:
     sock = str(tmp / "rigd.sock")
     env = dict(os.environ)
     env.pop("NOTIFY_SOCKET", None)
-    proc = subprocess.Popen([RIGD, "run", "--config", str(_config(tmp)), "--socket", sock,
-                             *extra], stdout=subprocess.DEVNULL,
-                            stderr=open(tmp / "daemon.err", "w"), env=env, cwd=str(tmp))
+    with open(tmp / "daemon.err", "w") as err:  # the daemon keeps its own copy
+        proc = subprocess.Popen([RIGD, "run", "--config", str(_config(tmp)), "--socket", sock,
+                                 *extra], stdout=subprocess.DEVNULL, stderr=err, env=env,
+                                cwd=str(tmp))
     end = time.monotonic() + 120
     while time.monotonic() < end:
         if proc.poll() is not None:

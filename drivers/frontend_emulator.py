@@ -134,7 +134,7 @@ class FrontendEmulator:
         return self.link or self.slave_name
 
     # --- thread -----------------------------------------------------------------------
-    def start(self) -> "FrontendEmulator":
+    def start(self) -> FrontendEmulator:
         self._thread = threading.Thread(target=self._run, name="frontend-emu", daemon=True)
         self._thread.start()
         return self

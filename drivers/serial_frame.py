@@ -35,8 +35,19 @@ from pydantic import Field
 from rigd.configio import StrictModel
 from rigd.driver import FastDriver
 from rigd.errors import FaultError
-from rigd.frame import (IN_E_X, IN_E_Y, IN_F_X, IN_F_Y, IN_PHI, IN_SEQ, IN_STATUS, IN_YP1,
-                        IN_YP2, IN_YP3, IN_YP4)
+from rigd.frame import (
+    IN_E_X,
+    IN_E_Y,
+    IN_F_X,
+    IN_F_Y,
+    IN_PHI,
+    IN_SEQ,
+    IN_STATUS,
+    IN_YP1,
+    IN_YP2,
+    IN_YP3,
+    IN_YP4,
+)
 from rigd_drivers import serial_protocol as sp
 
 DRV_TIMEOUT = 1 << 8
@@ -300,6 +311,7 @@ class SerialFrameDriver(FastDriver):
         st = self._state
         c = {name: int(st[i]) for i, name in sp.COUNTER_NAMES.items()}
         c.update(timeouts=self.n_timeouts, disconnects=self.n_disconnects,
-                 reconnects=self.n_reconnects, resyncs=self.n_resyncs, tx_overflow=self.n_tx_overflow,
+                 reconnects=self.n_reconnects, resyncs=self.n_resyncs,
+                 tx_overflow=self.n_tx_overflow,
                  connected=int(self.connected))
         return c

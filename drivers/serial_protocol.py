@@ -121,7 +121,7 @@ def _get_u32(buf, i):
 @njit(cache=True, nogil=True)
 def _q(x, scale, lo, hi):
     """Quantise ``x`` to an integer count with saturation (NaN -> lo)."""
-    if not (x == x):
+    if x != x:  # NaN
         return lo
     v = np.int64(np.floor(x / scale + 0.5)) if abs(x / scale) < 1e12 else (hi if x > 0 else lo)
     return min(max(v, lo), hi)
@@ -256,7 +256,8 @@ def decode_drive(buf, i, out):
 
     Returns 1 if valid, 0 if the CRC is wrong, -1 if it is not a drive frame header.
     """
-    if buf[i] != SYNC0 or buf[i + 1] != SYNC1 or buf[i + 2] != TYPE_DRIVE or buf[i + 3] != DRIVE_LEN:
+    if (buf[i] != SYNC0 or buf[i + 1] != SYNC1 or buf[i + 2] != TYPE_DRIVE
+            or buf[i + 3] != DRIVE_LEN):
         return -1
     if crc16(buf, i + 2, 2 + DRIVE_LEN) != _get_u16(buf, i + 4 + DRIVE_LEN):
         return 0

@@ -25,10 +25,20 @@ from __future__ import annotations
 import math
 
 import numba
-import numpy as np
 
-from rigd.frame import (IN_E_X, IN_E_Y, IN_F_X, IN_F_Y, IN_OMEGA, IN_P_INJ, IN_PHI, IN_SEQ,
-                        IN_STATUS, IN_YP1, N_IN)
+from rigd.frame import (
+    IN_E_X,
+    IN_E_Y,
+    IN_F_X,
+    IN_F_Y,
+    IN_OMEGA,
+    IN_P_INJ,
+    IN_PHI,
+    IN_SEQ,
+    IN_STATUS,
+    IN_YP1,
+    N_IN,
+)
 from rigd_drivers.sim_noise import normal_pair as _normal_pair
 
 NX = 6          # bearing states: e_x, e_y, de_x, de_y, q, dq (q: extra mode)
@@ -261,7 +271,7 @@ def plant_step(state, params, drive, frame_in):
             v = 0.0
         elif v > 10.0:
             v = 10.0
-        if not (v == v):                       # NaN drive: amplifier holds 0 V
+        if v != v:                             # NaN drive: amplifier holds 0 V
             v = 0.0
         vprev = state[S_VPREV + i]
         state[S_VPREV + i] = v                 # the amplifier output (clamped)

@@ -143,13 +143,16 @@ def validate(loaded: LoadedYaml, model: type[M], *, section: tuple[Any, ...] = (
         return model.model_validate(data)
     except ValidationError as exc:
         err = exc.errors()[0]
-        loc = tuple(section) + tuple(p for p in err["loc"] if not (isinstance(p, str) and "[" in p and p.startswith("function")))
+        loc = tuple(section) + tuple(
+            p for p in err["loc"]
+            if not (isinstance(p, str) and "[" in p and p.startswith("function")))
         line = loaded.line_of(loc)
         where = f"{loaded.source}:{line}" if line else loaded.source
         msg = err["msg"]
         if err["type"] == "extra_forbidden":
             msg = "unknown key"
-        elif "input" in err and err["type"] != "missing" and not isinstance(err["input"], (dict, list)):
+        elif ("input" in err and err["type"] != "missing"
+              and not isinstance(err["input"], (dict, list))):
             msg = f"{msg} (got {err['input']!r})"
         if len(exc.errors()) > 1:
             msg += f" (and {len(exc.errors()) - 1} more problem(s))"

@@ -28,7 +28,7 @@ from rigd.errors import InputError
 GROUP = "rigd.drivers"
 
 
-class Driver(ABC):
+class Driver(ABC):  # noqa: B024 - abstract by intent: only FastDriver/SlowDriver are made
     """Common part of every driver.
 
     Parameters

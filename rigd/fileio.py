@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import os
 import secrets
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Iterator
+from typing import IO
 
 #: permission bits asked of the kernel for a new file, before the umask (as ``open()`` does)
 NEW_FILE_MODE = 0o666
@@ -53,7 +54,7 @@ def atomic_open(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
     fd, tmp = create_temp_beside(path)
     try:
         try:
-            fh = open(fd, mode, **kwargs)
+            fh = open(fd, mode, **kwargs)  # noqa: SIM115 - the `with fh:` below closes it
         except BaseException:
             os.close(fd)
             raise

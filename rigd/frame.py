@@ -39,7 +39,8 @@ RECORD_CHANNELS: tuple[tuple[str, str], ...] = (
     ("phi", "rad"),
     ("f_x", "N"), ("f_y", "N"),
     ("omega_rpm", "rpm"), ("p_inj_bar", "bar"),
-    ("r_x", "V"), ("r_y", "V"),          # lumped references r = K∞ output + excitation (Eq. 1 input)
+    # lumped references r = K∞ output + excitation (Eq. 1 input)
+    ("r_x", "V"), ("r_y", "V"),
     ("k_x", "V"), ("k_y", "V"),          # K∞(z) output alone
     ("x_x", "V"), ("x_y", "V"),          # experiment excitation alone
     ("r_p1", "V"), ("r_p2", "V"), ("r_p3", "V"), ("r_p4", "V"),   # per-valve references (Eq. 1)

@@ -13,8 +13,9 @@ Used by ``compare``, ``diagnose``, ``design``, ``analyze-impact`` and ``demo``::
 from __future__ import annotations
 
 import html
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import matplotlib
 
@@ -69,7 +70,8 @@ class Report:
             fig.savefig(path, dpi=90)
             plt.close(fig)
             self.figures.append(path)
-            self._parts.append(f'<figure><img src="{html.escape(path.name)}" alt="{html.escape(name)}">'
+            self._parts.append(f'<figure><img src="{html.escape(path.name)}" '
+                               f'alt="{html.escape(name)}">'
                                f"<figcaption>{html.escape(caption)}</figcaption></figure>")
         self._pending.clear()
 

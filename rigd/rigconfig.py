@@ -30,13 +30,15 @@ class LoopConfig(StrictModel):
     r0_v: float = 5.0                                   #: r0 of Eq. 1, V
     drive_v: tuple[float, float] = (0.0, 10.0)          #: drive & valve reference range, V
     k_ramp_s: float = Field(0.05, ge=0, le=10)          #: K∞ enable/disable blend time, s
-    peq_tau_s: float = Field(0.2, gt=0, le=100)         #: p_eq tracking time constant while K∞ is off, s
+    #: p_eq tracking time constant while K∞ is off, s
+    peq_tau_s: float = Field(0.2, gt=0, le=100)
 
     @model_validator(mode="after")
     def _ranges(self):
         lo, hi = self.drive_v
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-            raise ValueError(f"drive_v must be [low, high] with low < high, got {list(self.drive_v)}")
+            raise ValueError("drive_v must be [low, high] with low < high, got "
+                             f"{list(self.drive_v)}")
         if not lo <= self.r0_v <= hi:
             raise ValueError(f"r0_v={self.r0_v} is outside drive_v {list(self.drive_v)}")
         return self
@@ -48,7 +50,8 @@ class ValvePD(StrictModel):
     kp: float = Field(1.5, ge=0, le=1000)               #: proportional gain, V/V
     kd: float = Field(1e-4, ge=0, le=10)                #: derivative gain, V·s/V
     tf_s: float = Field(1e-4, gt=0, le=1)               #: derivative filter time constant, s
-    kff: float = Field(1.0, ge=0, le=10)                #: reference feed-forward gain, V/V (0: pure PD)
+    #: reference feed-forward gain, V/V (0: pure PD)
+    kff: float = Field(1.0, ge=0, le=10)
 
 
 class SupervisorConfig(StrictModel):
@@ -91,10 +94,12 @@ class ClockConfig(StrictModel):
     """Which clock drives the cycle and how."""
 
     mode: Literal["realtime", "lockstep"] = "realtime"
-    overrun: Literal["skip", "catch_up"] = "skip"     #: after a late cycle: skip missed periods or run them
+    #: after a late cycle: skip missed periods or run them
+    overrun: Literal["skip", "catch_up"] = "skip"
     priority: int = Field(80, ge=1, le=99)            #: SCHED_FIFO priority when permitted
     cpu: int | None = Field(None, ge=0)               #: pin the loop thread to this CPU
-    spin_us: float = Field(100.0, ge=0, le=5000)      #: busy-wait this long before each deadline, µs
+    #: busy-wait this long before each deadline, µs
+    spin_us: float = Field(100.0, ge=0, le=5000)
     batch_cycles: int = Field(8192, ge=1, le=1 << 22)  #: lock-step cycles per compiled call
 
 
@@ -161,7 +166,8 @@ class RigConfig(StrictModel):
     def _channels(cls, v: dict[str, Calibration]) -> dict[str, Calibration]:
         for name in v:
             if name not in CALIBRATABLE:
-                raise ValueError(f"unknown channel {name!r} (calibratable: {', '.join(CALIBRATABLE)})")
+                raise ValueError(f"unknown channel {name!r} "
+                                 f"(calibratable: {', '.join(CALIBRATABLE)})")
         return v
 
     def calibration_arrays(self):

@@ -89,7 +89,8 @@ def status_summary(st: dict) -> str:
         k = "OFF: tripped by the fault (it was enabled; after a reset enable it again)"
     else:
         k = "off" if blend <= 0.0 else f"switching off (blend {blend:.2f})"
-    return f"state: {'running' if st.get('running') else 'stopped'}, cycle {st.get('seq')}, {fault}\nK∞: {k}"
+    state = "running" if st.get("running") else "stopped"
+    return f"state: {state}, cycle {st.get('seq')}, {fault}\nK∞: {k}"
 
 
 def format_human(value, indent: int = 0) -> str:

@@ -89,7 +89,9 @@ def load_data(path: str, fs: str | None = None, inputs: str | None = None,
         return load_record(path)
     from rigd.cli.export import parse_fs
 
-    split = (lambda v: [c.strip() for c in v.split(",") if c.strip()] if v else None)
+    def split(v):
+        return [c.strip() for c in v.split(",") if c.strip()] if v else None
+
     return load_record(path, fs=parse_fs(fs), inputs=split(inputs), outputs=split(outputs))
 
 

@@ -48,10 +48,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from rigd import log
-    from rigd.rigconfig import load_config
     from rigd.errors import InputError
     from rigd.loop.app import build_loop
     from rigd.loop.timing import format_summary
+    from rigd.rigconfig import load_config
 
     log.configure(args.log_level)
     logger = log.get_logger("rigd.run")

@@ -23,8 +23,9 @@ from __future__ import annotations
 import json
 import math
 import re
+from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Any, Iterable, Iterator, TextIO
+from typing import Any, TextIO
 
 import numpy as np
 import yaml
@@ -254,8 +255,8 @@ def _parse_block(block: list[tuple[int, str]], names: list[str], path: str) -> n
     finite = np.isfinite(arr)
     if not finite.all():
         r, c = np.argwhere(~finite)[0]
-        raise _err(path, block[r][0], f"{float(arr[r, c])!r} in column {names[c]!r}: NaN and Inf are "
-                                      "not allowed")
+        raise _err(path, block[r][0],
+                   f"{float(arr[r, c])!r} in column {names[c]!r}: NaN and Inf are not allowed")
     return arr
 
 
@@ -267,15 +268,16 @@ def check_time(t: np.ndarray, fs: float, lines: np.ndarray, path: str) -> None:
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         i = bad[0] + 1
-        raise _err(path, int(lines[i]), f"t not increasing: t = {float(t[i])!r} after {float(t[i - 1])!r}")
+        raise _err(path, int(lines[i]),
+                   f"t not increasing: t = {float(t[i])!r} after {float(t[i - 1])!r}")
     dev = np.abs(t - (t[0] + np.arange(len(t)) / fs))
     tol = 0.5 / fs
     bad = np.flatnonzero(dev > tol)
     if bad.size:
         i = bad[0]
-        raise _err(path, int(lines[i]), f"t inconsistent with fs = {fs:g} Hz: t = {float(t[i])!r}, "
-                                        f"expected {float(t[0] + i / fs)!r} (tolerance half a sample, "
-                                        f"{tol:.3g} s)")
+        raise _err(path, int(lines[i]),
+                   f"t inconsistent with fs = {fs:g} Hz: t = {float(t[i])!r}, "
+                   f"expected {float(t[0] + i / fs)!r} (tolerance half a sample, {tol:.3g} s)")
 
 
 def read_csv(path: str | Path) -> Record:
@@ -288,7 +290,7 @@ def read_csv(path: str | Path) -> Record:
     """
     spath = str(path)
     try:
-        fh = open(path, encoding="utf-8", newline="")
+        fh = open(path, encoding="utf-8", newline="")  # noqa: SIM115 - `with fh:` below
     except FileNotFoundError:
         raise _err(spath, None, "no such file") from None
     except OSError as exc:
@@ -373,8 +375,9 @@ def check_finite_block(block: np.ndarray, names: list[str], where: str, first_ro
     finite = np.isfinite(block)
     if not finite.all():
         r, c = np.argwhere(~finite)[0]
-        raise InputError(f"{float(block[r, c])!r} in channel {names[c]!r} at sample {first_row + r}: "
-                         "NaN/Inf cannot be written to the interchange CSV", where)
+        raise InputError(f"{float(block[r, c])!r} in channel {names[c]!r} at sample "
+                         f"{first_row + r}: NaN/Inf cannot be written to the interchange CSV",
+                         where)
 
 
 def write_blocks(fh: TextIO, fs: float, meta: dict[str, Any], names: list[str],

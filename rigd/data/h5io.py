@@ -12,10 +12,11 @@ used by the CSV export); :func:`read_h5` reads the whole record into memory.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -204,25 +205,24 @@ def write_h5(path: str | Path, record: Record, *, chunk_rows: int = 4096) -> Non
 
     names = list(record.columns)
     units = record.meta.get("units") or {}
-    with atomic_open(path, "wb") as fh:
-        with h5py.File(fh, "w", libver="latest") as f:
-            n = record.n
-            ds = f.create_dataset("frames", shape=(n, len(names)), maxshape=(None, len(names)),
-                                  dtype="f8", chunks=(max(1, min(chunk_rows, n or 1)),
-                                                      len(names)))
-            for s in range(0, n, 65536):
-                ds[s:s + 65536] = np.column_stack([record.columns[k][s:s + 65536]
-                                                   for k in names])
-            ds.attrs["channels"] = np.array(names, dtype=h5py.string_dtype())
-            ds.attrs["units"] = np.array([str(units.get(k, "")) for k in names],
-                                         dtype=h5py.string_dtype())
-            f.attrs["fs"] = float(record.fs)
-            for k, v in record.meta.items():
-                if k == "units" or v is None:
-                    continue
-                if isinstance(v, (list, tuple)) and all(isinstance(x, str) for x in v):
-                    v = np.array(v, dtype=h5py.string_dtype())
-                elif isinstance(v, dict):
-                    import json
-                    v = json.dumps(v)
-                f.attrs[k] = v
+    with atomic_open(path, "wb") as fh, h5py.File(fh, "w", libver="latest") as f:
+        n = record.n
+        ds = f.create_dataset("frames", shape=(n, len(names)), maxshape=(None, len(names)),
+                              dtype="f8", chunks=(max(1, min(chunk_rows, n or 1)),
+                                                  len(names)))
+        for s in range(0, n, 65536):
+            ds[s:s + 65536] = np.column_stack([record.columns[k][s:s + 65536]
+                                               for k in names])
+        ds.attrs["channels"] = np.array(names, dtype=h5py.string_dtype())
+        ds.attrs["units"] = np.array([str(units.get(k, "")) for k in names],
+                                     dtype=h5py.string_dtype())
+        f.attrs["fs"] = float(record.fs)
+        for k, v in record.meta.items():
+            if k == "units" or v is None:
+                continue
+            if isinstance(v, (list, tuple)) and all(isinstance(x, str) for x in v):
+                v = np.array(v, dtype=h5py.string_dtype())
+            elif isinstance(v, dict):
+                import json
+                v = json.dumps(v)
+            f.attrs[k] = v

@@ -54,7 +54,7 @@ def read_raw_csv(path: str | Path, *, fs: float, inputs: list[str] | None = None
     if outputs is not None:
         meta["outputs"] = list(outputs)
     try:
-        fh = open(path, encoding="utf-8", newline="")
+        fh = open(path, encoding="utf-8", newline="")  # noqa: SIM115 - `with fh:` below
     except FileNotFoundError:
         raise InputError("no such file", spath) from None
     except OSError as exc:

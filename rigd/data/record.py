@@ -109,12 +109,12 @@ class Record:
         return np.column_stack([self.col(n) for n in names]).astype(float, copy=False)
 
     # --- derived records --------------------------------------------------------------
-    def slice(self, start: int | None = None, stop: int | None = None) -> "Record":
+    def slice(self, start: int | None = None, stop: int | None = None) -> Record:
         """Samples ``start:stop`` as a new record (metadata copied)."""
         cols = {k: v[start:stop] for k, v in self.columns.items()}
         return Record(cols, self.fs, dict(self.meta), self.source)
 
-    def with_columns(self, **cols: np.ndarray) -> "Record":
+    def with_columns(self, **cols: np.ndarray) -> Record:
         """A copy with some columns added or replaced."""
         new = dict(self.columns)
         new.update({k: np.asarray(v, dtype=float) for k, v in cols.items()})

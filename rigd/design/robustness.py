@@ -14,8 +14,8 @@ controller's rate, so the figures describe the loop as it runs.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import Callable
 
 import numpy as np
 

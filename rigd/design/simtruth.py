@@ -57,7 +57,7 @@ def _act_fit(fs_hz: float):
     for ax in ("x", "y"):
         h = sp.lumped_actuator_tf(ax, fs=fs_hz)(np.exp(2j * np.pi * ff * T))
 
-        def res(th):
+        def res(th, h=h):
             s = 2j * np.pi * ff
             m = th[0] / ((s / th[1] + 1) * (s / th[2] + 1)) * np.exp(-s * T / 2)
             r = (m - h) / np.abs(h)

@@ -115,7 +115,7 @@ def model_resonances(structure, theta) -> list[float]:
         else:
             A = np.asarray(structure.ss(theta).A)
         lam = np.linalg.eigvals(A)
-        fr = sorted({round(float(abs(l) / (2 * np.pi)), 3) for l in lam if l.imag > 1e-9})
+        fr = sorted({round(float(abs(lm) / (2 * np.pi)), 3) for lm in lam if lm.imag > 1e-9})
         return fr
     except Exception:  # noqa: BLE001 - a structure without a linear part has no resonances
         return []

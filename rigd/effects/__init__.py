@@ -10,7 +10,8 @@ instance. A new effect is one new module with an :class:`Effect` subclass, regis
 
 from __future__ import annotations
 
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from rigd.effects.actuator_dynamics import ActuatorDynamics
 from rigd.effects.base import Effect, ExtendedStructure

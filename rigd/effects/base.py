@@ -27,7 +27,8 @@ both are re-exported here (``from rigd.effects.base import Context, Finding, ...
 from __future__ import annotations
 
 import copy
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -55,7 +56,7 @@ class ExtendedStructure:
     ``continuous(theta) -> (A, B, C, D, x0)``, else by fixed-point iteration.
     """
 
-    def __init__(self, base: Any, effect: "Effect"):
+    def __init__(self, base: Any, effect: Effect):
         self.base = base
         self.effect = effect
         self._enames = list(effect.param_names(base))
@@ -163,11 +164,11 @@ class Effect:
         """Signature regressors, each (n, ny): first-order output change per parameter."""
         raise NotImplementedError
 
-    def explain(self, ctx: Context, sig: "SignatureFit") -> tuple[str, dict]:
+    def explain(self, ctx: Context, sig: SignatureFit) -> tuple[str, dict]:
         """Plain-language explanation and evidence numbers."""
         return f"{self.physics}; explains {100 * sig.score:.0f} % of the residual", {}
 
-    def signature(self, ctx: Context) -> "SignatureFit":
+    def signature(self, ctx: Context) -> SignatureFit:
         """Regress the residual on :meth:`regressors` (est part), score on validation part."""
         return signature_fit(ctx, self.regressors(ctx))
 
@@ -210,7 +211,7 @@ class Effect:
         """
         return None
 
-    def warm_start(self, ctx: Context, sig: "SignatureFit") -> np.ndarray | None:
+    def warm_start(self, ctx: Context, sig: SignatureFit) -> np.ndarray | None:
         """Effect parameters to start the refit from (default: theta0_effect)."""
         return None
 

@@ -200,7 +200,8 @@ class Context:
 
     def through_force(self, v: np.ndarray, axis: int) -> np.ndarray:
         """Response (n, ny) of the fitted mechanical model to ``v`` (n,) added to the
-        mass-normalised force (acceleration) of output axis ``axis``: p̈ + D ṗ + K p = B u + e_axis v.
+        mass-normalised force (acceleration) of output axis ``axis``:
+        p̈ + D ṗ + K p = B u + e_axis v.
 
         Falls back to :meth:`through_model` on input ``axis`` for structures without a
         continuous state-space form.

@@ -7,10 +7,10 @@ L_τ = 1/(τ s + 1). Through the PD-closed valve loop (rigd.effects._drive)
     u = H_a(s) · (r + Σ_m c_m · (L_τm(x) − x))                        (Eqs. 8–10 plus creep)
 
 with x = (v_+ − v_−)/2 the recorded drives of the axis' valve pair (Eq. 1; the input itself
-when the record has no drives) and c_m ≈ f_m/(kff + kp) the loop-suppressed fractions (the static part c_m·x, ≈ c_m·r, is
-absorbed by the base gain, so the prefilters' offset removal leaves it unbiased). Two
-lags; the weights c_m per axis and the time constants τ_1 < τ_2 (shared by the axes, as the
-valves' material) are fitted with the rest.
+when the record has no drives) and c_m ≈ f_m/(kff + kp) the loop-suppressed fractions (the
+static part c_m·x, ≈ c_m·r, is absorbed by the base gain, so the prefilters' offset removal
+leaves it unbiased). Two lags; the weights c_m per axis and the time constants τ_1 < τ_2
+(shared by the axes, as the valves' material) are fitted with the rest.
 
 Signature: after each step the output keeps drifting exponentially toward its final value
 while the input holds still (rate-dependent: a fast back-and-forth leaves no trace; hysteresis

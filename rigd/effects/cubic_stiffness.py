@@ -44,7 +44,8 @@ class CubicStiffness(Effect):
         edges, rms = amplitude_profile(ctx)
         ratio = float(rms[-1] / rms[0]) if rms[0] > 0 else float("inf")
         k3 = -np.asarray(sig.beta, float)[:ctx.ny]
-        ev = {"k3": k3.tolist(), "k3_cross": (-np.asarray(sig.beta, float)[ctx.ny:]).tolist(), "residual_rms_by_amplitude": rms.tolist(),
+        ev = {"k3": k3.tolist(), "k3_cross": (-np.asarray(sig.beta, float)[ctx.ny:]).tolist(),
+              "residual_rms_by_amplitude": rms.tolist(),
               "amplitude_edges": edges.tolist(), "large_over_small": ratio}
         sign = "stiffening" if np.sum(k3) > 0 else "softening"
         return (f"the error grows with amplitude: residual RMS {ratio:.1f}× larger in the top "

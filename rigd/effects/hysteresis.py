@@ -133,7 +133,8 @@ class Hysteresis(Effect):
         return (f"the residual on {ctx.label(j if j < ctx.ny else 0)} is {diffs[j]:+.3g} "
                 f"higher after {ctx.label(j, 'in')} last rose than after it last fell, and "
                 f"stays so while the input holds still: hysteresis (loops in the r–u plane, "
-                f"piezo valves); a Bouc–Wen operator on {sig.extra.get('operator_input', 'the input')} explains "
+                f"piezo valves); a Bouc–Wen operator on "
+                f"{sig.extra.get('operator_input', 'the input')} explains "
                 f"{100 * sig.score:.0f} % of the residual", ev)
 
     # --- extension -------------------------------------------------------------------

@@ -7,8 +7,9 @@ effective sample size :func:`effective_n` of an autocorrelated residual. Re-expo
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 

@@ -16,7 +16,8 @@ iteration on its batch ``simulate`` (p ← G(u + F(p))), which converges for wea
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numba
 import numpy as np
@@ -69,7 +70,8 @@ def simulate_state(A, B, C, D, x0, K3, fs: float, u: np.ndarray) -> np.ndarray:
                       np.ascontiguousarray(u, dtype=float))
 
 
-def fixed_point(sim: Callable[[Any], np.ndarray], data: Any, feedback: Callable[[np.ndarray], np.ndarray],
+def fixed_point(sim: Callable[[Any], np.ndarray], data: Any,
+                feedback: Callable[[np.ndarray], np.ndarray],
                 iters: int = 12) -> np.ndarray:
     """Solve p = G(u + feedback(p)) by damped fixed-point iteration on the batch simulator."""
     u = np.asarray(data.inputs, float)

@@ -7,15 +7,22 @@ only when the segment completed: an interrupted point leaves no file behind.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from rigd.errors import InputError
 from rigd.experiments import signals
-from rigd.experiments.schemas import (ChirpSpec, ImpactSpec, MultilevelSpec, MultisineSpec,
-                                      PrbsSpec, RunoutSpec)
+from rigd.experiments.schemas import (
+    ChirpSpec,
+    ImpactSpec,
+    MultilevelSpec,
+    MultisineSpec,
+    PrbsSpec,
+    RunoutSpec,
+)
 
 
 class PointFailed(Exception):
@@ -67,8 +74,8 @@ def wants_controller(spec: Any) -> bool:
 def check_against_rate(spec: Any, fs: float, where: str) -> None:
     """Refuse requests the loop rate cannot honour (before anything runs)."""
     nyq = fs / 2.0
-    if isinstance(spec, (PrbsSpec, MultilevelSpec)) and spec.min_hold_s is not None:
-        if spec.min_hold_s < 1.0 / fs * 0.5:
+    if (isinstance(spec, (PrbsSpec, MultilevelSpec)) and spec.min_hold_s is not None
+            and spec.min_hold_s < 1.0 / fs * 0.5):
             raise InputError(f"min_hold_s {spec.min_hold_s} is shorter than one loop period "
                              f"(1/{fs:g} s)", f"{where}: min_hold_s")
     if isinstance(spec, MultisineSpec):
@@ -221,8 +228,9 @@ class PointRunner:
                                   trigger_index=n_pre, trigger=spec.trigger)
                 if spec.trigger == "sim":
                     meta.update(peak_n=spec.peak_n, pulse_s=spec.pulse_s)
-                    hit = (lambda a=spec.axis, f=spec.peak_n, d=spec.pulse_s:
-                           plant.impact(a, f, d))
+                    def hit(a=spec.axis, f=spec.peak_n, d=spec.pulse_s):
+                        plant.impact(a, f, d)
+
                     res = self._record(path, meta, np.zeros((n_pre + n_post, 2)),
                                        controller_on=None, events=[(n_pre, hit)])
                     n = self._n_frames(res, n_pre + n_post)

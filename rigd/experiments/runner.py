@@ -10,17 +10,25 @@ ones.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from rigd.errors import FaultError, InputError
 from rigd.experiments.manifest import Manifest, new_run_dir, now_iso, sha256_text
-from rigd.experiments.points import (PointFailed, PointRunner, check_against_rate,
-                                     controller_enabled, controller_loaded, loop_fs, segments,
-                                     wants_controller)
+from rigd.experiments.points import (
+    PointFailed,
+    PointRunner,
+    check_against_rate,
+    controller_enabled,
+    controller_loaded,
+    loop_fs,
+    segments,
+    wants_controller,
+)
 from rigd.experiments.schemas import SettleSpec, SweepSpec, load_experiment, spec_from_dict
 from rigd.experiments.sweep import set_point, settle_check
 

@@ -11,7 +11,7 @@ than 0 (got -1)``) through :mod:`rigd.configio`.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal, Union
+from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -19,7 +19,7 @@ from rigd.configio import LoadedYaml, StrictModel, read_yaml, validate
 from rigd.errors import InputError
 
 Axis = Literal["x", "y"]
-Amplitude = Union[float, list[float]]
+Amplitude = float | list[float]
 
 
 def _check_amplitude(v: Any) -> Any:
@@ -215,8 +215,8 @@ class SweepSpec(_Base):
                 for w in self.grid.omega_rpm for p in self.grid.p_inj_bar]
 
 
-PointSpec = Union[PrbsSpec, MultilevelSpec, MultisineSpec, ChirpSpec, RunoutSpec, ImpactSpec]
-ExperimentSpec = Union[PointSpec, SweepSpec]
+PointSpec = PrbsSpec | MultilevelSpec | MultisineSpec | ChirpSpec | RunoutSpec | ImpactSpec
+ExperimentSpec = PointSpec | SweepSpec
 KINDS: dict[str, type] = {"prbs": PrbsSpec, "multilevel": MultilevelSpec,
                           "multisine": MultisineSpec, "chirp": ChirpSpec, "runout": RunoutSpec,
                           "impact": ImpactSpec, "sweep": SweepSpec}

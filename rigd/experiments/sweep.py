@@ -14,8 +14,9 @@ window, or ``settle.timeout_s`` passes (the point is then marked ``not_settled``
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 

@@ -164,12 +164,12 @@ def write_report(comps: dict[str, Comparison], out: str | Path, title: str = "Mo
         for i in range(d.ny):
             for j in range(d.nu):
                 lab = f"{d.input_names[j]}→{d.output_names[i]}"
-                l, = ax[0].loglog(f, np.abs(Hm[:, i, j]), lw=1, label=lab)
-                ax[0].loglog(f, np.abs(H[:, i, j]), ".", ms=2, color=l.get_color())
+                line, = ax[0].loglog(f, np.abs(Hm[:, i, j]), lw=1, label=lab)
+                ax[0].loglog(f, np.abs(H[:, i, j]), ".", ms=2, color=line.get_color())
                 ax[1].semilogx(f, np.degrees(np.unwrap(np.angle(Hm[:, i, j]))), lw=1,
-                               color=l.get_color())
+                               color=line.get_color())
                 ax[1].semilogx(f, np.degrees(np.unwrap(np.angle(H[:, i, j]))), ".", ms=2,
-                               color=l.get_color())
+                               color=line.get_color())
         ax[0].set_ylabel("|H|")
         ax[0].legend(fontsize=7)
         ax[1].set_ylabel("phase (deg)")

@@ -14,8 +14,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from rigd.data.record import (ACTUATOR_INPUTS, ACTUATOR_OUTPUTS, BEARING_INPUTS,
-                              BEARING_OUTPUTS, Record)
+from rigd.data.record import (
+    ACTUATOR_INPUTS,
+    ACTUATOR_OUTPUTS,
+    BEARING_INPUTS,
+    BEARING_OUTPUTS,
+    Record,
+)
 from rigd.errors import InputError
 
 #: Fewest samples a record must have to be identified (offsets use the first 2000).
@@ -76,11 +81,11 @@ class IdData:
         """Shaft angle (rad) if the record had one."""
         return self.aux.get("phi")
 
-    def with_inputs(self, u: np.ndarray) -> "IdData":
+    def with_inputs(self, u: np.ndarray) -> IdData:
         """A copy with inputs replaced (same outputs, aux, meta)."""
         return self.with_u(u)
 
-    def with_outputs(self, y: np.ndarray) -> "IdData":
+    def with_outputs(self, y: np.ndarray) -> IdData:
         """A copy with outputs replaced."""
         return self.with_y(y)
 
@@ -109,19 +114,19 @@ class IdData:
     def submodel(self) -> str:
         return str(self.meta.get("submodel", "generic"))
 
-    def slice(self, start: int | None = None, stop: int | None = None) -> "IdData":
+    def slice(self, start: int | None = None, stop: int | None = None) -> IdData:
         """Samples ``start:stop`` as new data (aux channels sliced alike)."""
         return replace(self, u=self.u[start:stop], y=self.y[start:stop],
                        aux={k: v[start:stop] for k, v in self.aux.items()},
                        meta=dict(self.meta))
 
-    def with_y(self, y: np.ndarray) -> "IdData":
+    def with_y(self, y: np.ndarray) -> IdData:
         return replace(self, y=np.asarray(y, float), aux=dict(self.aux), meta=dict(self.meta))
 
-    def with_u(self, u: np.ndarray) -> "IdData":
+    def with_u(self, u: np.ndarray) -> IdData:
         return replace(self, u=np.asarray(u, float), aux=dict(self.aux), meta=dict(self.meta))
 
-    def split(self, frac: float = 2.0 / 3.0) -> tuple["IdData", "IdData"]:
+    def split(self, frac: float = 2.0 / 3.0) -> tuple[IdData, IdData]:
         """Estimation part (first ``frac``) and validation part (the rest)."""
         k = int(round(self.n * frac))
         return self.slice(0, k), self.slice(k, None)

@@ -107,7 +107,7 @@ def levy_fit(f, H, coh, suu, fs, mask_K, mask_D, mask_B, iters: int = 4, hold: s
             kj = np.flatnonzero(mask_K[i])
             dj = np.flatnonzero(mask_D[i])
             bm = np.flatnonzero(mask_B[i])
-            rows_re, rows_im, rhs_re, rhs_im, wts = [], [], [], [], []
+            rows_re, rows_im, rhs_re, rhs_im = [], [], [], []
             for m in range(nu):
                 a = np.zeros((nf, len(kj) + len(dj) + len(bm)), complex)
                 a[:, :len(kj)] = Hc[:, kj, m]
@@ -117,8 +117,10 @@ def levy_fit(f, H, coh, suu, fs, mask_K, mask_D, mask_B, iters: int = 4, hold: s
                         a[:, len(kj) + len(dj) + q] = -1.0
                 b = w ** 2 * Hc[:, i, m]
                 wt = np.sqrt(coh[:, i]) * sk * band
-                rows_re.append(a.real * wt[:, None]); rows_im.append(a.imag * wt[:, None])
-                rhs_re.append(b.real * wt); rhs_im.append(b.imag * wt)
+                rows_re.append(a.real * wt[:, None])
+                rows_im.append(a.imag * wt[:, None])
+                rhs_re.append(b.real * wt)
+                rhs_im.append(b.imag * wt)
             Am = np.vstack(rows_re + rows_im)
             bv = np.concatenate(rhs_re + rhs_im)
             colscale = np.maximum(np.linalg.norm(Am, axis=0), 1e-300)

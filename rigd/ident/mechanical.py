@@ -19,8 +19,7 @@ import numpy as np
 
 from rigd.ident.iddata import IdData
 from rigd.ident.initial import mechanical_initial
-from rigd.ident.simulate import (Hooks, mechanical_abc, predict_mechanical,
-                                 simulate_mechanical)
+from rigd.ident.simulate import Hooks, mechanical_abc, predict_mechanical, simulate_mechanical
 from rigd.ident.structure import Structure
 
 
@@ -168,11 +167,12 @@ class MechanicalStructure(Structure):
         A, _, _ = mechanical_abc(K, D, np.zeros((self.n, 1)))
         lam = np.linalg.eigvals(A)
         out = []
-        for l in sorted(lam[lam.imag > 1e-9], key=abs):
-            out.append({"f_n_hz": float(abs(l) / (2 * np.pi)), "zeta": float(-l.real / abs(l))})
+        for lm in sorted(lam[lam.imag > 1e-9], key=abs):
+            out.append({"f_n_hz": float(abs(lm) / (2 * np.pi)),
+                        "zeta": float(-lm.real / abs(lm))})
         real = np.sort(lam[np.abs(lam.imag) <= 1e-9].real)
-        for l in real:
-            out.append({"pole_rad_s": float(l)})
+        for pole in real:
+            out.append({"pole_rad_s": float(pole)})
         return out
 
     def readouts(self, theta):

@@ -167,7 +167,7 @@ class ReassembledBearing:
                                     for p, t, f in zip(self.points, self.thetas, self.fits)]})
 
     @classmethod
-    def load(cls, path: str | Path) -> "ReassembledBearing":
+    def load(cls, path: str | Path) -> ReassembledBearing:
         doc = read_yaml(path).data
         if not isinstance(doc, dict) or doc.get("rigd_gbear") != 1:
             raise InputError("not a G_bear file (rigd_gbear: 1 missing)", str(path))
@@ -207,7 +207,8 @@ class SweepResult:
             if not p["ok"]:
                 lines.append(f"{p['omega_rpm']:9g}  {p['p_inj_bar']:9g}  failed: {p['error']}")
                 continue
-            ms = "  ".join(f"{m['f_n_hz']:.1f}/{m['zeta']:.3f}" for m in p["modes"] if "f_n_hz" in m)
+            ms = "  ".join(f"{m['f_n_hz']:.1f}/{m['zeta']:.3f}" for m in p["modes"]
+                           if "f_n_hz" in m)
             lines.append(f"{p['omega_rpm']:9g}  {p['p_inj_bar']:9g}  {p['fit_percent']:5.1f}  {ms}")
         lines += [f"note: {n}" for n in self.notes]
         lines += [f"{k}: {v}" for k, v in self.files.items()]

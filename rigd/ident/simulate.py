@@ -19,8 +19,8 @@ The compiled kernels live in :mod:`rigd.ident.sim_kernels`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 

@@ -15,7 +15,8 @@ its own ``ExtendedStructure`` (simulation-level); this one keeps the one-step pr
 
 from __future__ import annotations
 
-from typing import Any, Protocol, Sequence, runtime_checkable
+from collections.abc import Sequence
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 

@@ -20,8 +20,8 @@ import numpy as np
 
 from rigd.data.record import Record
 from rigd.errors import InputError
-from rigd.ident.iddata import IdData, channels_for, from_record
 from rigd.ident.hold import choose_hold
+from rigd.ident.iddata import IdData, channels_for, from_record
 from rigd.ident.mechanical import structure_for
 from rigd.ident.modelfile import ModelFile, Submodel, apply_effects
 from rigd.ident.pem import fit, fit_percent

@@ -5,9 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from rigd.rigconfig import LoadedConfig, load_config
 from rigd.errors import InputError
 from rigd.loop.loop import ControlLoop
+from rigd.rigconfig import LoadedConfig, load_config
 
 
 def build_drivers(lc: LoadedConfig, *, plant_overrides: dict[str, Any] | None = None):

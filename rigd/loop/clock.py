@@ -85,7 +85,8 @@ _sleep = time.sleep
 
 
 def wait_until(deadline_ns: int, spin_ns: int) -> int:
-    """Sleep until ``spin_ns`` before ``deadline_ns`` (perf_counter_ns), then spin; return wake time."""
+    """Sleep until ``spin_ns`` before ``deadline_ns`` (perf_counter_ns), then spin; return wake
+    time."""
     rem = deadline_ns - _perf_ns()
     if rem > spin_ns:
         _sleep((rem - spin_ns) * 1e-9)

@@ -19,20 +19,22 @@ import collections
 import queue
 import threading
 import time
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from rigd import frame as F
-from rigd.rigconfig import LoadedConfig, RigConfig, default_config
 from rigd.errors import InputError
 from rigd.log import get_logger
-from rigd.loop import faults as FC
 from rigd.loop import cycle as K
+from rigd.loop import faults as FC
 from rigd.loop import layout as L
 from rigd.loop.recorder import Recorder
 from rigd.loop.run import LoopRunner, SegmentResult  # noqa: F401 (re-exported)
 from rigd.loop.timing import summary
+from rigd.rigconfig import LoadedConfig, RigConfig, default_config
+
 
 class ControlLoop(LoopRunner):
     """The 5 kHz control loop (see module docstring).
@@ -89,7 +91,7 @@ class ControlLoop(LoopRunner):
         self._monitor: threading.Thread | None = None
         self._slow_threads: list[threading.Thread] = []
         self._slow_last_ok: list[float] = []
-        self._seg: _Segment | None = None
+        self._seg = None  # the segment being played (rigd.loop.run._Segment) or None
         self._pending_ctrl = None
         self.controller = None
         self._opened = False
@@ -166,7 +168,7 @@ class ControlLoop(LoopRunner):
         self.st[L.S_X:L.S_X + L.K_NMAX] = 0.0
         self.controller = ctrl
 
-    def open(self) -> "ControlLoop":
+    def open(self) -> ControlLoop:
         """Open drivers, start the recorder, monitor and slow-driver threads."""
         if self._opened:
             return self
@@ -203,7 +205,7 @@ class ControlLoop(LoopRunner):
             # must never happen inside the loop thread
             self._pk(f.state.copy(), f.params.copy(), self.drive.copy(), self.fin.copy())
 
-    def __enter__(self) -> "ControlLoop":
+    def __enter__(self) -> ControlLoop:
         return self.open()
 
     def __exit__(self, *exc) -> None:

@@ -15,8 +15,8 @@ import time
 import numpy as np
 
 from rigd.loop import clock as CLK
-from rigd.loop import faults as FC
 from rigd.loop import cycle as K
+from rigd.loop import faults as FC
 from rigd.loop import layout as L
 
 _NO_EXC = np.zeros((1, 2))

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import threading
 import time
+
 import numpy as np
 
 from rigd.frame import N_REC, REC

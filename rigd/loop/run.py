@@ -9,20 +9,20 @@ from __future__ import annotations
 import collections
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from rigd.errors import InputError
 from rigd.frame import REC
-from rigd.loop import faults as FC
 from rigd.loop import cycle as K
+from rigd.loop import faults as FC
 from rigd.loop import layout as L
 from rigd.loop.realtime import RealTimeRunner
-from rigd.loop.sinks import RecordSpec
-from rigd.loop.sinks import H5Sink, MemorySink, Sink
+from rigd.loop.sinks import H5Sink, MemorySink, RecordSpec, Sink
 
 _NO_EXC = np.zeros((1, 2))
 
@@ -182,7 +182,8 @@ class LoopRunner(RealTimeRunner):
                              self.faults()[n_fault0:])
 
     def close(self) -> None:
-        """Stop the loop, put safe outputs on the valves, flush and close recordings, close drivers."""
+        """Stop the loop, put safe outputs on the valves, flush and close recordings, close
+        drivers."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(10.0)

@@ -6,15 +6,16 @@ Eq. 1, PD loops, recording) on the compiled plant kernel, deterministic for a gi
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from rigd import __version__
-from rigd.rigconfig import LoadedConfig, RigConfig, default_config, load_config
 from rigd.data.record import Record
 from rigd.frame import RECORD_NAMES
+from rigd.rigconfig import LoadedConfig, RigConfig, default_config, load_config
 
 
 def _effects_overrides(effects) -> dict[str, Any]:

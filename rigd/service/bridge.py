@@ -23,7 +23,8 @@ import multiprocessing
 import os
 import threading
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from rigd.service import frontend
 from rigd.service.server import listen
@@ -85,7 +86,7 @@ class SocketFrontend:
         self._threads: list[threading.Thread] = []
 
     # --- life cycle ---------------------------------------------------------------------
-    def start(self) -> "SocketFrontend":
+    def start(self) -> SocketFrontend:
         """Bind the socket (InputError if unusable), spawn the socket process, start threads."""
         self._lsock = listen(self.path, self.mode)
         self._spawn()

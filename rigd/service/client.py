@@ -34,7 +34,7 @@ class ControlClient:
         self._buf = b""
         self._ids = itertools.count(1)
 
-    def connect(self) -> "ControlClient":
+    def connect(self) -> ControlClient:
         s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         s.settimeout(self.timeout)
         try:
@@ -72,7 +72,7 @@ class ControlClient:
         while b"\n" not in self._buf:
             try:
                 chunk = self._sock.recv(65536)
-            except socket.timeout:
+            except TimeoutError:
                 raise InputError(f"no reply within {self.timeout:g} s", self.path) from None
             if not chunk:
                 raise InputError("daemon closed the connection", self.path)

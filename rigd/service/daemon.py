@@ -35,9 +35,9 @@ from typing import Any
 from rigd import __version__
 from rigd.errors import InputError
 from rigd.log import get_logger
+from rigd.service.bridge import SocketFrontend, as_helper
 from rigd.service.notify import Notifier
 from rigd.service.protocol import Dispatcher
-from rigd.service.bridge import SocketFrontend, as_helper
 
 #: the timing statistics in the socket's snapshot are refreshed this often, s
 TIMING_REFRESH_S = 0.2
@@ -92,7 +92,7 @@ class Daemon:
         self._timing: tuple[float, dict] | None = None
 
     # --- life cycle -------------------------------------------------------------------
-    def __enter__(self) -> "Daemon":
+    def __enter__(self) -> Daemon:
         from rigd.experiments.manager import ExperimentManager
 
         self.experiments = ExperimentManager(self.loop, getattr(self.args, "runs_dir", "runs"),
@@ -216,7 +216,8 @@ class Daemon:
                                     "needs_restart": changed, "time": time.time()}
                 self.log.info("reloaded on SIGHUP", controller=ctrl,
                               needs_restart=changed or None)
-                self.notifier.status(f"reloaded{' (restart needed for: ' + ', '.join(changed) + ')' if changed else ''}")
+                note = f" (restart needed for: {', '.join(changed)})" if changed else ""
+                self.notifier.status(f"reloaded{note}")
             except InputError as exc:
                 self.last_reload = {"state": "refused", "error": str(exc), "time": time.time()}
                 self.log.error("reload refused, loop unchanged", error=str(exc))

@@ -32,8 +32,8 @@ import socket
 import stat
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from rigd.errors import InputError
 from rigd.service import protocol
@@ -89,7 +89,7 @@ class ControlServer:
                       "too_long": 0, "refused_clients": 0, "deferred": 0}
 
     # --- life cycle ---------------------------------------------------------------------
-    def start(self, lsock: socket.socket | None = None) -> "ControlServer":
+    def start(self, lsock: socket.socket | None = None) -> ControlServer:
         """Bind, set the mode, and start serving. InputError if the path is unusable.
 
         With ``lsock`` (a listening socket bound by :func:`listen`, e.g. inherited from the

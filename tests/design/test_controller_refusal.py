@@ -5,11 +5,11 @@ reaches the loop: refused by load_controller, by ControlLoop.load_controller and
 import numpy as np
 import pytest
 import yaml
+from design_helpers import truth_model_file
 
 from rigd.cli import main
 from rigd.controller import load_controller
 from rigd.errors import InputError
-from design_helpers import truth_model_file
 
 
 @pytest.fixture(scope="module")

@@ -1,15 +1,16 @@
 """Design chain on the simulated plant's truth: H∞, reduction, Tustin, robustness, file."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
+from design_helpers import truth_model_file
 
 from rigd.cli import main
 from rigd.controller import load_controller
 from rigd.design import pipeline, robustness, simtruth
-from rigd.design.weights import load_design_config, magnitude, ThreeLevel
-from design_helpers import truth_model_file
+from rigd.design.weights import ThreeLevel, load_design_config, magnitude
 
 CFG = "config/design.yaml"
 
@@ -76,8 +77,10 @@ def test_controller_inactive_at_low_frequency(result):
     slow disturbances alone: max σ̄(S_o) at 1 Hz within 3 % of 1 for all 30 realizations."""
     cfg, res = result
     assert cfg.highpass.order >= 1
-    k = lambda f: np.linalg.svd(robustness.freq_response(res.K_z, np.atleast_1d(f)),
-                                compute_uv=False)[:, 0]
+    def k(f):
+        return np.linalg.svd(robustness.freq_response(res.K_z, np.atleast_1d(f)),
+                             compute_uv=False)[:, 0]
+
     k_band = k(np.linspace(70, 190, 121)).max()
     assert k(1.0)[0] <= 0.02 * k_band
     assert res.lowfreq_gain_ratio == pytest.approx(k(1.0)[0] / k_band, rel=1e-6)
@@ -141,7 +144,7 @@ def test_cli_design_writes_a_loadable_controller(tmp_path, capsys):
 def test_cli_design_bad_weights_exit_2(tmp_path, capsys):
     model = truth_model_file(tmp_path / "G_p.yaml")
     bad = tmp_path / "design.yaml"
-    bad.write_text(open(CFG).read().replace("f_high_hz: 220", "f_high_hz: 20"))
+    bad.write_text(Path(CFG).read_text().replace("f_high_hz: 220", "f_high_hz: 20"))
     out = tmp_path / "c.yaml"
     rc = main(["design", "--model", str(model), "--weights", str(bad), "-o", str(out)])
     assert rc == 2

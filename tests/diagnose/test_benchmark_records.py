@@ -2,9 +2,9 @@
 (tests/diagnose/benchmarks.py; no shipped data, no shipped fits, the method's rules fixed
 before these records were made)."""
 
+import benchmarks as B  # tests/diagnose/benchmarks.py
 import pytest
 
-import benchmarks as B  # tests/diagnose/benchmarks.py
 from rigd.diagnose.diagnosis import diagnose_record
 
 

@@ -21,8 +21,8 @@ strength (docs/plant.md). How the two effects the plant does not switch are pose
 import numpy as np
 import pytest
 
-from rigd.diagnose.engine import diagnose_data
 from rigd.diagnose.diagnosis import diagnose_record
+from rigd.diagnose.engine import diagnose_data
 from rigd.experiments.signals import multilevel
 from rigd.ident.mechanical import MechanicalStructure
 from rigd.ident.workflow import prepare

@@ -48,7 +48,8 @@ def test_rotor_record_both_submodels_runout_found_or_filtered(records, capsys):
     sig = [(f["effect"], f["submodel"]) for f in raw["findings"] if f["significant"]]
     assert sig == [("runout", "bearing")]
     b = raw["steps"]["bearing"]
-    assert b[1]["added"] == "runout" and (100 - b[0]["fit_percent"]) >= 3 * (100 - b[1]["fit_percent"])
+    assert b[1]["added"] == "runout"
+    assert (100 - b[0]["fit_percent"]) >= 3 * (100 - b[1]["fit_percent"])
     # with the run-out record the run-out filter F_r(phi) removes it before the diagnosis
     filt = _json(capsys, ["diagnose", str(rec), "--runout", str(ro), "--json"])
     assert not [f for f in filt["findings"] if f["significant"]]

@@ -3,8 +3,8 @@
 import json
 
 import numpy as np
-
 from conftest_paths import SHARED
+
 from rigd.cli import main
 from rigd.diagnose import residual as R
 

@@ -102,10 +102,9 @@ def test_sigint_swallowed_by_a_finaliser_still_interrupts(tmp_path):
     import os
 
     from rigd.cli.experiment import _SigintStop
-    from rigd.rigconfig import default_config
-    from rigd.experiments.runner import run_experiment
-    from rigd.experiments.runner import load
+    from rigd.experiments.runner import load, run_experiment
     from rigd.loop.app import build_loop
+    from rigd.rigconfig import default_config
 
     class Finaliser:
         def __del__(self):

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from testpaths import ROOT
 
 from rigd.data.io import load_record
-from testpaths import ROOT
 
 RIGD = str(Path(sys.executable).parent / "rigd")
 
@@ -67,7 +67,8 @@ def test_experiment_runs_inside_the_daemon(tmp_path):
 
         man = json.loads((out / "manifest.json").read_text())
         assert man["status"] == "complete"
-        assert man["mode"] == "realtime"  # played by the daemon's loop thread, not in-process lock-step
+        # played by the daemon's loop thread, not in-process lock-step
+        assert man["mode"] == "realtime"
         files = man["files"]
         assert len(files) == 1 and files[0]["kind"] == "prbs"
         rec = load_record(out / files[0]["path"])

@@ -5,13 +5,13 @@ import json
 import numpy as np
 import pytest
 
-from rigd.rigconfig import default_config
 from rigd.controller import save_controller
 from rigd.data import load_record
 from rigd.errors import InputError
-from rigd.experiments.runner import run_experiment
 from rigd.experiments.manifest import read_manifest
+from rigd.experiments.runner import run_experiment
 from rigd.loop.app import build_loop
+from rigd.rigconfig import default_config
 
 FS = 5000.0
 
@@ -191,6 +191,7 @@ def test_manager_start_status_stop(loop, tmp_path):
                                   "impact", "sweep"])
 def test_shipped_examples_validate(name, loop):
     from testpaths import ROOT
+
     from rigd.experiments.points import check_against_rate
     from rigd.experiments.runner import load
 

@@ -3,8 +3,7 @@
 import pytest
 
 from rigd.errors import InputError
-from rigd.experiments.schemas import (ImpactSpec, PrbsSpec, RunoutSpec, SweepSpec,
-                                      load_experiment)
+from rigd.experiments.schemas import ImpactSpec, PrbsSpec, RunoutSpec, SweepSpec, load_experiment
 
 GOOD_PRBS = """\
 kind: prbs

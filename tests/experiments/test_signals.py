@@ -71,5 +71,7 @@ def test_chirp_amplitude_and_sweep():
     assert np.max(np.abs(x)) <= 0.5 + 1e-12
     # zero-crossing rate grows: more crossings in the last quarter than the first
     q = len(x) // 4
-    zc = lambda s: np.count_nonzero(np.diff(np.sign(s)))
+    def zc(s):
+        return np.count_nonzero(np.diff(np.sign(s)))
+
     assert zc(x[-q:]) > 5 * zc(x[:q])

@@ -16,7 +16,8 @@ K_TRUE = np.array([[W1 ** 2, 0.1 * W1 * W2], [-0.05 * W1 * W2, W2 ** 2]])
 D_TRUE = np.array([[2 * 0.05 * W1, 5.0], [-3.0, 2 * 0.04 * W2]])
 B_TRUE = K_TRUE @ np.array([[5.0, 0.5], [-0.3, 4.0]])
 # actuator: poles (rad/s) and gains per axis
-ACT_POLES = {"x": (2 * np.pi * 150.0, 2 * np.pi * 600.0), "y": (2 * np.pi * 180.0, 2 * np.pi * 700.0)}
+ACT_POLES = {"x": (2 * np.pi * 150.0, 2 * np.pi * 600.0),
+             "y": (2 * np.pi * 180.0, 2 * np.pi * 700.0)}
 ACT_GAIN = {"x": 1.9, "y": 2.1}
 
 

@@ -4,9 +4,9 @@ import json
 
 import numpy as np
 import pytest
-
-from testpaths import SHARED
 from ident_helpers import rotor_record
+from testpaths import SHARED
+
 from rigd.cli import main
 from rigd.data.csvio import write_csv
 from rigd.ident.modelfile import load_model

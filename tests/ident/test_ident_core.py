@@ -3,8 +3,8 @@ parameters, automatic initial guesses, uncertainties and physical read-outs."""
 
 import numpy as np
 import pytest
-
 from ident_helpers import ACT_GAIN, ACT_POLES, B_TRUE, D_TRUE, K_TRUE, rotor_record
+
 from rigd.ident.iddata import from_record
 from rigd.ident.mechanical import actuator_structure, bearing_structure
 from rigd.ident.pem import fit, fit_percent

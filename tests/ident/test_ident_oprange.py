@@ -3,8 +3,8 @@
 import json
 
 import numpy as np
-
 from ident_helpers import rotor_record
+
 from rigd.cli import main
 from rigd.data.csvio import write_csv
 from rigd.ident.oprange import ReassembledBearing

@@ -3,7 +3,6 @@ identified and checked against the plant's true physics (rigd_drivers.sim_physic
 
 import numpy as np
 import pytest
-
 from ident_helpers import prbs
 
 sim = pytest.importorskip("rigd.loop.sim")

@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-
 from ident_helpers import rotor_record
+
 from rigd.data.record import Record
 from rigd.errors import InputError
 from rigd.ident.iddata import from_record

@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 from loop_helpers import make_plant
 
-from rigd.rigconfig import default_config
 from rigd.frame import REC
 from rigd.loop.loop import ControlLoop
 from rigd.loop.sinks import open_recording
+from rigd.rigconfig import default_config
 
 ROOT = Path(__file__).resolve().parents[2]
 RIGD = [sys.executable, "-c", "import sys; from rigd.cli import main; sys.exit(main())"]

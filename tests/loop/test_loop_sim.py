@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 from loop_helpers import make_plant
 
-from rigd.rigconfig import default_config
 from rigd.controller import Controller
 from rigd.frame import REC
 from rigd.loop.loop import ControlLoop
 from rigd.loop.sim import simulate_record
+from rigd.rigconfig import default_config
 
 SETTLING_S = 2.0e-3   # documented in docs/loop.md: 2 % settling of one valve under its PD loop
 

@@ -14,10 +14,10 @@ import pytest
 import yaml
 from loop_helpers import make_plant
 
-from rigd.rigconfig import default_config
-from rigd.frame import RECORD_NAMES, REC
+from rigd.frame import REC, RECORD_NAMES
 from rigd.loop.loop import ControlLoop
 from rigd.loop.sinks import RecordSpec, open_recording
+from rigd.rigconfig import default_config
 
 ROOT = Path(__file__).resolve().parents[2]
 RIGD = [sys.executable, "-c", "import sys; from rigd.cli import main; sys.exit(main())"]

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from loop_helpers import InjectingDriver, make_plant
 
-from rigd.rigconfig import default_config
 from rigd.frame import IN_E_X, IN_OMEGA, IN_PHI, IN_SEQ, IN_YP1, REC
-from rigd.loop import faults as FC
 from rigd.loop import cycle as K
+from rigd.loop import faults as FC
 from rigd.loop import layout as L
 from rigd.loop.loop import ControlLoop
+from rigd.rigconfig import default_config
 
 AT = 300   # cycle at which the fault is injected
 

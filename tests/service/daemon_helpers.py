@@ -58,7 +58,7 @@ class Daemon:
         env = dict(os.environ, NOTIFY_SOCKET=self.notify_path, PYTHONFAULTHANDLER="1",
                    WATCHDOG_USEC=str(watchdog_usec))
         env.pop("WATCHDOG_PID", None)
-        self.stderr = open(self.tmp / "daemon.err", "w")
+        self.stderr = open(self.tmp / "daemon.err", "w")  # noqa: SIM115 - closed in stop()
         self.proc = subprocess.Popen(
             [RIGD, "run", "--config", str(config), "--socket", self.sock,
              "--runs-dir", str(self.tmp / "runs"), *extra],
@@ -70,7 +70,7 @@ class Daemon:
         while True:
             try:
                 m = self.notify.recv(4096).decode()
-            except socket.timeout:
+            except TimeoutError:
                 if self._closing:
                     return
                 continue
@@ -117,7 +117,7 @@ class Daemon:
         except subprocess.TimeoutExpired:
             self.proc.send_signal(6)  # SIGABRT: faulthandler dumps every thread to daemon.err
             self.proc.communicate(timeout=10)
-            raise AssertionError(f"daemon did not stop within {timeout} s: {self.log()}")
+            raise AssertionError(f"daemon did not stop within {timeout} s: {self.log()}") from None
         finally:
             if self.proc.poll() is None:
                 self.proc.kill()

@@ -5,16 +5,15 @@ no frame lost before the fault)."""
 import time
 
 import numpy as np
+from daemon_helpers import make_config
 
-from rigd.rigconfig import load_config
 from rigd.controller import save_controller
 from rigd.driver import FastDriver
 from rigd.frame import REC
 from rigd.loop.app import build_drivers
 from rigd.loop.loop import ControlLoop
 from rigd.loop.sinks import open_recording
-
-from daemon_helpers import make_config
+from rigd.rigconfig import load_config
 
 R0 = 5.0
 

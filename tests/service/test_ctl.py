@@ -4,12 +4,11 @@ import json
 import os
 
 import pytest
+from fakeloop import FakeLoop
 
 from rigd.cli import main
 from rigd.service.protocol import Dispatcher
 from rigd.service.server import ControlServer
-
-from fakeloop import FakeLoop
 
 
 @pytest.fixture()

@@ -6,11 +6,10 @@ import time
 
 import h5py
 import numpy as np
+from daemon_helpers import Daemon, make_config
 
 from rigd.controller import save_controller
 from rigd.frame import REC
-
-from daemon_helpers import Daemon, make_config
 
 
 def test_daemon_lifecycle(tmp_path):
@@ -48,7 +47,8 @@ def test_daemon_lifecycle(tmp_path):
         d.proc.send_signal(signal.SIGHUP)
         d.wait_notify("reload refused", timeout=20)
         ping = d.ctl_json("ping")
-        assert ping["last_reload"]["state"] == "refused" and "k.yaml" in ping["last_reload"]["error"]
+        assert ping["last_reload"]["state"] == "refused"
+        assert "k.yaml" in ping["last_reload"]["error"]
         st = d.ctl_json("status")
         assert st["seq"] > seq0 and st["fault"]["code"] == 0
         assert st["controller"]["enabled"], "the running controller was kept"

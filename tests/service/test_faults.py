@@ -11,12 +11,10 @@ import math
 import time
 
 import numpy as np
-import pytest
+from faultkit import assert_safe_after_fault, lockstep_fault
 
 from rigd.frame import IN_E_X, IN_E_Y, IN_PHI, IN_SEQ, IN_YP1
 from rigd.loop import faults as FC
-
-from faultkit import assert_safe_after_fault, lockstep_fault
 
 AT = 1500
 
@@ -87,12 +85,12 @@ def test_fault_overrun_storm_realtime(tmp_path):
 
 
 def _realtime_loop(tmp_path, drivers, **sections):
-    from rigd.rigconfig import load_config
-    from rigd.loop.app import build_drivers
-    from rigd.loop.loop import ControlLoop
-
     from daemon_helpers import make_config
     from faultkit import controller_file
+
+    from rigd.loop.app import build_drivers
+    from rigd.loop.loop import ControlLoop
+    from rigd.rigconfig import load_config
 
     lc = load_config(make_config(tmp_path, drivers=drivers, clock={"spin_us": 0.0},
                                  **sections))
@@ -114,10 +112,10 @@ def _play(loop, tmp_path, n, events=()):
 def test_fault_serial_disconnect_then_reconnect(tmp_path):
     """The real serial driver on the real-time loop, fed by the front-end emulator on a pty;
     the front-end is unplugged in the middle of an excitation."""
+    from faultkit import wait_for
+
     from rigd_drivers.frontend_emulator import FrontendEmulator
     from rigd_drivers.serial_frame import DRV_DISCONNECT
-
-    from faultkit import wait_for
 
     emu = FrontendEmulator(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.05,
                            tx_buffer_s=0.5).start()
@@ -144,7 +142,8 @@ def test_fault_serial_disconnect_then_reconnect(tmp_path):
             time.sleep(0.2)
             assert loop.status()["fault"]["code"] == FC.DRIVER_STATUS
             loop.reset_fault()
-            assert wait_for(lambda: loop.status()["fault"]["code"] == 0, 5.0), loop.status()["fault"]
+            assert wait_for(lambda: loop.status()["fault"]["code"] == 0, 5.0), \
+                loop.status()["fault"]
             assert loop.fast.counters()["reconnects"] == 1
     finally:
         emu.stop()

@@ -6,17 +6,15 @@ import json
 import re
 import signal
 import time
-from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
+from daemon_helpers import Daemon, make_config
+from faultkit import assert_safe_after_fault, controller_file, read_frames, wait_for
 
 from rigd.frame import REC
 from rigd.loop import faults as FC
-
-from daemon_helpers import Daemon, make_config
-from faultkit import assert_safe_after_fault, controller_file, read_frames, wait_for
 
 EXPERIMENT = """\
 kind: prbs

@@ -70,11 +70,11 @@ def test_report_page_and_figures(tmp_path, umask):
 
 
 def test_recordings(tmp_path, umask):
-    from rigd.rigconfig import default_config
     from rigd.data.h5io import write_h5
     from rigd.data.io import load_record
     from rigd.loop.loop import ControlLoop
     from rigd.loop.sinks import RecordSpec
+    from rigd.rigconfig import default_config
     from rigd_drivers.sim_plant import SimPlantDriver
 
     loop = ControlLoop(default_config(clock={"mode": "lockstep"}),
@@ -97,9 +97,8 @@ def test_failed_atomic_write_leaves_nothing(tmp_path, umask):
 
     path = tmp_path / "x.txt"
     atomic_write_text(path, "old")
-    with pytest.raises(RuntimeError):
-        with atomic_open(path) as fh:
-            fh.write("half")
-            raise RuntimeError("interrupted")
+    with pytest.raises(RuntimeError), atomic_open(path) as fh:
+        fh.write("half")
+        raise RuntimeError("interrupted")
     assert path.read_text() == "old" and _mode(path) == _expect(umask)
     _no_temp_left(tmp_path)

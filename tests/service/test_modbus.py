@@ -4,13 +4,12 @@ import time
 
 import numpy as np
 import pytest
+from modbus_server import NullModem, PlcServer, free_port
 
 from rigd.configio import load_model
 from rigd.errors import FaultError, InputError
 from rigd.frame import IN_OMEGA, IN_P_INJ, N_IN
 from rigd_drivers.modbus import ModbusDriver, ModbusOptions, float_to_regs, regs_to_float
-
-from modbus_server import NullModem, PlcServer, free_port
 
 
 def _wait(pred, timeout=5.0):

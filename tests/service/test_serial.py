@@ -10,8 +10,13 @@ from rigd.errors import FaultError
 from rigd.frame import IN_E_X, IN_PHI, IN_SEQ, IN_STATUS, IN_YP2, N_IN
 from rigd_drivers import serial_protocol as sp
 from rigd_drivers.frontend_emulator import FrontendEmulator
-from rigd_drivers.serial_frame import (DRV_CRC, DRV_DISCONNECT, DRV_GAP, DRV_TIMEOUT,
-                                       SerialFrameDriver)
+from rigd_drivers.serial_frame import (
+    DRV_CRC,
+    DRV_DISCONNECT,
+    DRV_GAP,
+    DRV_TIMEOUT,
+    SerialFrameDriver,
+)
 
 
 def test_wire_format_pinned():
@@ -56,7 +61,8 @@ def _run(drv, frame, seconds, drive=None):
 def link(tmp_path):
     # device hold after 50 ms of host silence (2 ms on the rig; a loaded test host pauses)
     emu = FrontendEmulator(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.05,
-                           tx_buffer_s=0.5).start()  # flow-control-like: test-host pauses lose nothing
+                           # flow-control-like: test-host pauses lose nothing
+                           tx_buffer_s=0.5).start()
     drv = SerialFrameDriver({"port": emu.port, "backlog": 256, "timeout_ms": 20,
                              "reconnect_s": 0.05})
     drv.open()

@@ -7,13 +7,12 @@ import stat
 import threading
 
 import pytest
+from fakeloop import FakeLoop  # noqa: E402  (tests/service on sys.path via rootdir conftest)
 
 from rigd.errors import InputError
 from rigd.service.client import ControlClient, ControlError
-from rigd.service.protocol import Dispatcher, parse_request, RequestError
+from rigd.service.protocol import Dispatcher, RequestError, parse_request
 from rigd.service.server import ControlServer
-
-from fakeloop import FakeLoop  # noqa: E402  (tests/service on sys.path via rootdir conftest)
 
 
 @pytest.fixture()
@@ -125,7 +124,7 @@ def test_many_clients_and_a_silent_one(served):
     def worker(k):
         try:
             with ControlClient(srv.path, timeout=10) as c:
-                for i in range(40):
+                for _ in range(40):
                     r = c.call("operating_point.set", omega_rpm=float(k), p_inj_bar=4.0)
                     assert r["omega_rpm"] == float(k)
         except Exception as exc:  # collected and asserted below
@@ -162,9 +161,9 @@ def test_stale_socket_replaced_live_refused(tmp_path):
     dead.bind(str(path))
     dead.close()  # file left behind, nobody listening
     disp = Dispatcher(FakeLoop())
-    with ControlServer(path, disp.handle_line):
-        with pytest.raises(InputError, match="another daemon"):
-            ControlServer(path, disp.handle_line).start()
+    with ControlServer(path, disp.handle_line), \
+            pytest.raises(InputError, match="another daemon"):
+        ControlServer(path, disp.handle_line).start()
     assert not path.exists()
     path.write_text("not a socket")
     with pytest.raises(InputError, match="not a socket"):

@@ -6,7 +6,6 @@ import json
 import os
 import signal
 import socket
-import time
 
 from daemon_helpers import Daemon, make_config
 from faultkit import wait_for

@@ -5,15 +5,14 @@ plain words (the daemon-process side is checked in test_faults_process.py)."""
 import math
 
 import numpy as np
+from daemon_helpers import make_config
+from faultkit import Injector, controller_file
 
 from rigd.cli.ctl import status_summary
-from rigd.rigconfig import load_config
 from rigd.frame import IN_E_X, REC
 from rigd.loop.app import build_drivers
 from rigd.loop.loop import ControlLoop
-
-from daemon_helpers import make_config
-from faultkit import Injector, controller_file
+from rigd.rigconfig import load_config
 
 
 def test_status_controller_after_fault_reset_enable(tmp_path):
