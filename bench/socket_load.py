@@ -20,8 +20,9 @@ yardstick for ``..._loaded``; ``..._idle`` is the mean of an idle window before 
 spawning the real socket process) runs in this process in front of a stub loop whose
 ``controller.load`` takes ``slow_s`` = 2 s; ``loads`` such loads are sent one after the other
 while 20 clients hammer the socket (queries, bad requests and 10 % commands, which queue
-behind the load) and a probe asks ``status`` every 10 ms while a load is pending (``socket_busy_status_n``
-probes). Before the forwarding was made asynchronous, each of them waited for the load.
+behind the load) and a probe asks ``status`` every 10 ms while a load is pending
+(``socket_busy_status_n`` probes). Before the forwarding was made asynchronous, each of them
+waited for the load.
 
     python -m bench socket_load        # about 70 s
 """

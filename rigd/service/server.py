@@ -25,14 +25,14 @@ from __future__ import annotations
 
 import errno
 import os
-from collections import deque
-from concurrent.futures import Future
 import selectors
 import socket
 import stat
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
+from concurrent.futures import Future
 from pathlib import Path
 
 from rigd.errors import InputError

@@ -6,7 +6,8 @@ loop whose ``controller.load`` blocks until the test lets it finish (fakeloop.Ga
 
 No timed asserts: "pending" is a fact here (the command is blocked inside the loop double
 until the gate opens), so every query answered before the gate opens was answered while the
-slow command was in progress. Latency figures: ``python -m bench socket_load`` (``socket_busy_status_ms``)."""
+slow command was in progress. Latency figures: ``python -m bench socket_load``
+(``socket_busy_status_ms``)."""
 
 import json
 import os
@@ -15,11 +16,10 @@ import socket
 import threading
 
 import pytest
+from fakeloop import GatedLoop
 
 from rigd.service.bridge import SocketFrontend
 from rigd.service.protocol import Dispatcher
-
-from fakeloop import GatedLoop
 
 
 @pytest.fixture()
