@@ -1,0 +1,307 @@
+"""Static and linearised analysis of the physics-grade plant (Python around the kernels).
+
+For tests, docs and the driver's rest state: steady film at a fixed journal position, film
+force and stiffness, the equilibrium, the linearised coupled film + shaft system and its modes,
+and the classical small-eccentricity reference of a self-acting gas journal bearing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigd_drivers import sim_reynolds_kernel as k
+from rigd_drivers.sim_reynolds_film import G_AREA, G_C, G_N, NV, film_force, film_rates
+from rigd_drivers.sim_reynolds_options import ReynoldsOptions
+from rigd_drivers.sim_reynolds_params import Layout, build_layout, param_block, shaft_model
+from rigd_drivers.sim_reynolds_shaft import ShaftModel
+
+
+@dataclass
+class PlantArrays:
+    """The kernel arrays of one plant instance, plus what built them."""
+
+    opts: ReynoldsOptions
+    lay: Layout
+    shaft: ShaftModel
+    params: np.ndarray
+    state: np.ndarray
+    fs: float
+
+    # --- views ---------------------------------------------------------------------------
+    def _st(self, slot: int, size: int) -> np.ndarray:
+        o = self.lay.st[slot]
+        return self.state[o:o + size]
+
+    def _blk(self, slot: int, size: int) -> np.ndarray:
+        o = int(self.params[k.H_ACT]) + self.lay.block[slot]
+        return self.params[o:o + size]
+
+    @property
+    def n(self) -> int:
+        return self.lay.nt * self.lay.mz
+
+    @property
+    def p(self) -> np.ndarray:
+        """Film pressures (view), Pa abs, k = i·mz + j."""
+        return self._st(k.T_P, self.n)
+
+    @property
+    def geo(self) -> np.ndarray:
+        return self._blk(k.O_GEO, G_N)
+
+    @property
+    def cs(self) -> np.ndarray:
+        return self._blk(k.O_CS, 4 * self.lay.nt)
+
+    @property
+    def wts(self) -> np.ndarray:
+        return self._blk(k.O_WTS, NV * self.n)
+
+    @property
+    def scalars(self) -> np.ndarray:
+        return self._blk(k.O_SC, k.N_SC)
+
+    @property
+    def stsc(self) -> np.ndarray:
+        return self._st(k.T_SC, k.N_STSC)
+
+    @property
+    def afrac(self) -> np.ndarray:
+        return self._st(k.W_AF, NV)
+
+    def set_block(self, omega_rpm: float, p_inj_bar: float) -> None:
+        """Write the active (and staged) parameter block for (Ω, P_I) directly."""
+        blk = param_block(self.opts, self.lay, self.shaft, omega_rpm, p_inj_bar, self.fs)
+        na = blk.size
+        a = int(self.params[k.H_ACT])
+        s = int(self.params[k.H_STG])
+        self.params[a:a + na] = blk
+        self.params[s:s + na] = blk
+
+
+def make_arrays(opts: ReynoldsOptions | dict | None = None, fs: float = 5000.0,
+                omega_rpm: float | None = None, p_inj_bar: float | None = None) -> PlantArrays:
+    """Allocate and fill params/state for the options (film at ambient, shaft centred)."""
+    if not isinstance(opts, ReynoldsOptions):
+        opts = ReynoldsOptions.model_validate(opts or {})
+    nt, mz = opts.grid.n_theta, opts.grid.n_z // 2
+    shaft = shaft_model(opts)
+    lay = build_layout(nt, mz, 2 * shaft.n_modes)
+    params = np.zeros(lay.n_params)
+    params[:k.N_HEADER] = lay.header
+    state = np.zeros(lay.n_state)
+    pa = PlantArrays(opts, lay, shaft, params, state, fs)
+    pa.set_block(opts.omega_rpm if omega_rpm is None else omega_rpm,
+                 opts.p_inj_bar if p_inj_bar is None else p_inj_bar)
+    pa.p[:] = pa.geo[7]
+    return pa
+
+
+def steady(pa: PlantArrays, xb: float, yb: float, afrac, *, tol: float = 1e-12,
+           max_it: int = 60) -> tuple[np.ndarray, float, float]:
+    """Steady film at the journal position (xb, yb) m with orifice area fractions ``afrac``.
+
+    Returns (p copy, F_x, F_y) (Pa, N). Raises RuntimeError if Newton does not converge.
+    """
+    pa.afrac[:] = afrac
+    upd = k.steady_film(pa.state, pa.params, float(xb), float(yb), max_it, tol)
+    if not upd < 1e-9:
+        raise RuntimeError(f"steady film did not converge (last update {upd:.2e} p_a)")
+    fx, fy = film_force(pa.geo, pa.cs, pa.p)
+    return pa.p.copy(), fx, fy
+
+
+def film_stiffness(pa: PlantArrays, afrac, x0=(0.0, 0.0), de: float = 0.05e-6) -> np.ndarray:
+    """Static film stiffness K = −∂F/∂x_b (N/m, 2 × 2) at x0 by central differences."""
+    K = np.zeros((2, 2))
+    p0 = pa.p.copy()
+    for j in range(2):
+        x = np.array(x0, float)
+        x[j] += de
+        pa.p[:] = p0
+        _, fxp, fyp = steady(pa, x[0], x[1], afrac)
+        x[j] -= 2 * de
+        pa.p[:] = p0
+        _, fxm, fym = steady(pa, x[0], x[1], afrac)
+        K[0, j] = -(fxp - fxm) / (2 * de)
+        K[1, j] = -(fyp - fym) / (2 * de)
+    pa.p[:] = p0
+    return K
+
+
+def valve_area_fractions(opts: ReynoldsOptions, drive_v: float) -> np.ndarray:
+    """Area fractions of the four valves at rest under a constant drive (V)."""
+    from rigd_drivers import sim_physics as phys
+
+    out = np.zeros(NV)
+    for i, v in enumerate(phys.valve_params(opts.valves.f_scale)):
+        out[i] = k.area_fraction(v.gain * drive_v + v.offset_v)
+    return out
+
+
+def equilibrium(pa: PlantArrays, afrac, *, tol_n: float = 1e-9) -> np.ndarray:
+    """Journal position (m) where the film force vanishes (no static structural load)."""
+    x = np.zeros(2)
+    for _ in range(20):
+        _, fx, fy = steady(pa, x[0], x[1], afrac)
+        if math.hypot(fx, fy) < tol_n:
+            break
+        K = film_stiffness(pa, afrac, x)
+        x = x + np.linalg.solve(K, np.array([fx, fy]))
+    steady(pa, x[0], x[1], afrac)
+    return x
+
+
+def rest(pa: PlantArrays, drive_v: float) -> None:
+    """Put the plant at rest under a constant drive: valves, film, shaft, histories."""
+    from rigd_drivers import sim_physics as phys
+
+    pa.state[:] = 0.0
+    pa.p[:] = pa.geo[7]
+    af = valve_area_fractions(pa.opts, drive_v)
+    xb = equilibrium(pa, af)
+    o = pa.lay.st
+    for i, v in enumerate(phys.valve_params(pa.opts.valves.f_scale)):
+        pa.state[o[k.T_XV] + 2 * i] = v.gain * drive_v
+        pa.state[o[k.T_VPREV] + i] = drive_v
+    pa.state[o[k.T_AF0]:o[k.T_AF0] + NV] = af
+    pa.afrac[:] = af
+    n = pa.n
+    pa.state[o[k.T_P1]:o[k.T_P1] + n] = pa.p
+    psi = psi_of(pa, pa.p, xb)
+    pa.state[o[k.T_PSI]:o[k.T_PSI] + n] = psi
+    pa.state[o[k.T_PSI1]:o[k.T_PSI1] + n] = psi
+    # shaft: rigid pivoting (mode 0, zero frequency) carries the journal to x_b
+    m = pa.lay.m
+    nm = m // 2
+    q = np.zeros(m)
+    phi0 = pa.shaft.phi_journal[0]
+    q[0] = xb[0] / phi0
+    q[nm] = xb[1] / phi0
+    pa.state[o[k.T_Q]:o[k.T_Q] + m] = q
+    pa.state[o[k.T_Q1]:o[k.T_Q1] + m] = q
+    pa.stsc[k.ST_XB:k.ST_XB + 2] = xb
+    pa.stsc[k.ST_APPLIED] = pa.params[k.H_STAGE_SEQ]
+
+
+def psi_of(pa: PlantArrays, p: np.ndarray, xb) -> np.ndarray:
+    """Cell mass × R_g T, p h A (Pa m³), of the half film."""
+    nt, mz = pa.lay.nt, pa.lay.mz
+    cs = pa.cs
+    h = pa.geo[G_C] - xb[0] * cs[:nt] - xb[1] * cs[nt:2 * nt]
+    return (p.reshape(nt, mz) * h[:, None]).ravel() * pa.geo[G_AREA]
+
+
+# --- linearised coupled system --------------------------------------------------------------
+def _rates(pa: PlantArrays, p, xb, yb, afrac):
+    n = pa.n
+    nt, mz = pa.lay.nt, pa.lay.mz
+    rate = np.zeros(n)
+    outf = np.zeros(1)
+    z3 = np.zeros((nt, mz, mz))
+    zn = np.zeros(n)
+    md = np.zeros(NV)
+    dmd = np.zeros(NV)
+    sc = pa.scalars
+    film_rates(pa.geo, pa.cs, pa.wts, p, xb, yb, sc[k.SC_OMEGA_RAD], sc[k.SC_PSUP],
+               np.asarray(afrac, float), rate, outf, z3, z3, z3, zn, zn, md, dmd, False)
+    return rate, outf[0], md
+
+
+def ode_rhs(pa: PlantArrays, y: np.ndarray, afrac) -> np.ndarray:
+    """Semi-discrete ODE of film + shaft, y = [p (N), q (m), v (m)] (no external force)."""
+    n, m = pa.n, pa.lay.m
+    nt = pa.lay.nt
+    p, q, v = y[:n], y[n:n + m], y[n + m:]
+    Pb, _ = pa.shaft.coupling()
+    C, K = pa.shaft.matrices(pa.scalars[k.SC_OMEGA_RAD])
+    xb = Pb @ q
+    vb = Pb @ v
+    rate, _, _ = _rates(pa, p, xb[0], xb[1], afrac)
+    cs = pa.cs
+    A = pa.geo[G_AREA]
+    h = pa.geo[G_C] - xb[0] * cs[:nt] - xb[1] * cs[nt:2 * nt]
+    hdot = -vb[0] * cs[:nt] - vb[1] * cs[nt:2 * nt]
+    mz = pa.lay.mz
+    H = np.repeat(h, mz)
+    Hd = np.repeat(hdot, mz)
+    pdot = (rate - p * A * Hd) / (H * A)
+    fx, fy = film_force(pa.geo, pa.cs, np.ascontiguousarray(p))
+    vdot = -C @ v - K @ q + Pb.T @ np.array([fx, fy])
+    return np.concatenate([pdot, v, vdot])
+
+
+@dataclass
+class LinearModes:
+    """Lightly damped modes of the linearised plant at its equilibrium."""
+
+    freq_hz: np.ndarray
+    zeta: np.ndarray
+    forward: np.ndarray          # True: forward whirl at the disc
+
+
+def linear_modes(pa: PlantArrays, afrac, *, f_max_hz: float = 1000.0) -> LinearModes:
+    """Eigen-analysis of the linearised film + shaft system at the current equilibrium.
+
+    The film pressures and journal position must be at rest (:func:`rest`). Returns the
+    oscillatory modes below ``f_max_hz`` with damping ratio < 0.5, sorted by frequency.
+    """
+    n, m = pa.n, pa.lay.m
+    o = pa.lay.st
+    y0 = np.concatenate([pa.p.copy(), pa.state[o[k.T_Q]:o[k.T_Q] + m],
+                         np.zeros(m)])
+    N = y0.size
+    J = np.zeros((N, N))
+    for j in range(N):
+        if j < n:
+            d = 1e-6 * pa.geo[7]
+        elif j < n + m:
+            d = 1e-10
+        else:
+            d = 1e-7
+        yp = y0.copy()
+        yp[j] += d
+        ym = y0.copy()
+        ym[j] -= d
+        J[:, j] = (ode_rhs(pa, yp, afrac) - ode_rhs(pa, ym, afrac)) / (2 * d)
+    lam, V = np.linalg.eig(J)
+    _, Pd = pa.shaft.coupling()
+    sel = (lam.imag > 0) & (lam.imag / (2 * math.pi) < f_max_hz)
+    lam, V = lam[sel], V[:, sel]
+    z = -lam.real / np.abs(lam)
+    keep = z < 0.5
+    lam, V, z = lam[keep], V[:, keep], z[keep]
+    order = np.argsort(lam.imag)
+    lam, V, z = lam[order], V[:, order], z[order]
+    disc = Pd @ V[n:n + m]                      # complex (x, y) amplitude at the disc
+    # forward whirl: y lags x by +90° for e^{iωt}: y ≈ −i x  →  Im(conj(x)·y) < 0
+    fwd = np.imag(np.conj(disc[0]) * disc[1]) < 0
+    return LinearModes(lam.imag / (2 * math.pi), z, fwd)
+
+
+# --- classical reference ---------------------------------------------------------------------
+def ausman_stiffness(radius_m: float, length_m: float, clearance_m: float, mu: float,
+                     p_a: float, omega_rad: float) -> np.ndarray:
+    """Small-eccentricity stiffness (N/m) of a plain self-acting gas journal bearing.
+
+    First-order perturbation of the steady compressible Reynolds equation about the concentric
+    position (Ausman 1961, "An improved analytical solution for self-acting, gas-lubricated
+    journal bearings of finite length", J. Basic Eng. 83; the "linearised ph" solution in its
+    ε → 0 limit). With Λ = 6μΩR²/(p_a c²), ℓ = L/(2R), κ = √(1 + iΛ)::
+
+        p = p_a (1 + ε Re[g(ζ) e^{iθ}]),  g = iΛ/(1 + iΛ) (1 − cosh κζ / cosh κℓ)
+
+    and K = −∂F/∂e; returns [[k_xx, k_xy], [k_yx, k_yy]] (isotropic: k_yy = k_xx,
+    k_xy = −k_yx).
+    """
+    lam = 6 * mu * omega_rad * radius_m ** 2 / (p_a * clearance_m ** 2)
+    ell = length_m / (2 * radius_m)
+    kap = np.sqrt(1 + 1j * lam)
+    gint = 1j * lam / (1 + 1j * lam) * (2 * ell - 2 * np.tanh(kap * ell) / kap) * radius_m
+    # F_x = −p_a ε π R Re(gint), F_y = +p_a ε π R Im(gint), for e_x = ε c
+    kxx = p_a * math.pi * radius_m * gint.real / clearance_m
+    kyx = -p_a * math.pi * radius_m * gint.imag / clearance_m
+    return np.array([[kxx, -kyx], [kyx, kxx]])

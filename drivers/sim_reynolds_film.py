@@ -1,0 +1,403 @@
+"""Compiled numerics of the gas film: finite-volume compressible Reynolds equation.
+
+The film of the ``sim_reynolds`` plant (docs/plant.md, "Physics-grade plant"): isothermal,
+compressible Reynolds equation in the journal gap, written for the cell mass (times R_g T)
+``Ψ = p h A``::
+
+    ∂(p h)/∂t + ∇·( −p h³/(12 μ) ∇p + (U/2) p h e_θ ) = R_g T ṁ_inj / A        (R1)
+
+with h(θ, t) = c − x_b cos θ − y_b sin θ, U = Ω R, periodic in θ, p = p_a at the bearing ends.
+Only the half bearing z ∈ [0, L/2] is solved (symmetry about the mid-plane: no journal tilt,
+injectors in the mid-plane); forces are doubled.
+
+Grid: ``n_theta`` cells in θ (index i), ``mz`` cells in z (index j, j = 0 at the mid-plane),
+unknown k = i·mz + j. Face fluxes: central p_f, exact h_f at the face, gradients by two-point
+differences; the θ-wedge term central (cell Péclet number ≪ 1 at these bearing numbers).
+
+Time stepping: BDF2, Newton on the pressures with the shaft (through the bearing
+displacement x_b, rank 2) and the four orifices (rank 4) as low-rank updates
+(Sherman–Morrison–Woodbury) of the block-cyclic-tridiagonal film Jacobian, solved by a
+periodic block Thomas algorithm (blocks mz × mz). Nothing allocates.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+NV = 4               # valves / orifices
+NR = 2 + NV          # low-rank columns: x_b, y_b, four orifices
+
+# geometry vector ``geo`` (float64) offsets
+G_NT = 0             # n_theta
+G_MZ = 1             # cells in the half length
+G_R = 2              # journal radius, m
+G_DTH = 3            # Δθ, rad
+G_DZ = 4             # Δz, m
+G_C = 5              # radial clearance c, m
+G_MU = 6             # viscosity, Pa s
+G_PA = 7             # ambient pressure, Pa abs
+G_AREA = 8           # cell area R Δθ Δz, m²
+G_RT = 9             # R_g T, J/kg
+G_GAMMA = 10         # ratio of specific heats
+G_CDA = 11           # Cd·A of a fully open orifice, m²
+G_N = 12
+
+
+@numba.njit(cache=True, nogil=True)
+def orifice_flow(p_up, p_down, cda, rt, gam):
+    """Isentropic orifice mass flow (kg/s) and its derivative d/dp_down.
+
+    Choked below the critical pressure ratio, unchoked above; regularised linearly for
+    pressure ratios above 0.995 (finite derivative at equal pressures); reverse flow by
+    symmetry.
+    """
+    if cda <= 0.0:
+        return 0.0, 0.0
+    sgn = 1.0
+    pu = p_up
+    pd = p_down
+    if pd > pu:
+        sgn = -1.0
+        pu = p_down
+        pd = p_up
+    r = pd / pu
+    rc = (2.0 / (gam + 1.0)) ** (gam / (gam - 1.0))
+    k_un = cda * pu * math.sqrt(2.0 * gam / ((gam - 1.0) * rt))
+    r_lin = 0.995
+    if r <= rc:
+        m = cda * pu * math.sqrt(gam / rt) * (2.0 / (gam + 1.0)) ** (
+            (gam + 1.0) / (2.0 * (gam - 1.0)))
+        dm_dr = 0.0
+    elif r <= r_lin:
+        a = r ** (2.0 / gam) - r ** ((gam + 1.0) / gam)
+        m = k_un * math.sqrt(a)
+        da = (2.0 / gam) * r ** (2.0 / gam - 1.0) - ((gam + 1.0) / gam) * r ** (1.0 / gam)
+        dm_dr = k_un * 0.5 * da / math.sqrt(a)
+    else:
+        a = r_lin ** (2.0 / gam) - r_lin ** ((gam + 1.0) / gam)
+        m0 = k_un * math.sqrt(a)
+        m = m0 * (1.0 - r) / (1.0 - r_lin)
+        dm_dr = -m0 / (1.0 - r_lin)
+    # derivative with respect to p_down (the film side)
+    if sgn > 0.0:
+        return m, dm_dr / pu
+    # reversed: film is upstream (pu = p_down); m(pu, pd) = pu·f(pd/pu)
+    dm_dpu = m / pu - r * (dm_dr / pu)       # d(pu f(pd/pu))/dpu = f − r f'(r)
+    return -m, -dm_dpu
+
+
+@numba.njit(cache=True, nogil=True)
+def film_force(geo, cs, p):
+    """Film force on the journal (N, both halves): −∫ (p − p_a)(cos θ, sin θ) dA."""
+    nt = int(geo[G_NT])
+    mz = int(geo[G_MZ])
+    pa = geo[G_PA]
+    a2 = 2.0 * geo[G_AREA]
+    fx = 0.0
+    fy = 0.0
+    for i in range(nt):
+        s = 0.0
+        for j in range(mz):
+            s += p[i * mz + j] - pa
+        fx -= a2 * s * cs[i]
+        fy -= a2 * s * cs[nt + i]
+    return fx, fy
+
+
+@numba.njit(cache=True, nogil=True)
+def film_mass(geo, cs, p, xb, yb):
+    """Gas mass in the whole film × R_g T (Pa m³): Σ p h A, both halves."""
+    nt = int(geo[G_NT])
+    mz = int(geo[G_MZ])
+    c = geo[G_C]
+    s = 0.0
+    for i in range(nt):
+        h = c - xb * cs[i] - yb * cs[nt + i]
+        for j in range(mz):
+            s += p[i * mz + j] * h
+    return 2.0 * s * geo[G_AREA]
+
+
+@numba.njit(cache=True, nogil=True)
+def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA, jB, jC,
+               dRx, dRy, mdot, dmdot, want_jac):
+    """Net mass rate (× R_g T, Pa m³/s) into each cell: inflow − outflow, at fixed geometry.
+
+    Parameters
+    ----------
+    geo : float64[G_N]
+        Geometry and gas constants (offsets ``G_*``).
+    cs : float64[4·n_theta]
+        cos θ_i, sin θ_i at cell centres, cos, sin at the faces θ_{i+1/2}.
+    wts : float64[NV·N]
+        Orifice feed-patch weights (each row sums to 1).
+    p : float64[N]
+        Cell pressures, Pa abs.
+    xb, yb : float
+        Journal displacement at the bearing, m.
+    omega : float
+        Shaft speed, rad/s.
+    p_sup : float
+        Absolute supply pressure P_I + P_atm, Pa.
+    afrac : float64[NV]
+        Orifice area fractions (0 closed … 1 open).
+    rate : float64[N]
+        Out: net rate into each cell.
+    out_flow : float64[1]
+        Out: mass flow (× R_g T) leaving through the bearing ends (both halves, Pa m³/s).
+    jA, jB, jC : float64[n_theta, mz, mz]
+        Out (if ``want_jac``): blocks of −∂rate/∂p (lower, diagonal, upper; periodic).
+    dRx, dRy : float64[N]
+        Out (if ``want_jac``): −∂rate/∂x_b, −∂rate/∂y_b.
+    mdot, dmdot : float64[NV]
+        Out: orifice mass flows (kg/s) and their derivatives with respect to the patch mean
+        pressure.
+    """
+    nt = int(geo[G_NT])
+    mz = int(geo[G_MZ])
+    R = geo[G_R]
+    dth = geo[G_DTH]
+    dz = geo[G_DZ]
+    c = geo[G_C]
+    mu = geo[G_MU]
+    pa = geo[G_PA]
+    rt = geo[G_RT]
+    n = nt * mz
+    for k in range(n):
+        rate[k] = 0.0
+    if want_jac:
+        for i in range(nt):
+            for a in range(mz):
+                for b in range(mz):
+                    jA[i, a, b] = 0.0
+                    jB[i, a, b] = 0.0
+                    jC[i, a, b] = 0.0
+        for k in range(n):
+            dRx[k] = 0.0
+            dRy[k] = 0.0
+    U = omega * R
+    out_flow[0] = 0.0
+    # θ faces: between cell i and i+1 (periodic), per z cell
+    for i in range(nt):
+        ip = i + 1 if i + 1 < nt else 0
+        cf = cs[2 * nt + i]
+        sf = cs[3 * nt + i]
+        hf = c - xb * cf - yb * sf
+        kf = hf * hf * hf * dz / (12.0 * mu * R * dth)
+        uf = 0.5 * U * hf * dz
+        dkf = 3.0 * hf * hf * dz / (12.0 * mu * R * dth)
+        duf = 0.5 * U * dz
+        for j in range(mz):
+            a = i * mz + j
+            b = ip * mz + j
+            pa_ = p[a]
+            pb_ = p[b]
+            flux = -0.5 * kf * (pb_ * pb_ - pa_ * pa_) + 0.5 * uf * (pa_ + pb_)   # a → b
+            rate[a] -= flux
+            rate[b] += flux
+            if want_jac:
+                dfa = kf * pa_ + 0.5 * uf
+                dfb = -kf * pb_ + 0.5 * uf
+                # −∂rate_a/∂p = +∂flux/∂p ; −∂rate_b/∂p = −∂flux/∂p
+                jB[i, j, j] += dfa
+                jC[i, j, j] += dfb           # row a (block i), column b (block i+1)
+                jB[ip, j, j] -= dfb
+                jA[ip, j, j] -= dfa          # row b (block i+1), column a (block i)
+                dflux_dh = -0.5 * dkf * (pb_ * pb_ - pa_ * pa_) + 0.5 * duf * (pa_ + pb_)
+                dRx[a] += dflux_dh * (-cf)
+                dRy[a] += dflux_dh * (-sf)
+                dRx[b] -= dflux_dh * (-cf)
+                dRy[b] -= dflux_dh * (-sf)
+    # z faces (per θ cell; h uniform in z)
+    for i in range(nt):
+        ci = cs[i]
+        si = cs[nt + i]
+        h = c - xb * ci - yb * si
+        kz = h * h * h * R * dth / (12.0 * mu * dz)
+        dkz = 3.0 * h * h * R * dth / (12.0 * mu * dz)
+        for j in range(mz - 1):
+            a = i * mz + j
+            b = a + 1
+            flux = -0.5 * kz * (p[b] * p[b] - p[a] * p[a])
+            rate[a] -= flux
+            rate[b] += flux
+            if want_jac:
+                dfa = kz * p[a]
+                dfb = -kz * p[b]
+                jB[i, j, j] += dfa
+                jB[i, j, j + 1] += dfb
+                jB[i, j + 1, j + 1] -= dfb
+                jB[i, j + 1, j] -= dfa
+                dfh = -0.5 * dkz * (p[b] * p[b] - p[a] * p[a])
+                dRx[a] += dfh * (-ci)
+                dRy[a] += dfh * (-si)
+                dRx[b] -= dfh * (-ci)
+                dRy[b] -= dfh * (-si)
+        # outer end: ambient at distance dz/2
+        a = i * mz + mz - 1
+        flux = -0.5 * 2.0 * kz * (pa * pa - p[a] * p[a])
+        rate[a] -= flux
+        out_flow[0] += 2.0 * flux
+        if want_jac:
+            jB[i, mz - 1, mz - 1] += 2.0 * kz * p[a]
+            dfh = -0.5 * 2.0 * dkz * (pa * pa - p[a] * p[a])
+            dRx[a] += dfh * (-ci)
+            dRy[a] += dfh * (-si)
+    # orifices: mass flow from the supply into the feed patch at its mean pressure
+    for v in range(NV):
+        pm = 0.0
+        for k in range(n):
+            pm += wts[v * n + k] * p[k]
+        m, dm = orifice_flow(p_sup, pm, afrac[v] * geo[G_CDA], rt, geo[G_GAMMA])
+        # the half domain receives half the orifice flow
+        mdot[v] = m
+        dmdot[v] = dm
+        for k in range(n):
+            w = wts[v * n + k]
+            if w != 0.0:
+                rate[k] += 0.5 * rt * m * w
+
+
+@numba.njit(cache=True, nogil=True)
+def _inv_small(a, out, m):
+    """out = a⁻¹ (m × m, Gauss–Jordan with partial pivoting; a is overwritten)."""
+    for r in range(m):
+        for s in range(m):
+            out[r, s] = 1.0 if r == s else 0.0
+    for col in range(m):
+        piv = col
+        big = abs(a[col, col])
+        for r in range(col + 1, m):
+            if abs(a[r, col]) > big:
+                big = abs(a[r, col])
+                piv = r
+        if piv != col:
+            for s in range(m):
+                t = a[col, s]
+                a[col, s] = a[piv, s]
+                a[piv, s] = t
+                t = out[col, s]
+                out[col, s] = out[piv, s]
+                out[piv, s] = t
+        d = 1.0 / a[col, col]
+        for s in range(m):
+            a[col, s] *= d
+            out[col, s] *= d
+        for r in range(m):
+            if r != col:
+                f = a[r, col]
+                if f != 0.0:
+                    for s in range(m):
+                        a[r, s] -= f * a[col, s]
+                        out[r, s] -= f * out[col, s]
+
+
+@numba.njit(cache=True, nogil=True)
+def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
+    """Solve the periodic block-tridiagonal system in place: ``d`` ← x.
+
+    Row i: A_i x_{i−1} + B_i x_i + C_i x_{i+1} = d_i (indices mod n). ``jB`` is overwritten.
+    ``d`` has shape (n, m, ≥nrhs); work arrays: Dinv, E (n, m, m), T1, T2, Fb, G (m, m),
+    g (m, ≥nrhs).
+    """
+    n = jB.shape[0]
+    m = jB.shape[1]
+    # forward elimination with the spike column E (coupling to x_{n−1})
+    for i in range(n - 1):
+        if i == 0:
+            for a in range(m):
+                for b in range(m):
+                    E[0, a, b] = jA[0, a, b]
+        else:
+            # L = A_i Dinv_{i−1} (A_i diagonal in practice, handled densely)
+            for a in range(m):
+                for b in range(m):
+                    s = 0.0
+                    for q in range(m):
+                        s += jA[i, a, q] * Dinv[i - 1, q, b]
+                    T1[a, b] = s
+            # B_i −= L C_{i−1} ; E_i = −L E_{i−1} ; d_i −= L d_{i−1}
+            for a in range(m):
+                for b in range(m):
+                    s = 0.0
+                    e = 0.0
+                    for q in range(m):
+                        s += T1[a, q] * jC[i - 1, q, b]
+                        e += T1[a, q] * E[i - 1, q, b]
+                    jB[i, a, b] -= s
+                    E[i, a, b] = -e
+                for r in range(nrhs):
+                    s = 0.0
+                    for q in range(m):
+                        s += T1[a, q] * d[i - 1, q, r]
+                    d[i, a, r] -= s
+        if i == n - 2:
+            for a in range(m):
+                for b in range(m):
+                    E[i, a, b] += jC[i, a, b]
+        for a in range(m):
+            for b in range(m):
+                T2[a, b] = jB[i, a, b]
+        _inv_small(T2, Dinv[i], m)
+    # bottom row: Fb x_j + G x_{n−1} = g
+    for a in range(m):
+        for b in range(m):
+            Fb[a, b] = jC[n - 1, a, b]
+            G[a, b] = jB[n - 1, a, b]
+        for r in range(nrhs):
+            g[a, r] = d[n - 1, a, r]
+    for j in range(n - 1):
+        if j == n - 2:
+            for a in range(m):
+                for b in range(m):
+                    Fb[a, b] += jA[n - 1, a, b]
+        # T1 = Fb Dinv_j
+        for a in range(m):
+            for b in range(m):
+                s = 0.0
+                for q in range(m):
+                    s += Fb[a, q] * Dinv[j, q, b]
+                T1[a, b] = s
+        for a in range(m):
+            for b in range(m):
+                s = 0.0
+                for q in range(m):
+                    s += T1[a, q] * E[j, q, b]
+                G[a, b] -= s
+            for r in range(nrhs):
+                s = 0.0
+                for q in range(m):
+                    s += T1[a, q] * d[j, q, r]
+                g[a, r] -= s
+        if j < n - 2:
+            for a in range(m):
+                for b in range(m):
+                    s = 0.0
+                    for q in range(m):
+                        s += T1[a, q] * jC[j, q, b]
+                    Fb[a, b] = -s
+    _inv_small(G, T2, m)
+    for a in range(m):
+        for r in range(nrhs):
+            s = 0.0
+            for q in range(m):
+                s += T2[a, q] * g[q, r]
+            d[n - 1, a, r] = s
+    # back substitution x_j = Dinv_j (d_j − C_j x_{j+1} − E_j x_{n−1})
+    for j in range(n - 2, -1, -1):
+        for r in range(nrhs):
+            for a in range(m):
+                s = d[j, a, r]
+                for q in range(m):
+                    s -= E[j, a, q] * d[n - 1, q, r]
+                    if j < n - 2:
+                        s -= jC[j, a, q] * d[j + 1, q, r]
+                g[a, r] = s
+            for a in range(m):
+                s = 0.0
+                for q in range(m):
+                    s += Dinv[j, a, q] * g[q, r]
+                d[j, a, r] = s

@@ -1,0 +1,216 @@
+"""Physics checks of the physics-grade plant (``sim_reynolds``): film, orifices, shaft.
+
+docs/plant.md, "Physics-grade plant", lists the figures these tests hold.
+"""
+
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rigd.frame import IN_E_X, IN_E_Y, N_IN
+from rigd_drivers import sim_reynolds_analysis as an
+from rigd_drivers import sim_reynolds_kernel as k
+
+QUIET = {"noise": {"e_um": 0.0, "y_p_v": 0.0}}
+C = 25e-6
+
+
+def _arrays(p_inj=4.0, omega=0.0, **opts):
+    return an.make_arrays({**QUIET, "omega_rpm": omega, **opts}, p_inj_bar=p_inj)
+
+
+def _load_and_stiffness(grid):
+    pa = _arrays(grid={"n_theta": grid[0], "n_z": grid[1]})
+    af = an.valve_area_fractions(pa.opts, 5.0)
+    _, fx0, fy0 = an.steady(pa, 0.0, 0.0, af)
+    _, fx, fy = an.steady(pa, 0.3 * C, 0.0, af)
+    K = an.film_stiffness(pa, af)
+    return math.hypot(fx - fx0, fy - fy0), K
+
+
+def test_grid_convergence_load_and_stiffness_within_2_percent():
+    """Default grid (32 × 8) against one twice as fine (64 × 16), 4 bar, valves at r0."""
+    w1, K1 = _load_and_stiffness((32, 8))
+    w2, K2 = _load_and_stiffness((64, 16))
+    assert 20.0 < w1 < 200.0                      # a real load at ε = 0.3 (N)
+    assert abs(w1 - w2) / w2 < 0.02
+    for i in range(2):
+        assert abs(K1[i, i] - K2[i, i]) / K2[i, i] < 0.02
+
+
+@pytest.mark.parametrize("rpm", [6000.0, 25000.0])
+def test_hydrodynamic_stiffness_matches_ausman_small_eccentricity_solution(rpm):
+    """No injection, Ω > 0: the linearised (ε → 0) compressible solution of a finite
+    self-acting bearing (Ausman 1961). Λ = 0.24 (6 krpm) and 1.0 (25 krpm)."""
+    pa = _arrays()
+    b = pa.opts.bearing
+    Ka = an.ausman_stiffness(b.radius_mm * 1e-3, b.length_mm * 1e-3, b.clearance_um * 1e-6,
+                             b.viscosity_pa_s, b.ambient_pa, rpm * math.pi / 30)
+    errs = []
+    for grid in ((32, 8), (64, 16)):
+        pa = _arrays(grid={"n_theta": grid[0], "n_z": grid[1]})
+        pa.set_block(rpm, 4.0)
+        K = an.film_stiffness(pa, np.zeros(4), de=0.01e-6)
+        # direct and cross-coupled terms, and the isotropy of the linear solution
+        errs.append(max(abs(K[0, 0] - Ka[0, 0]) / Ka[0, 0],
+                        abs(K[1, 0] - Ka[1, 0]) / abs(Ka[1, 0])))
+        assert K[1, 0] < 0 < K[0, 1]
+        assert abs(K[1, 1] - K[0, 0]) / K[0, 0] < 1e-6
+    assert errs[0] < 0.04                 # default grid: 2.6 % / 2.8 % at Λ = 0.24 / 1.0
+    assert errs[1] < 0.01                 # twice as fine: 0.7 %
+    assert errs[1] < errs[0] / 3          # converging (second order)
+
+
+def test_static_stiffness_rises_with_injection_pressure():
+    ks = []
+    for p in (3.0, 5.0, 7.0):
+        pa = _arrays(p_inj=p)
+        af = an.valve_area_fractions(pa.opts, 5.0)
+        an.steady(pa, 0.0, 0.0, af)
+        ks.append(np.diag(an.film_stiffness(pa, af)))
+    ks = np.array(ks)
+    assert np.all(np.diff(ks, axis=0) > 0.1 * ks[:-1])
+    assert 3e6 < ks[0, 0] < 1e7                      # the documented range
+
+
+def test_first_resonance_rises_with_injection_pressure_and_lies_near_100_200_hz():
+    f1, z1 = [], []
+    for p in (3.0, 5.0, 7.0):
+        pa = _arrays(p_inj=p)
+        an.rest(pa, 5.0)
+        lm = an.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
+        f1.append(lm.freq_hz[0])
+        z1.append(lm.zeta[0])
+    assert all(90.0 < f < 200.0 for f in f1)
+    assert f1[0] < f1[1] < f1[2]
+    assert f1[2] > 1.1 * f1[0]
+    assert all(0.0 < z < 0.1 for z in z1)                # lightly damped, stable
+    assert z1[2] < z1[0]                                  # the paper: damping falls with P_I
+
+
+def test_cross_coupled_stiffness_grows_with_speed():
+    kc = []
+    for rpm in (0.0, 3000.0, 6000.0):
+        pa = _arrays(omega=rpm)
+        af = an.valve_area_fractions(pa.opts, 5.0)
+        an.steady(pa, 0.0, 0.0, af)
+        K = an.film_stiffness(pa, af)
+        kc.append(0.5 * (K[0, 1] - K[1, 0]))             # circulatory part
+    assert abs(kc[0]) < 1e-3 * 5e6
+    assert 0 < kc[1] < kc[2]
+    assert kc[2] > 1.5 * kc[1]
+
+
+def _run(pa, drives, impact=None):
+    frames = np.zeros((drives.shape[0], N_IN))
+    if impact is not None:
+        pa.params[k.H_IMP_AXIS] = 0.0 if impact[0] == "x" else 1.0
+        pa.params[k.H_IMP_PEAK] = impact[1]
+        pa.params[k.H_IMP_DUR] = 1e-3
+        pa.params[k.H_IMP_SEQ] += 1
+    k.run_batch(pa.state, pa.params, drives, frames)
+    return frames
+
+
+def _bdf2_mass(pa):
+    """(3 M_n − M_{n−1})/2: the film mass of the BDF2 balance (× R_g T, Pa m³)."""
+    o = pa.lay.st
+    n = pa.n
+    m0 = 2 * pa.state[o[k.T_PSI]:o[k.T_PSI] + n].sum()
+    m1 = 2 * pa.state[o[k.T_PSI1]:o[k.T_PSI1] + n].sum()
+    return 0.5 * (3 * m0 - m1)
+
+
+@pytest.mark.parametrize("newton, tol", [(8, 1e-9), (1, 1e-4)])
+def test_film_mass_is_conserved(newton, tol):
+    """Mass in − mass out = change of film mass over a transient (valve steps, impact, 3 krpm).
+
+    Converged Newton: to solver tolerance; the default single Newton iteration: < 1e-4 of the
+    mass that flowed through the film."""
+    pa = _arrays(omega=3000.0, newton_iterations=newton)
+    an.rest(pa, 5.0)
+    b0 = _bdf2_mass(pa)
+    sc = pa.stsc
+    in0, out0 = sc[k.ST_MIN], sc[k.ST_MOUT]
+    drives = np.full((300, 4), 5.0)
+    drives[50:150, 0] = 7.0
+    drives[100:, 3] = 3.0
+    _run(pa, drives, impact=("y", 30.0))
+    net = (sc[k.ST_MIN] - in0) - (sc[k.ST_MOUT] - out0)
+    through = sc[k.ST_MIN] - in0
+    assert through > 0
+    assert abs((_bdf2_mass(pa) - b0) - net) < tol * through
+
+
+def test_time_stepping_matches_linearised_modes():
+    """Impact ring-down of the stepped plant: frequency and damping of the linearised system."""
+    pa = _arrays(p_inj=4.0)
+    an.rest(pa, 5.0)
+    lm = an.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
+    e0 = np.zeros(N_IN)
+    k.plant_sense(pa.state, pa.params, e0)
+    fr = _run(pa, np.full((1200, 4), 5.0), impact=("x", 20.0))
+    x = fr[25:, IN_E_X] - e0[IN_E_X]
+    # zero crossings → frequency; log decrement of the positive peaks → damping
+    from scipy.signal import find_peaks
+    pk, _ = find_peaks(x)
+    pk = pk[:10]
+    f = 5000.0 / np.mean(np.diff(pk))
+    d = math.log(x[pk[0]] / x[pk[-1]]) / (len(pk) - 1)
+    z = d / math.sqrt(4 * math.pi ** 2 + d * d)
+    assert abs(f - lm.freq_hz[0]) / lm.freq_hz[0] < 0.03
+    assert abs(z - lm.zeta[0]) < 0.25 * lm.zeta[0]
+
+
+def test_valve_numbering_and_sign_follow_fig_1():
+    """Closing valve 1 (+y) or valve 2 (+x) moves the shaft towards +y or +x (u > 0 → e > 0)."""
+    for valve, ch, other in ((0, IN_E_Y, IN_E_X), (1, IN_E_X, IN_E_Y)):
+        pa = _arrays()
+        an.rest(pa, 5.0)
+        e0 = np.zeros(N_IN)
+        k.plant_sense(pa.state, pa.params, e0)
+        d = np.full((500, 4), 5.0)
+        d[:, valve] = 6.0
+        fr = _run(pa, d)
+        de = fr[-1] - e0
+        assert de[ch] > 0.5                                  # µm
+        assert abs(de[other]) < 0.2 * de[ch]
+
+
+def test_rest_state_is_at_rest():
+    pa = _arrays(omega=6000.0, p_inj=7.0)
+    an.rest(pa, 5.0)
+    e0 = np.zeros(N_IN)
+    k.plant_sense(pa.state, pa.params, e0)
+    fr = _run(pa, np.full((200, 4), 5.0))
+    assert np.abs(fr[:, :2] - e0[:2]).max() < 1e-3          # µm
+
+
+_ALLOC = """
+import numpy as np
+from numba.core.runtime import rtsys
+from rigd_drivers import sim_reynolds_analysis as an, sim_reynolds_kernel as k
+from rigd.frame import N_IN
+pa = an.make_arrays({})
+an.rest(pa, 5.0)
+f = np.zeros((400, N_IN)); d = np.full((400, 4), 5.0)
+k.run_batch(pa.state, pa.params, d[:2], f[:2])
+a0 = rtsys.get_allocation_stats().alloc
+k.run_batch(pa.state, pa.params, d[:2], f[:2])
+a1 = rtsys.get_allocation_stats().alloc
+k.run_batch(pa.state, pa.params, d, f)
+a2 = rtsys.get_allocation_stats().alloc
+print(a1 - a0, a2 - a1)
+"""
+
+
+def test_kernel_allocates_nothing_per_step():
+    env = dict(os.environ, NUMBA_NRT_STATS="1")
+    out = subprocess.run([sys.executable, "-c", _ALLOC], env=env, capture_output=True,
+                         text=True, timeout=300, check=True).stdout.split()
+    short, long_ = int(out[0]), int(out[1])
+    assert long_ == short            # 400 steps allocate exactly what 2 steps do (the call)
