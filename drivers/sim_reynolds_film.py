@@ -25,7 +25,6 @@ from __future__ import annotations
 import math
 
 import numba
-import numpy as np
 
 NV = 4               # valves / orifices
 NR = 2 + NV          # low-rank columns: x_b, y_b, four orifices

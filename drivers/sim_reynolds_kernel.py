@@ -17,11 +17,30 @@ import math
 
 import numba
 
-from rigd.frame import (IN_E_X, IN_E_Y, IN_F_X, IN_F_Y, IN_OMEGA, IN_P_INJ, IN_PHI, IN_SEQ,
-                        IN_STATUS, IN_YP1, N_IN)
+from rigd.frame import (
+    IN_E_X,
+    IN_E_Y,
+    IN_F_X,
+    IN_F_Y,
+    IN_OMEGA,
+    IN_P_INJ,
+    IN_PHI,
+    IN_SEQ,
+    IN_STATUS,
+    IN_YP1,
+    N_IN,
+)
 from rigd_drivers.sim_noise import normal_pair as _normal_pair
-from rigd_drivers.sim_reynolds_film import (G_AREA, G_C, G_N, NR, NV, block_cyclic_solve,
-                                            film_force, film_rates)
+from rigd_drivers.sim_reynolds_film import (
+    G_AREA,
+    G_C,
+    G_N,
+    NR,
+    NV,
+    block_cyclic_solve,
+    film_force,
+    film_rates,
+)
 
 TWO_PI = 2.0 * math.pi
 
@@ -189,7 +208,7 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, tol):
     pa = geo[7]
     rt = geo[9]
     upd = 0.0
-    for it in range(nit):
+    for _ in range(nit):
         fx, fy = film_force(geo, cs, p)
         xb = cb00 * fx + cb01 * fy + xk0
         yb = cb10 * fx + cb11 * fy + xk1
@@ -501,7 +520,7 @@ def plant_step(state, params, drive, frame_in):
             v = 0.0
         elif v > 10.0:
             v = 10.0
-        if not (v == v):
+        if v != v:                              # NaN drive: amplifier holds 0 V
             v = 0.0
         state[ovp + i] = v
         p0 = state[oxv + 2 * i]

@@ -15,8 +15,23 @@ import numpy as np
 from rigd_drivers import sim_physics as phys
 from rigd_drivers import sim_reynolds_kernel as k
 from rigd_drivers.sim_params import zoh
-from rigd_drivers.sim_reynolds_film import (G_AREA, G_C, G_CDA, G_DTH, G_DZ, G_GAMMA, G_MU,
-                                            G_MZ, G_N, G_NT, G_PA, G_R, G_RT, NR, NV)
+from rigd_drivers.sim_reynolds_film import (
+    G_AREA,
+    G_C,
+    G_CDA,
+    G_DTH,
+    G_DZ,
+    G_GAMMA,
+    G_MU,
+    G_MZ,
+    G_N,
+    G_NT,
+    G_PA,
+    G_R,
+    G_RT,
+    NR,
+    NV,
+)
 from rigd_drivers.sim_reynolds_options import ReynoldsOptions
 from rigd_drivers.sim_reynolds_shaft import ShaftGeometry, ShaftModel, build_shaft
 
