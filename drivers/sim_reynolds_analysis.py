@@ -202,12 +202,13 @@ def _rates(pa: PlantArrays, p, xb, yb, afrac):
     rate = np.zeros(n)
     outf = np.zeros(1)
     z3 = np.zeros((nt, mz, mz))
+    z2 = np.zeros((nt, mz))
     zn = np.zeros(n)
     md = np.zeros(NV)
     dmd = np.zeros(NV)
     sc = pa.scalars
     film_rates(pa.geo, pa.cs, pa.wts, p, xb, yb, sc[k.SC_OMEGA_RAD], sc[k.SC_PSUP],
-               np.asarray(afrac, float), rate, outf, z3, z3, z3, zn, zn, md, dmd, False)
+               np.asarray(afrac, float), rate, outf, z2, z3, z2, zn, zn, md, dmd, False)
     return rate, outf[0], md
 
 

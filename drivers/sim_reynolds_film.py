@@ -147,8 +147,9 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA,
         Out: net rate into each cell.
     out_flow : float64[1]
         Out: mass flow (× R_g T) leaving through the bearing ends (both halves, Pa m³/s).
-    jA, jB, jC : float64[n_theta, mz, mz]
-        Out (if ``want_jac``): blocks of −∂rate/∂p (lower, diagonal, upper; periodic).
+    jA, jB, jC : float64[n_theta, mz] / [n_theta, mz, mz] / [n_theta, mz]
+        Out (if ``want_jac``): blocks of −∂rate/∂p: the lower and upper blocks are diagonal
+        (stored as their diagonals), the diagonal block tridiagonal (stored dense).
     dRx, dRy : float64[N]
         Out (if ``want_jac``): −∂rate/∂x_b, −∂rate/∂y_b.
     mdot, dmdot : float64[NV]
@@ -170,10 +171,10 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA,
     if want_jac:
         for i in range(nt):
             for a in range(mz):
+                jA[i, a] = 0.0
+                jC[i, a] = 0.0
                 for b in range(mz):
-                    jA[i, a, b] = 0.0
                     jB[i, a, b] = 0.0
-                    jC[i, a, b] = 0.0
         for k in range(n):
             dRx[k] = 0.0
             dRy[k] = 0.0
@@ -202,9 +203,9 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA,
                 dfb = -kf * pb_ + 0.5 * uf
                 # −∂rate_a/∂p = +∂flux/∂p ; −∂rate_b/∂p = −∂flux/∂p
                 jB[i, j, j] += dfa
-                jC[i, j, j] += dfb           # row a (block i), column b (block i+1)
+                jC[i, j] += dfb              # row a (block i), column b (block i+1)
                 jB[ip, j, j] -= dfb
-                jA[ip, j, j] -= dfa          # row b (block i+1), column a (block i)
+                jA[ip, j] -= dfa             # row b (block i+1), column a (block i)
                 dflux_dh = -0.5 * dkf * (pb_ * pb_ - pa_ * pa_) + 0.5 * duf * (pa_ + pb_)
                 dRx[a] += dflux_dh * (-cf)
                 dRy[a] += dflux_dh * (-sf)
@@ -298,35 +299,32 @@ def _inv_small(a, out, m):
 def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
     """Solve the periodic block-tridiagonal system in place: ``d`` ← x.
 
-    Row i: A_i x_{i−1} + B_i x_i + C_i x_{i+1} = d_i (indices mod n). ``jB`` is overwritten.
-    ``d`` has shape (n, m, ≥nrhs); work arrays: Dinv, E (n, m, m), T1, T2, Fb, G (m, m),
-    g (m, ≥nrhs).
+    Row i: A_i x_{i−1} + B_i x_i + C_i x_{i+1} = d_i (indices mod n), A_i and C_i diagonal
+    (``jA``, ``jC``: (n, m) diagonals), B_i dense (``jB``: (n, m, m), overwritten). ``d`` has
+    shape (n, m, ≥nrhs); work arrays: Dinv, E (n, m, m), T1, T2, Fb, G (m, m), g (m, ≥nrhs).
+    Periodic block Thomas: forward elimination carrying the spike column E_i (coupling to
+    x_{n−1}), the bottom row reduced alongside, back substitution.
     """
     n = jB.shape[0]
     m = jB.shape[1]
-    # forward elimination with the spike column E (coupling to x_{n−1})
     for i in range(n - 1):
         if i == 0:
             for a in range(m):
                 for b in range(m):
-                    E[0, a, b] = jA[0, a, b]
+                    E[0, a, b] = 0.0
+                E[0, a, a] = jA[0, a]
         else:
-            # L = A_i Dinv_{i−1} (A_i diagonal in practice, handled densely)
+            # L = A_i Dinv_{i−1}: row scaling
+            for a in range(m):
+                aa = jA[i, a]
+                for b in range(m):
+                    T1[a, b] = aa * Dinv[i - 1, a, b]
             for a in range(m):
                 for b in range(m):
-                    s = 0.0
-                    for q in range(m):
-                        s += jA[i, a, q] * Dinv[i - 1, q, b]
-                    T1[a, b] = s
-            # B_i −= L C_{i−1} ; E_i = −L E_{i−1} ; d_i −= L d_{i−1}
-            for a in range(m):
-                for b in range(m):
-                    s = 0.0
                     e = 0.0
                     for q in range(m):
-                        s += T1[a, q] * jC[i - 1, q, b]
                         e += T1[a, q] * E[i - 1, q, b]
-                    jB[i, a, b] -= s
+                    jB[i, a, b] -= T1[a, b] * jC[i - 1, b]
                     E[i, a, b] = -e
                 for r in range(nrhs):
                     s = 0.0
@@ -335,8 +333,7 @@ def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
                     d[i, a, r] -= s
         if i == n - 2:
             for a in range(m):
-                for b in range(m):
-                    E[i, a, b] += jC[i, a, b]
+                E[i, a, a] += jC[i, a]
         for a in range(m):
             for b in range(m):
                 T2[a, b] = jB[i, a, b]
@@ -344,16 +341,15 @@ def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
     # bottom row: Fb x_j + G x_{n−1} = g
     for a in range(m):
         for b in range(m):
-            Fb[a, b] = jC[n - 1, a, b]
+            Fb[a, b] = 0.0
             G[a, b] = jB[n - 1, a, b]
+        Fb[a, a] = jC[n - 1, a]
         for r in range(nrhs):
             g[a, r] = d[n - 1, a, r]
     for j in range(n - 1):
         if j == n - 2:
             for a in range(m):
-                for b in range(m):
-                    Fb[a, b] += jA[n - 1, a, b]
-        # T1 = Fb Dinv_j
+                Fb[a, a] += jA[n - 1, a]
         for a in range(m):
             for b in range(m):
                 s = 0.0
@@ -374,10 +370,7 @@ def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
         if j < n - 2:
             for a in range(m):
                 for b in range(m):
-                    s = 0.0
-                    for q in range(m):
-                        s += T1[a, q] * jC[j, q, b]
-                    Fb[a, b] = -s
+                    Fb[a, b] = -T1[a, b] * jC[j, b]
     _inv_small(G, T2, m)
     for a in range(m):
         for r in range(nrhs):
@@ -392,8 +385,8 @@ def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
                 s = d[j, a, r]
                 for q in range(m):
                     s -= E[j, a, q] * d[n - 1, q, r]
-                    if j < n - 2:
-                        s -= jC[j, a, q] * d[j + 1, q, r]
+                if j < n - 2:
+                    s -= jC[j, a] * d[j + 1, a, r]
                 g[a, r] = s
             for a in range(m):
                 s = 0.0

@@ -161,11 +161,11 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, tol):
     rate = state[o:o + n]
     mm = mz * mz
     o = int(params[W_JA])
-    jA = state[o:o + nt * mm].reshape((nt, mz, mz))
+    jA = state[o:o + n].reshape((nt, mz))
     o = int(params[W_JB])
     jB = state[o:o + nt * mm].reshape((nt, mz, mz))
     o = int(params[W_JC])
-    jC = state[o:o + nt * mm].reshape((nt, mz, mz))
+    jC = state[o:o + n].reshape((nt, mz))
     o = int(params[W_DRX])
     dRx = state[o:o + n]
     o = int(params[W_DRY])

@@ -104,9 +104,9 @@ def build_layout(nt: int, mz: int, m: int) -> Layout:
     from rigd.frame import N_IN
     stake(k.T_FRAME, N_IN)
     stake(k.W_RATE, n)
-    stake(k.W_JA, nt * mm)
+    stake(k.W_JA, n)
     stake(k.W_JB, nt * mm)
-    stake(k.W_JC, nt * mm)
+    stake(k.W_JC, n)
     stake(k.W_DRX, n)
     stake(k.W_DRY, n)
     stake(k.W_D, n * (NR + 1))
