@@ -28,6 +28,7 @@ import numba
 
 NV = 4               # valves / orifices
 NR = 2 + NV          # low-rank columns: x_b, y_b, four orifices
+H_MIN = 0.02         # film thickness floor, fraction of c (no contact model below it)
 
 # geometry vector ``geo`` (float64) offsets
 G_NT = 0             # n_theta
@@ -186,6 +187,8 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA,
         cf = cs[2 * nt + i]
         sf = cs[3 * nt + i]
         hf = c - xb * cf - yb * sf
+        if hf < H_MIN * c:               # touchdown is not modelled: keep the film finite
+            hf = H_MIN * c
         kf = hf * hf * hf * dz / (12.0 * mu * R * dth)
         uf = 0.5 * U * hf * dz
         dkf = 3.0 * hf * hf * dz / (12.0 * mu * R * dth)
@@ -216,6 +219,8 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA,
         ci = cs[i]
         si = cs[nt + i]
         h = c - xb * ci - yb * si
+        if h < H_MIN * c:
+            h = H_MIN * c
         kz = h * h * h * R * dth / (12.0 * mu * dz)
         dkz = 3.0 * h * h * R * dth / (12.0 * mu * dz)
         for j in range(mz - 1):

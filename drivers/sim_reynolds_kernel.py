@@ -35,6 +35,7 @@ from rigd_drivers.sim_reynolds_film import (
     G_AREA,
     G_C,
     G_N,
+    H_MIN,
     NR,
     NV,
     block_cyclic_solve,
@@ -218,6 +219,8 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, tol):
             ci = cs[i]
             si = cs[nt + i]
             h = c - xb * ci - yb * si
+            if h < H_MIN * c:
+                h = H_MIN * c
             for j in range(mz):
                 k = i * mz + j
                 r = c0 * p[k] * h * A - hist[k] - rate[k]
@@ -405,6 +408,8 @@ def substep(state, params, fdx, fdy):
     A = geo[G_AREA]
     for i in range(nt):
         h = c - xb * cs[i] - yb * cs[nt + i]
+        if h < H_MIN * c:
+            h = H_MIN * c
         for j in range(mz):
             k = i * mz + j
             state[ops1 + k] = state[ops + k]

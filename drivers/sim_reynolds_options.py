@@ -28,9 +28,9 @@ class Bearing(StrictModel):
     """Gas bearing and gas (SI units unless the name says otherwise)."""
 
     radius_mm: float = Field(15.0, gt=5.0, le=100.0, description="journal radius R")
-    length_mm: float = Field(30.0, gt=5.0, le=200.0, description="bearing length L")
+    length_mm: float = Field(40.0, gt=5.0, le=200.0, description="bearing length L")
     clearance_um: float = Field(25.0, gt=5.0, le=100.0, description="radial clearance c")
-    orifice_diameter_mm: float = Field(0.35, gt=0.05, le=3.0,
+    orifice_diameter_mm: float = Field(0.30, gt=0.05, le=3.0,
                                        description="injector orifice diameter (valve fully open)")
     discharge_coefficient: float = Field(0.8, gt=0.1, le=1.0)
     feed_half_width_deg: float = Field(12.0, gt=1.0, le=40.0,
