@@ -78,11 +78,11 @@ def compute_samples(n: int = 200_000, order: int = 4):
     plant = _plant()
     cfg = default_config(clock={"mode": "lockstep"}, recorder={"ring_frames": 1 << 18})
     loop = ControlLoop(cfg, plant, controller=_controller(order))
-    loop._set_controller(loop.controller)
-    loop.st[L.S_K_TARGET] = 1.0
+    s = loop.state
+    s.st[L.S_K_TARGET] = 1.0
     fin = np.zeros(13)
     plant.read(fin)
-    prm, st, drive, ring, hist = loop.prm, loop.st, loop.drive, loop.recorder.ring, loop.hist
+    prm, st, drive, ring, hist = s.prm, s.st, s.drive, loop.recorder.ring, s.hist
     exc = np.zeros((1, 2))
     perf = time.perf_counter_ns
     out = np.empty(n, dtype=np.int64)

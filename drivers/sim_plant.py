@@ -72,13 +72,15 @@ class SimPlantDriver(FastDriver):
         super().__init__(opts.model_dump(), fs=fs)
         self.opts = opts
         self.kernel = k.plant_step
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()           # impact hammer requests
+        self._stage_lock = threading.Lock()     # staged parameter block writers
         self._omega = opts.omega_rpm
         self._p_inj = opts.p_inj_bar
         self.params = np.zeros(k.N_PARAMS)
         self.state = np.zeros(k.N_STATE)
         self._out = np.zeros(N_IN)
         self._frame_view = self.state[k.S_FRAME:k.S_FRAME + N_IN]
+        self._staged_view = self.params[k.STG:k.STG + k.NA]
         self.reset()
 
     # --- FastDriver --------------------------------------------------------------------
@@ -116,17 +118,42 @@ class SimPlantDriver(FastDriver):
         InputError
             Operating point outside Ω ∈ [0, 6000] rpm, P_I ∈ [3, 7] bar.
         """
+        self.prepare_operating_point(omega_rpm, p_inj_bar)()
+
+    def prepare_operating_point(self, omega_rpm: float, p_inj_bar: float):
+        """Build the parameter block of (Ω rpm, P_I bar) now; return its O(1) swap.
+
+        Runs in: the caller's thread (two matrix exponentials and allocations: never the
+        loop thread). The returned callable stages the prepared block under the sequence lock
+        (one copy of a fixed-size block into a preallocated view); the kernel swaps it in
+        whole at the start of its next step. While a loop owns this driver, change the
+        operating point through the loop (``ControlLoop.set_operating_point``), which runs
+        the callable at a cycle boundary.
+
+        Raises
+        ------
+        InputError
+            Operating point outside Ω ∈ [0, 6000] rpm, P_I ∈ [3, 7] bar.
+        """
         try:
             phys.check_operating_point(float(omega_rpm), float(p_inj_bar))
         except (TypeError, ValueError) as exc:
             raise InputError(str(exc), "set_operating_point") from None
         block = param_block(self.opts, float(omega_rpm), float(p_inj_bar), self.fs)
-        with self._lock:
-            seq = self.params[k.H_STAGE_SEQ]
-            self.params[k.H_STAGE_SEQ] = seq + 1.0          # odd: writing
-            self.params[k.STG:k.STG + k.NA] = block
-            self.params[k.H_STAGE_SEQ] = seq + 2.0          # even: complete
-            self._omega, self._p_inj = float(omega_rpm), float(p_inj_bar)
+        point = (float(omega_rpm), float(p_inj_bar))
+        params, staged, lock = self.params, self._staged_view, self._stage_lock
+
+        def swap() -> None:
+            """Stage the prepared block. Runs in: loop thread — O(1), no allocation, no wait
+            (the stage lock has no other holder while a loop owns the driver)."""
+            with lock:
+                seq = params[k.H_STAGE_SEQ]
+                params[k.H_STAGE_SEQ] = seq + 1.0          # odd: writing
+                np.copyto(staged, block)
+                params[k.H_STAGE_SEQ] = seq + 2.0          # even: complete
+                self._omega, self._p_inj = point
+
+        return swap
 
     @property
     def operating_point(self) -> tuple[float, float]:

@@ -8,6 +8,20 @@ Two kinds of driver exist:
 * :class:`SlowDriver` — polled in its own thread at ``poll_hz`` (10–100 Hz): Modbus pressure,
   speed, regulator setpoints. The loop never waits for it; it reads the latest value.
 
+Every driver has a lifecycle like ros2_control's hardware interface::
+
+    unconfigured --configure()--> inactive --activate()--> active
+    active --deactivate(safe)--> inactive --cleanup()--> unconfigured
+
+``configure`` acquires the device (port, connection), ``activate`` lets the loop command it,
+``deactivate`` takes the outputs to the safe state and stops commanding them (a fast driver
+writes the safe drive it is given; the serial front-end is told to hold its own safe voltage),
+``cleanup`` releases the device. The loop calls them in this order at open and close, and
+``deactivate`` at once from a dying loop thread. Drivers override the ``on_*`` hooks; the
+simple default keeps the older two-method interface working: ``on_configure`` calls
+:meth:`Driver.open`, ``on_cleanup`` calls :meth:`Driver.close`, a fast driver's
+``on_deactivate`` writes the safe drive, the others do nothing.
+
 Drivers are found by name through the entry-point group ``rigd.drivers`` so that a third-party
 driver installs as an ordinary package::
 
@@ -26,6 +40,8 @@ import numpy as np
 from rigd.errors import InputError
 
 GROUP = "rigd.drivers"
+
+UNCONFIGURED, INACTIVE, ACTIVE = "unconfigured", "inactive", "active"
 
 
 class Driver(ABC):  # noqa: B024 - abstract by intent: only FastDriver/SlowDriver are made
@@ -46,6 +62,55 @@ class Driver(ABC):  # noqa: B024 - abstract by intent: only FastDriver/SlowDrive
     def __init__(self, options: dict[str, Any] | None = None, *, fs: float = 5000.0):
         self.options = options or {}
         self.fs = float(fs)
+        #: "unconfigured", "inactive" or "active" (see module docstring)
+        self.lifecycle = UNCONFIGURED
+
+    # --- lifecycle transitions (called by the loop; override the on_* hooks) ---------------
+    def configure(self) -> None:
+        """unconfigured → inactive: acquire the device (no-op in any other state)."""
+        if self.lifecycle == UNCONFIGURED:
+            self.on_configure()
+            self.lifecycle = INACTIVE
+
+    def activate(self) -> None:
+        """inactive → active: the loop may command the outputs (configures first if needed)."""
+        self.configure()
+        if self.lifecycle == INACTIVE:
+            self.on_activate()
+            self.lifecycle = ACTIVE
+
+    def deactivate(self, safe_drive: np.ndarray | None = None) -> None:
+        """active → inactive: outputs to the safe state, stop commanding them.
+
+        Runs in: any thread, including a dying loop thread (the loop no longer cycles).
+        ``safe_drive`` (float64[N_OUT], V) is the loop's safe-state drive.
+        """
+        if self.lifecycle == ACTIVE:
+            self.lifecycle = INACTIVE
+            self.on_deactivate(safe_drive)
+
+    def cleanup(self) -> None:
+        """→ unconfigured: deactivate if active, then release the device."""
+        if self.lifecycle == ACTIVE:
+            self.deactivate()
+        if self.lifecycle == INACTIVE:
+            self.lifecycle = UNCONFIGURED
+            self.on_cleanup()
+
+    # --- hooks (defaults: the two-method interface open/close) ----------------------------
+    def on_configure(self) -> None:
+        """Acquire the device. Default: :meth:`open`."""
+        self.open()
+
+    def on_activate(self) -> None:  # noqa: B027 - optional hook
+        """Enable commanding the outputs. Default: nothing."""
+
+    def on_deactivate(self, safe_drive: np.ndarray | None) -> None:  # noqa: B027
+        """Outputs to the safe state. Default: nothing (a fast driver writes ``safe_drive``)."""
+
+    def on_cleanup(self) -> None:
+        """Release the device. Default: :meth:`close`."""
+        self.close()
 
     def open(self) -> None:  # noqa: B027 - optional hook
         """Acquire the device (called once, before the loop starts)."""
@@ -65,11 +130,32 @@ class FastDriver(Driver):
 
     @abstractmethod
     def read(self, frame_in: np.ndarray) -> None:
-        """Fill the ``IN_*`` slots this driver owns in ``frame_in`` (float64[N_IN]), in place."""
+        """Fill the ``IN_*`` slots this driver owns in ``frame_in`` (float64[N_IN]), in place.
+
+        Runs in: loop thread — O(1), allocation-free, non-blocking.
+        """
 
     @abstractmethod
     def write(self, drive: np.ndarray) -> None:
-        """Apply the drive voltages ``drive`` (float64[N_OUT], V) to the valves."""
+        """Apply the drive voltages ``drive`` (float64[N_OUT], V) to the valves.
+
+        Runs in: loop thread — O(1), allocation-free, non-blocking (as ``read``).
+        """
+
+    def on_deactivate(self, safe_drive: np.ndarray | None) -> None:
+        """Write the safe drive (default; a device with its own safe hold may use that)."""
+        if safe_drive is not None:
+            self.write(safe_drive)
+
+    def prepare_operating_point(self, omega_rpm: float, p_inj_bar: float):
+        """Stage an operating-point change (Ω rpm, P_I bar), or None if not supported.
+
+        Runs in: the caller's thread, never the loop thread: do every slow step here. Return
+        a callable the loop runs at a cycle boundary, which must be O(1), allocation-free and
+        non-blocking (e.g. copying a prepared parameter block). Default: None (the loop sends
+        the setpoints to the slow drivers instead).
+        """
+        return None
 
 
 class SlowDriver(Driver):

@@ -25,74 +25,13 @@ from numba import njit, types
 from rigd import frame as F
 from rigd.loop import faults as FC
 from rigd.loop.layout import (
-    FLOG_N,
-    H_BIN_NS,
-    H_COUNT,
-    H_MAX,
-    H_NB,
-    H_OVER,
-    P_CAL_G,
-    P_CAL_O,
-    P_CX,
-    P_CY,
-    P_DA,
-    P_DB,
-    P_E_MAX,
-    P_E_MIN,
-    P_ENC_N,
-    P_ENC_OMEGA,
-    P_FS,
-    P_GAP_MAX,
-    P_KA,
-    P_KB,
-    P_KC,
-    P_KD,
-    P_KD_MAT,
-    P_KFF,
-    P_KN,
-    P_KP,
-    P_PEQ_ALPHA,
-    P_R0,
-    P_RAMP_STEP,
-    P_RING_N,
-    P_STALE_N,
-    P_SUP_ON,
-    P_VERR_N,
-    P_VERR_V,
-    P_VMAX,
-    P_VMIN,
-    P_Y_MAX,
-    P_Y_MIN,
-    S_DF,
-    S_DROPPED,
-    S_EPREV,
-    S_EXT_FAULT,
-    S_FAULT,
-    S_FAULT_DETAIL,
-    S_FAULT_SEQ,
-    S_FLOG,
-    S_K_OUT_X,
-    S_K_OUT_Y,
-    S_K_TARGET,
-    S_LAST_DRVSEQ,
-    S_LAST_PHI,
-    S_NFAULT,
-    S_PEQ_INIT,
-    S_PEQ_X,
-    S_PEQ_Y,
-    S_PHI_CNT,
-    S_RAMP,
-    S_RD,
-    S_RP_PREV,
-    S_SEQ,
-    S_SLOW_OMEGA,
-    S_SLOW_PINJ,
-    S_STALE_CNT,
-    S_VERR_CNT,
-    S_W,
-    S_X,
-    S_XN,
-    S_Y,
+    FLOG_N, H_BIN_NS, H_COUNT, H_MAX, H_NB, H_OVER, P_CAL_G, P_CAL_O, P_CX, P_CY, P_DA, P_DB,
+    P_E_MAX, P_E_MIN, P_ENC_N, P_ENC_OMEGA, P_FS, P_GAP_MAX, P_KA, P_KB, P_KC, P_KD, P_KD_MAT,
+    P_KFF, P_KN, P_KP, P_PEQ_ALPHA, P_R0, P_RAMP_STEP, P_RING_N, P_STALE_N, P_SUP_ON, P_VERR_N,
+    P_VERR_V, P_VMAX, P_VMIN, P_Y_MAX, P_Y_MIN, N_REQ_SRC, S_DF, S_DROPPED, S_EPREV, S_FAULT,
+    S_FAULT_DETAIL, S_FAULT_SEQ, S_FLOG, S_FREQ, S_K_OUT_X, S_K_OUT_Y, S_K_TARGET, S_LAST_DRVSEQ,
+    S_LAST_PHI, S_NFAULT, S_PEQ_INIT, S_PEQ_X, S_PEQ_Y, S_PHI_CNT, S_RAMP, S_RD, S_RP_PREV, S_SEQ,
+    S_SLOW_OMEGA, S_SLOW_PINJ, S_STALE_CNT, S_VERR_CNT, S_W, S_X, S_XN, S_Y,
 )
 
 N_IN = F.N_IN
@@ -177,17 +116,35 @@ def pd_step(prm, st, i, ref, meas):
     return clamp(v, vmin, vmax)
 
 
+@njit(cache=True, inline="always")
+def take_requests(st):
+    """Acknowledge the fault requests posted by Python (:mod:`rigd.loop.requests`).
+
+    Source ``s`` owns ``st[S_FREQ + 3 s]`` (request counter) and ``st[S_FREQ + 3 s + 1]``
+    (code); the kernel owns ``st[S_FREQ + 3 s + 2]`` (acknowledged counter). Nothing is cleared
+    by the reader, so a request posted at any moment is seen by this or the next cycle.
+    Returns the code of the first pending request (0: none).
+    """
+    code = 0
+    for s in range(N_REQ_SRC):
+        b = S_FREQ + 3 * s
+        req = st[b]
+        if req != st[b + 2]:
+            st[b + 2] = req
+            if code == 0:
+                code = int(st[b + 1])
+    return code
+
+
 @njit(cache=True)
 def supervise(prm, st):
-    """Supervisor checks on the calibrated frame ``st[S_Y:S_Y + N_IN]``; returns (fault code,
-    detail) or (0, -1).
+    """Supervisor checks on the calibrated frame ``st[S_Y:S_Y + N_IN]``; returns (fault code, detail) or (0, -1).
 
     Also updates the check counters in ``st`` (stale frames, frozen encoder, valve tracking).
     """
-    ext = st[S_EXT_FAULT]
-    if ext != 0.0:
-        st[S_EXT_FAULT] = 0.0
-        return int(ext), -1
+    ext = take_requests(st)
+    if ext != 0:
+        return ext, -1
     code = 0
     detail = -1
     # NaN / Inf on the sensors the loop uses
@@ -243,7 +200,7 @@ def supervise(prm, st):
 
 
 @njit(cache=True)
-def _latch(st, code, detail):
+def latch(st, code, detail):
     """Latch ``code`` unless a fault is already latched; append it to the fault log."""
     if st[S_FAULT] != 0.0 or code == 0:
         return
@@ -294,7 +251,7 @@ def cycle(fin, prm, st, drive, ring, ex, ey):
                     detail = i
             else:
                 st[S_VERR_CNT + i] = 0.0
-    _latch(st, code, detail)
+    latch(st, code, detail)
     safe = st[S_FAULT] != 0.0
 
     # K∞(z) in hot standby on e = -(p - p_eq)
@@ -351,7 +308,7 @@ def cycle(fin, prm, st, drive, ring, ex, ey):
     w = st[S_W]
     if w - st[S_RD] >= ring_n:
         st[S_DROPPED] += 1.0
-        _latch(st, FC.RECORDER_OVERFLOW, -1)
+        latch(st, FC.RECORDER_OVERFLOW, -1)
     else:
         r = int(w) % int(ring_n)
         ring[r, R_SEQ] = seq

@@ -24,6 +24,7 @@ DRIVER_STATUS = 9       # the fast driver reported a fault status bit (other tha
 RECORDER_OVERFLOW = 10  # the recorder ring buffer was full: frames could not be recorded
 SLOW_DRIVER = 11        # a slow driver failed (device unreachable) or its data went stale
 OPERATOR_STOP = 12      # safe state requested by the operator / service
+LOOP_DIED = 13          # the loop thread died or a cycle raised: outputs set safe, loop stopped
 
 #: code -> (name, one-line explanation)
 FAULTS: dict[int, tuple[str, str]] = {
@@ -43,6 +44,7 @@ FAULTS: dict[int, tuple[str, str]] = {
                         "recording failed or recorder ring buffer full: frames not recorded"),
     SLOW_DRIVER: ("slow_driver", "a slow driver failed or its data went stale"),
     OPERATOR_STOP: ("operator_stop", "safe state requested by the operator"),
+    LOOP_DIED: ("loop_died", "the loop thread died or a cycle raised; outputs set safe, loop stopped"),
 }
 
 #: fast-driver status bits (``drv_status`` input channel)

@@ -5,7 +5,8 @@ many small ones: every argument costs dispatch time on the real-time path. These
 integers are compile-time constants inside the kernels.
 
 ``prm`` holds what the configuration and the controller file set (written only between cycles);
-``st`` holds what the cycle mutates (and the few slots Python posts into, e.g. ``S_EXT_FAULT``).
+``st`` holds what the cycle mutates, plus the fault-request counters other threads post into
+(:mod:`rigd.loop.requests`: each slot has one writer; the kernel never clears them).
 """
 
 from __future__ import annotations
@@ -57,7 +58,7 @@ S_SEQ = 0           # number of the next cycle (= frames produced so far)
 S_FAULT = 1         # latched fault code (0 = none)
 S_FAULT_SEQ = 2     # cycle at which it latched
 S_NFAULT = 3        # number of latches since start (monitor thread reads new log entries)
-S_EXT_FAULT = 4     # fault code posted by Python (driver exception, overrun storm...)
+# st[4] unused (was a shared fault slot cleared by the kernel: see S_FREQ)
 S_K_TARGET = 5      # 1 = K∞ requested on, 0 = off
 S_RAMP = 6          # K∞ blend factor in [0, 1]
 S_PEQ_X = 7         # p_eq, µm (tracked while off, frozen while on)
@@ -81,7 +82,11 @@ S_K_OUT_Y = 33
 S_RP_PREV = 34      # 4 valve references of the previous cycle (valve tracking check)
 S_FLOG = 40         # fault log: FLOG_N entries of (seq, code, detail)
 FLOG_N = 16
-S_X = S_FLOG + 3 * FLOG_N     # K∞ state x (K_NMAX)
+#: fault requests from Python, one triple per source (rigd.loop.requests): request counter
+#: and code (written only by that source), acknowledged counter (written only by the kernel)
+N_REQ_SRC = 4
+S_FREQ = S_FLOG + 3 * FLOG_N
+S_X = S_FREQ + 3 * N_REQ_SRC  # K∞ state x (K_NMAX)
 S_XN = S_X + K_NMAX           # scratch for x+ (K_NMAX)
 S_Y = S_XN + K_NMAX           # calibrated input frame (N_IN)
 N_ST = S_Y + N_IN

@@ -1,42 +1,56 @@
-"""``ControlLoop``: the cycle on a clock, with thread-safe commands (docs/ARCHITECTURE.md).
+"""``ControlLoop``: the cycle on a clock, composed of parts with one owner each (docs/loop.md).
 
-One ``ControlLoop`` per process. The same compiled cycle (:mod:`rigd.loop.cycle`) runs on:
+One ``ControlLoop`` per process. It owns and wires together:
 
-* the **real-time clock** (``start()``): a loop thread calls the fast driver's ``read``, the
-  cycle kernel and ``write`` once per period (see :mod:`rigd.loop.clock`);
-* the **lock-step clock** (``run_cycles`` / ``run_segment`` in the caller's thread): batches of
-  cycles inside one compiled call together with the simulated plant's ``plant_step`` kernel,
-  as fast as the CPU allows.
+* :class:`~rigd.loop.state.KernelState` — the preallocated arrays of the compiled cycle;
+* :class:`~rigd.loop.requests.FaultRequests` — the single-writer fault request slots;
+* :class:`~rigd.loop.commands.CommandQueue` — commands from any thread, applied at a boundary;
+* :class:`~rigd.loop.recorder.Recorder` — ring buffer and writer thread;
+* :class:`~rigd.loop.supervisor.Supervisor` — fault events, monitor thread, loop death;
+* :class:`~rigd.loop.slow.SlowPollers` — slow-driver threads;
+* :class:`~rigd.loop.segment.SegmentPlayer` — the excitation segment being played;
+* the clock: :class:`~rigd.loop.realtime.RealTimeClock` (``start()``: a loop thread, one cycle
+  per period) or :class:`~rigd.loop.lockstep.LockstepClock` (``run_cycles``/``run_segment`` in
+  the caller's thread, batches as fast as the CPU allows).
 
-Commands (``enable_controller``, ``load_controller``, ``reset_fault``, ``set_operating_point``)
-may come from any thread: they are queued and applied by the thread running the cycles at a
-cycle (real-time) or batch (lock-step) boundary; they never block the cycle.
+Commands (``enable_controller``, ``load_controller``, ``reset_fault``, ``set_operating_point``,
+``trip``) may come from any thread: they validate and prepare in the caller's thread and post
+an O(1) step that the thread running the cycles applies at a cycle (real-time) or batch
+(lock-step) boundary; they never block the cycle. Methods that run in the loop thread say so
+in their docstrings ("Runs in: loop thread — O(1), allocation-free, non-blocking").
 """
 
 from __future__ import annotations
 
-import collections
-import queue
 import threading
-import time
-from collections.abc import Sequence
-from typing import Any
+from pathlib import Path
+from typing import Any, Sequence
 
 import numpy as np
 
 from rigd import frame as F
+from rigd.rigconfig import LoadedConfig, RigConfig, default_config
 from rigd.errors import InputError
 from rigd.log import get_logger
-from rigd.loop import cycle as K
 from rigd.loop import faults as FC
 from rigd.loop import layout as L
+from rigd.loop import requests as RQ
+from rigd.loop.commands import CommandQueue
+from rigd.loop.cycle import cycle, hist_new, rt_cycle
+from rigd.loop.lockstep import LockstepClock
+from rigd.loop.realtime import RealTimeClock
 from rigd.loop.recorder import Recorder
-from rigd.loop.run import LoopRunner, SegmentResult  # noqa: F401 (re-exported)
+from rigd.loop.segment import Segment, SegmentPlayer, SegmentResult
+from rigd.loop.sinks import H5Sink, MemorySink, RecordSpec, Sink
+from rigd.loop.slow import SlowPollers
+from rigd.loop.state import KernelState, PackedController
+from rigd.loop.supervisor import Supervisor
 from rigd.loop.timing import summary
-from rigd.rigconfig import LoadedConfig, RigConfig, default_config
+
+__all__ = ["ControlLoop", "SegmentResult"]
 
 
-class ControlLoop(LoopRunner):
+class ControlLoop:
     """The 5 kHz control loop (see module docstring).
 
     Parameters
@@ -67,145 +81,94 @@ class ControlLoop(LoopRunner):
         self.clock = clock or cfg.clock.mode
         if self.clock not in ("realtime", "lockstep"):
             raise InputError(f"unknown clock {self.clock!r} (realtime or lockstep)")
+        self.log = get_logger("rigd.loop")
         self.fast = fast_driver
         self.slow = list(slow_drivers)
-        self._slow_hz = list(slow_poll_hz) or [getattr(d, "poll_hz", 20.0) for d in self.slow]
-        self.log = get_logger("rigd.loop")
-        self.prm = np.zeros(L.N_PRM)
-        self.st = np.zeros(L.N_ST)
-        self.fin = np.zeros(F.N_IN)
-        self.drive = np.zeros(F.N_OUT)
-        self.hist = K.hist_new()
-        self._fill_params()
-        self.recorder = Recorder(cfg.recorder.ring_frames, self.st,
+        self._stop = threading.Event()
+        self._opened = False
+        # the parts, each the one owner of what it holds
+        self.state = KernelState(cfg, cfg.recorder.ring_frames)
+        self.requests = RQ.FaultRequests(self.state.st)
+        self.commands = CommandQueue(self.state)
+        self.player = SegmentPlayer()
+        self.recorder = Recorder(cfg.recorder.ring_frames, self.state.st,
                                  flush_interval_s=cfg.recorder.flush_interval_s,
                                  on_error=self._recorder_failed)
-        self.prm[L.P_RING_N] = cfg.recorder.ring_frames
-        self._cmds: collections.deque = collections.deque()
-        self._subscribers: list[queue.Queue] = []
-        self._fault_history: list[dict] = []
-        self._seen_faults = 0
-        self._fault_lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._monitor: threading.Thread | None = None
-        self._slow_threads: list[threading.Thread] = []
-        self._slow_last_ok: list[float] = []
-        self._seg = None  # the segment being played (rigd.loop.run._Segment) or None
-        self._pending_ctrl = None
-        self.controller = None
-        self._opened = False
-        self._driver_error: BaseException | None = None
-        self.overruns = 0
-        self.skipped = 0
-        self.rt_warnings: list[str] = []
-        self._lock_cycles = 0
-        self._lock_wall = 0.0
-        self._lock = threading.Lock()          # one runner at a time (lock-step)
-        self._pk = getattr(fast_driver, "kernel", None)
+        self.supervisor = Supervisor(self.state, self.requests, self.recorder, self.log,
+                                     cfg.supervisor.slow_stale_s)
+        self.slow_pollers = SlowPollers(self.slow, slow_poll_hz, self.state.st, self.requests,
+                                        self.log)
+        self.supervisor.slow = self.slow_pollers
+        self.rt = RealTimeClock(cfg, self)
+        self.lockstep = LockstepClock(cfg, self)
         if controller is not None:
-            self._set_controller(self._as_controller(controller))
+            self.state.swap_controller(PackedController(self._as_controller(controller)))
 
     # --- set-up -------------------------------------------------------------------------
-    def _fill_params(self) -> None:
-        c = self.config
-        p, T = self.prm, 1.0 / self.fs
-        p[L.P_FS] = self.fs
-        p[L.P_R0] = c.loop.r0_v
-        p[L.P_VMIN], p[L.P_VMAX] = c.loop.drive_v
-        p[L.P_RAMP_STEP] = 1.0 if c.loop.k_ramp_s == 0 else T / c.loop.k_ramp_s
-        p[L.P_PEQ_ALPHA] = 1.0 - np.exp(-T / c.loop.peq_tau_s)
-        for i, v in enumerate(c.valves):
-            p[L.P_KP + i], p[L.P_KD + i], p[L.P_KFF + i] = v.kp, v.kd, v.kff
-            p[L.P_DA + i] = v.tf_s / (v.tf_s + T)
-            p[L.P_DB + i] = 1.0 / (v.tf_s + T)
-        g, o = c.calibration_arrays()
-        p[L.P_CAL_G:L.P_CAL_G + F.N_IN] = g
-        p[L.P_CAL_O:L.P_CAL_O + F.N_IN] = o
-        s = c.supervisor
-        p[L.P_SUP_ON] = 1.0 if s.enabled else 0.0
-        p[L.P_E_MIN], p[L.P_E_MAX] = s.e_range_um
-        p[L.P_Y_MIN], p[L.P_Y_MAX] = s.y_p_range_v
-        p[L.P_GAP_MAX] = s.max_gap_fraction * s.film_gap_um
-        p[L.P_CX], p[L.P_CY] = s.centre_um
-        p[L.P_STALE_N] = s.stale_frames
-        p[L.P_ENC_OMEGA] = s.encoder_min_omega_rpm
-        p[L.P_ENC_N] = round(s.encoder_frozen_s * self.fs)
-        p[L.P_VERR_V] = s.valve_error_v
-        p[L.P_VERR_N] = round(s.valve_error_s * self.fs)
-        st = self.st
-        st[L.S_EPREV:L.S_EPREV + 4] = np.nan
-        st[L.S_RP_PREV:L.S_RP_PREV + 4] = c.loop.r0_v
-        st[L.S_LAST_DRVSEQ] = np.nan
-        st[L.S_SLOW_OMEGA] = st[L.S_SLOW_PINJ] = np.nan
-        st[L.S_FAULT_DETAIL] = -1
-
     def _as_controller(self, controller):
-        from rigd.controller import Controller, load_controller
+        """A :class:`~rigd.controller.Controller` checked for this loop (any thread).
 
-        if isinstance(controller, Controller):
-            if abs(controller.fs_hz - self.fs) > 1e-9 * self.fs:
-                raise InputError(f"controller rate {controller.fs_hz:g} Hz differs from the loop "
-                                 f"rate {self.fs:g} Hz", controller.source)
-            return controller
-        return load_controller(controller, expected_fs_hz=self.fs)
+        Files go through the loader's checks; an object is checked the same way (rate,
+        shapes, order <= 64, finite, stable) so nothing unchecked reaches the loop thread.
+        """
+        from rigd.controller import Controller, check_controller, load_controller
 
-    def _set_controller(self, ctrl) -> None:
-        """Write K∞ matrices into prm and zero its state (between cycles only)."""
-        p = self.prm
-        if ctrl is None:
-            p[L.P_KN] = 0
-            p[L.P_KD_MAT:L.P_KD_MAT + 4] = 0.0
-        else:
-            n = ctrl.order
-            if n > L.K_NMAX:
-                raise InputError(f"controller order {n} exceeds {L.K_NMAX}", ctrl.source)
-            p[L.P_KN] = n
-            p[L.P_KA:L.P_KA + n * n] = np.asarray(ctrl.A, float).ravel()
-            p[L.P_KB:L.P_KB + 2 * n] = np.asarray(ctrl.B, float).ravel()
-            p[L.P_KC:L.P_KC + 2 * n] = np.asarray(ctrl.C, float).ravel()
-            p[L.P_KD_MAT:L.P_KD_MAT + 4] = np.asarray(ctrl.D, float).ravel()
-        self.st[L.S_X:L.S_X + L.K_NMAX] = 0.0
-        self.controller = ctrl
+        if not isinstance(controller, Controller):
+            return load_controller(controller, expected_fs_hz=self.fs)
+        where = str(controller.source)
+        mats = []
+        for name in "ABCD":
+            m = np.asarray(getattr(controller, name), dtype=float)
+            if m.ndim != 2:
+                raise InputError(f"controller {name} must be a matrix, got {m.ndim} "
+                                 f"dimension(s)", where)
+            if not np.all(np.isfinite(m)):
+                raise InputError(f"controller {name} contains NaN or Inf", where)
+            mats.append(m)
+        check_controller(*mats, fs_hz=float(controller.fs_hz), expected_fs_hz=self.fs,
+                         where=where)
+        return controller
 
-    def open(self) -> ControlLoop:
-        """Open drivers, start the recorder, monitor and slow-driver threads."""
+    @property
+    def controller(self):
+        """The controller in the loop (None: zero output)."""
+        return self.state.controller
+
+    def open(self) -> "ControlLoop":
+        """Configure and activate the drivers, start the recorder, monitor and slow threads."""
         if self._opened:
             return self
-        self.fast.open()
+        self.fast.configure()
         for d in self.slow:
-            d.open()
-        self.fast.read(self.fin)
+            d.configure()
+        self.fast.read(self.state.fin)
         self._warm_up()
+        self.fast.activate()
+        for d in self.slow:
+            d.activate()
         self.recorder.start()
         self._opened = True
-        self._monitor = threading.Thread(target=self._monitor_run, name="rigd-monitor",
-                                         daemon=True)
-        self._monitor.start()
-        now = time.monotonic()
-        for i, d in enumerate(self.slow):
-            self._slow_last_ok.append(now)
-            t = threading.Thread(target=self._slow_run, args=(i, d), name=f"rigd-slow-{i}",
-                                 daemon=True)
-            t.start()
-            self._slow_threads.append(t)
+        self.supervisor.start(self._stop)
+        self.slow_pollers.start(self._stop)
         return self
 
     def _warm_up(self) -> None:
         """Load (or compile) the kernels now, on scratch copies: the first real cycle is fast."""
+        s = self.state
         ring = np.zeros((4, F.N_REC))
-        prm = self.prm.copy()
+        prm = s.prm.copy()
         prm[L.P_RING_N] = 4
-        K.rt_cycle(self.fin.copy(), prm, self.st.copy(), self.drive.copy(), ring,
-                   np.zeros((1, 2)), -1, K.hist_new(), 0, -1)
-        K.cycle(self.fin.copy(), prm, self.st.copy(), self.drive.copy(), ring, 0.0, 0.0)
-        f = self.fast
-        if self._pk is not None and hasattr(f, "state") and hasattr(f, "params"):
+        rt_cycle(s.fin.copy(), prm, s.st.copy(), s.drive.copy(), ring, np.zeros((1, 2)), -1,
+                 hist_new(), 0, -1)
+        cycle(s.fin.copy(), prm, s.st.copy(), s.drive.copy(), ring, 0.0, 0.0)
+        self.lockstep.warm_up()
+        f, pk = self.fast, getattr(self.fast, "kernel", None)
+        if pk is not None and hasattr(f, "state") and hasattr(f, "params"):
             # the plant's kernel too (driver.write calls it on the real-time path): a compile
             # must never happen inside the loop thread
-            self._pk(f.state.copy(), f.params.copy(), self.drive.copy(), self.fin.copy())
+            pk(f.state.copy(), f.params.copy(), s.drive.copy(), s.fin.copy())
 
-    def __enter__(self) -> ControlLoop:
+    def __enter__(self) -> "ControlLoop":
         return self.open()
 
     def __exit__(self, *exc) -> None:
@@ -214,40 +177,38 @@ class ControlLoop(LoopRunner):
     # --- commands (any thread) -------------------------------------------------------
     def enable_controller(self, on: bool = True) -> None:
         """Blend K∞ in (on) or out over ``loop.k_ramp_s``; p_eq is frozen while on."""
-        self._cmds.append(("enable", bool(on)))
+        self.commands.enable(on)
 
     def load_controller(self, path_or_controller) -> None:
-        """Validate a controller file now (raises InputError), switch to it bumplessly."""
-        ctrl = self._as_controller(path_or_controller)
-        self._cmds.append(("controller", ctrl))
+        """Validate a controller now (raises InputError), switch to it bumplessly."""
+        self.commands.controller(PackedController(self._as_controller(path_or_controller)))
 
     def reset_fault(self) -> None:
         """Clear the latched fault (it latches again next cycle if the cause persists)."""
-        self._cmds.append(("reset", None))
+        self.commands.reset()
 
     def trip(self, code: int = FC.OPERATOR_STOP) -> None:
         """Put the loop into the safe state with ``code`` latched (operator / service)."""
-        self.st[L.S_EXT_FAULT] = code
+        self.requests.post(RQ.OPERATOR, int(code))
 
     def set_operating_point(self, omega_rpm: float, p_inj_bar: float) -> None:
-        """Sim: plant operating point (at a cycle boundary); rig: slow-driver setpoints."""
+        """Sim: plant operating point (at a cycle boundary); rig: slow-driver setpoints.
+
+        The slow preparation (the plant's parameter block) runs here, in the caller's thread;
+        the loop thread only swaps the prepared block in (O(1)).
+        """
         from rigd.rigconfig import OperatingPoint
 
         OperatingPoint(omega_rpm=omega_rpm, p_inj_bar=p_inj_bar)   # range check
-        if hasattr(self.fast, "set_operating_point"):
-            self._cmds.append(("op", (float(omega_rpm), float(p_inj_bar))))
+        om, pi = float(omega_rpm), float(p_inj_bar)
+        prepare = getattr(self.fast, "prepare_operating_point", None)
+        swap = prepare(om, pi) if prepare is not None else None
+        if swap is not None:
+            self.commands.call(swap)
+        elif hasattr(self.fast, "set_operating_point"):
+            self.fast.set_operating_point(om, pi)    # its own thread-safe staging, here
         else:
-            for d in self.slow:
-                threading.Thread(target=self._slow_setpoint, args=(d, omega_rpm, p_inj_bar),
-                                 daemon=True).start()
-
-    def _slow_setpoint(self, d, omega, p) -> None:
-        try:
-            d.write_setpoints(omega_rpm=omega, p_inj_bar=p)
-        except NotImplementedError:
-            pass
-        except Exception as exc:
-            self.log.error("slow driver setpoint failed", driver=d.name, error=str(exc))
+            self.slow_pollers.set_points(om, pi)
 
     def stop(self) -> None:
         """Ask the running loop to stop (returns at once; ``close()`` waits and cleans up)."""
@@ -257,59 +218,50 @@ class ControlLoop(LoopRunner):
     def stopped(self) -> bool:
         return self._stop.is_set()
 
-    def subscribe(self) -> queue.Queue:
+    def subscribe(self):
         """A queue that receives one dict per latched fault: seq, code, name, text, time."""
-        q: queue.Queue = queue.Queue()
-        self._subscribers.append(q)
-        return q
-
-    def _apply_commands(self) -> None:
-        st = self.st
-        while self._cmds:
-            kind, arg = self._cmds.popleft()
-            if kind == "enable":
-                if self._pending_ctrl is not None:
-                    self._pending_ctrl = (self._pending_ctrl[0], arg)
-                else:
-                    st[L.S_K_TARGET] = 1.0 if arg else 0.0
-            elif kind == "controller":
-                if st[L.S_RAMP] == 0.0 and st[L.S_K_TARGET] == 0.0:
-                    self._set_controller(arg)
-                else:  # blend out, swap, blend back in (see _check_pending)
-                    self._pending_ctrl = (arg, st[L.S_K_TARGET] != 0.0)
-                    st[L.S_K_TARGET] = 0.0
-            elif kind == "reset":
-                st[L.S_FAULT] = 0.0
-                st[L.S_FAULT_DETAIL] = -1.0
-                st[L.S_STALE_CNT] = st[L.S_PHI_CNT] = 0.0
-                st[L.S_VERR_CNT:L.S_VERR_CNT + 4] = 0.0
-                st[L.S_K_TARGET] = 0.0          # K∞ stays off after a fault until re-enabled
-            elif kind == "op":
-                self.fast.set_operating_point(*arg)
-        if self._pending_ctrl is not None and st[L.S_RAMP] == 0.0:
-            ctrl, back_on = self._pending_ctrl
-            self._pending_ctrl = None
-            self._set_controller(ctrl)
-            st[L.S_K_TARGET] = 1.0 if back_on else 0.0
+        return self.supervisor.subscribe()
 
     # --- queries (any thread) ---------------------------------------------------------
+    @property
+    def running(self) -> bool:
+        """Cycles are being run (a loop thread, or a lock-step runner) and the loop lives."""
+        return self.loop_error is None and (self.rt.alive or self.lockstep.alive or
+                                            self.lockstep.lock.locked())
+
+    @property
+    def loop_error(self) -> BaseException | None:
+        """What killed the loop (the ``loop_died`` fault), None while it is healthy."""
+        return self.supervisor.loop_error
+
+    @property
+    def overruns(self) -> int:
+        return self.rt.overruns
+
+    @property
+    def rt_warnings(self) -> list[str]:
+        return self.rt.rt_warnings
+
     def status(self) -> dict[str, Any]:
-        st = self.st
+        s = self.state
+        st = s.st
         w = int(st[L.S_W])
         last = self.recorder.ring[(w - 1) % self.recorder.n] if w else np.full(F.N_REC, np.nan)
         code = int(st[L.S_FAULT])
+        err = self.loop_error
         return {
             "running": self.running,
             "clock": self.clock,
             "fs_hz": self.fs,
             "seq": int(st[L.S_SEQ]),
             "t_s": st[L.S_SEQ] / self.fs,
+            "loop_error": repr(err) if err is not None else None,
             "fault": {"code": code, "name": FC.fault_name(code),
                       "text": FC.describe(code, int(st[L.S_FAULT_DETAIL])) if code else "",
                       "seq": int(st[L.S_FAULT_SEQ]) if code else None},
             "controller": {"loaded": self.controller is not None,
                            "source": getattr(self.controller, "source", None),
-                           "order": int(self.prm[L.P_KN]),
+                           "order": int(s.prm[L.P_KN]),
                            # enabled: K∞ really in the loop (what the recording's k_on says);
                            # requested: the operator's enable, overridden while a fault is
                            # latched and cleared by fault.reset
@@ -321,7 +273,7 @@ class ControlLoop(LoopRunner):
                            ("e_x", "e_y", "u_x", "u_y", "r_x", "r_y", "omega_rpm", "p_inj_bar")},
             "recorder": {"written": w, "consumed": int(st[L.S_RD]),
                          "dropped": int(st[L.S_DROPPED]), "ring_frames": self.recorder.n},
-            "overruns": self.overruns,
+            "overruns": self.rt.overruns,
             "drivers": {"fast": {"name": getattr(self.fast, "name", "?"),
                                  **self.fast.counters()},
                         "slow": [{"name": d.name, **d.counters()} for d in self.slow]},
@@ -330,75 +282,195 @@ class ControlLoop(LoopRunner):
     def timing(self) -> dict[str, Any]:
         """Timing statistics: real-time percentiles (µs) and overruns, or lock-step speed."""
         if self.clock == "lockstep":
-            wall = self._lock_wall
-            n = self._lock_cycles
+            wall, n = self.lockstep.wall_s, self.lockstep.cycles
             return {"clock": "lockstep", "cycles": n, "wall_s": wall,
                     "cycles_per_s": n / wall if wall > 0 else 0.0,
                     "realtime_factor": n / wall / self.fs if wall > 0 else 0.0}
-        return summary(self.hist, overruns=self.overruns, skipped=self.skipped,
-                       cycles=int(self.hist[L.H_LATE, L.H_COUNT]))
+        h = self.state.hist
+        return summary(h, overruns=self.rt.overruns, skipped=self.rt.skipped,
+                       cycles=int(h[L.H_LATE, L.H_COUNT]))
 
     def faults(self) -> list[dict]:
-        """Every fault latched since start (oldest first) plus the current latched code."""
-        self._poll_faults()
-        return list(self._fault_history)
+        """Every fault latched since start (oldest first)."""
+        return self.supervisor.history()
 
-    @property
-    def running(self) -> bool:
-        return (self._thread is not None and self._thread.is_alive()) or self._lock.locked()
+    # --- running ----------------------------------------------------------------------
+    def _check_alive(self) -> None:
+        if self.loop_error is not None:
+            raise RuntimeError(f"the loop died ({self.loop_error!r}); outputs are safe, "
+                               f"restart it")
 
-    # --- faults ------------------------------------------------------------------------
-    def _recorder_failed(self, exc: BaseException) -> None:
-        self.st[L.S_EXT_FAULT] = FC.RECORDER_OVERFLOW
-        self.log.error("recording failed", error=str(exc))
+    def _runner(self):
+        return self.rt if self.clock == "realtime" else self.lockstep
 
-    def _poll_faults(self) -> None:
-        with self._fault_lock:      # monitor thread, runners and faults() may all call this
-            self._poll_faults_locked()
+    def start(self) -> None:
+        """Start the loop thread: the real-time clock, or lock-step running continuously."""
+        self._check_alive()
+        if not self._opened:
+            self.open()
+        runner = self._runner()
+        if not runner.started:
+            runner.start(self._stop)
 
-    def _poll_faults_locked(self) -> None:
-        st = self.st
-        n = int(st[L.S_NFAULT])
-        while self._seen_faults < n:
-            k = self._seen_faults % L.FLOG_N
-            seq, code, detail = st[L.S_FLOG + 3 * k:L.S_FLOG + 3 * k + 3]
-            self._seen_faults += 1
-            ev = {"seq": int(seq), "code": int(code), "name": FC.fault_name(code),
-                  "text": FC.describe(code, int(detail)), "time": time.time()}
-            if code == FC.DRIVER_EXCEPTION and self._driver_error is not None:
-                ev["text"] += f": {self._driver_error!r}"
-            self._fault_history.append(ev)
-            self.recorder.add_event(ev["seq"], ev["code"], f"fault {ev['name']}: {ev['text']}")
-            self.log.error("fault latched", **{k2: v for k2, v in ev.items() if k2 != "time"})
-            for q in self._subscribers:
-                q.put(ev)
+    def run_cycles(self, n: int) -> int:
+        """Run ``n`` cycles: lock-step in this thread, or wait n/fs on the real-time loop.
 
-    def _monitor_run(self) -> None:
-        stale = self.config.supervisor.slow_stale_s
-        while not self._stop.wait(0.02):
-            self._poll_faults()
-            now = time.monotonic()
-            for i, t in enumerate(self._slow_last_ok):
-                if now - t > stale and self.st[L.S_FAULT] == 0.0:
-                    self.st[L.S_EXT_FAULT] = FC.SLOW_DRIVER
-                    self._slow_last_ok[i] = now
-        self._poll_faults()
+        Returns the cycles run (fewer if ``stop()`` was called).
+        """
+        self._check_alive()
+        if not self._opened:
+            self.open()
+        if self.clock == "realtime" and not self.rt.started:
+            self.start()
+        if self._runner().started:
+            seq0 = self.state.seq
+            self._stop.wait(n / self.fs)
+            return self.state.seq - seq0
+        with self.lockstep.lock:
+            return self.lockstep.run(int(n), None, self._stop)
 
-    def _slow_run(self, i: int, d) -> None:
-        period = 1.0 / self._slow_hz[i]
-        failed = False
-        while not self._stop.wait(period):
+    def run_for(self, seconds: float) -> int:
+        """Run for ``seconds`` of loop time (see :meth:`run_cycles`)."""
+        return self.run_cycles(int(round(seconds * self.fs)))
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until ``stop()`` or the loop's death (or timeout); True if stopped."""
+        return self._stop.wait(timeout)
+
+    def start_recording(self, spec: RecordSpec | str | Path) -> Sink:
+        """Record every frame from the next cycle on into an HDF5 file, until
+        :meth:`stop_recording`."""
+        sink = self._make_sink(spec, 0)
+        sink.first_seq = self.state.seq
+        return self.recorder.add_sink(sink)
+
+    def stop_recording(self, sink: Sink) -> None:
+        """Write what the loop produced so far to ``sink`` and close the file."""
+        self.recorder.finish(sink)
+
+    def run_segment(self, excitation, *, record=None, events: Sequence = (),
+                    controller_on: bool | None = None, pre: int = 0,
+                    post: int = 0) -> SegmentResult:
+        """Play ``excitation`` (float64 (n, 2), V added to r_x, r_y) from the next cycle.
+
+        Parameters
+        ----------
+        record : RecordSpec, path, "memory" or None
+            Record the segment's cycles (``pre`` + n + ``post``) to an HDF5 file or memory.
+        events : sequence of (cycle_offset, callable)
+            Called just before the cycle ``cycle_offset`` counted from the first excitation
+            cycle (``-pre <= offset < n + post``); on the real-time clock they run in the
+            loop thread and must be quick and non-blocking.
+        controller_on : bool, optional
+            Enable/disable K∞ at the segment's first cycle; restored afterwards.
+        pre, post : int
+            Cycles of zero excitation before and after.
+        """
+        full, evs = _segment_arrays(excitation, events, pre, post)
+        self._check_alive()
+        if not self._opened:
+            self.open()
+        if self.clock == "realtime" and not self.rt.started:
+            self.start()      # before the sink exists: it is made once, below
+        sink = None if record is None else self._make_sink(record, len(full))
+        seg = Segment(full, evs, sink, controller_on)
+        if sink is not None:
+            self.recorder.add_sink(sink)
+        n_fault0 = len(self.faults())
+        try:
+            runner = self._runner()
+            if runner.started:
+                if not self.player.offer(seg):
+                    raise InputError("another segment is playing")
+                while not seg.done.wait(0.05):
+                    if not runner.alive:
+                        self.player.abort("the loop thread stopped during the segment")
+            else:
+                with self.lockstep.lock:
+                    self.lockstep.run(seg.n, seg, self._stop)
+                    if seg.i >= seg.n:
+                        seg.finish(self.commands)
+            if seg.error is not None:
+                raise seg.error
+        finally:
+            if sink is not None:
+                if seg.last_seq < 0:
+                    seg.last_seq = max(seg.first_seq + seg.i - 1, -1)
+                self.supervisor.poll()
+                self.recorder.finish(sink, seg.last_seq)
+        return SegmentResult(seg.first_seq, seg.last_seq, seg.last_seq - seg.first_seq + 1,
+                             str(sink.path) if isinstance(sink, H5Sink) else None,
+                             sink.frames if isinstance(sink, MemorySink) else None,
+                             self.faults()[n_fault0:])
+
+    def close(self) -> None:
+        """Stop the loop, put safe outputs on the valves, flush and close recordings, release
+        the drivers (deactivate with the safe drive, then clean up)."""
+        self._stop.set()
+        self.rt.join(10.0)
+        self.lockstep.join(10.0)
+        if not self._opened:
+            return
+        self._opened = False
+        try:
             try:
-                vals = d.poll()
-            except Exception as exc:
-                if not failed:
-                    self.log.error("slow driver failed", driver=d.name, error=str(exc))
-                    self.st[L.S_EXT_FAULT] = FC.SLOW_DRIVER
-                failed = True
-                continue
-            failed = False
-            self._slow_last_ok[i] = time.monotonic()
-            if "omega_rpm" in vals:
-                self.st[L.S_SLOW_OMEGA] = float(vals["omega_rpm"])
-            if "p_inj_bar" in vals:
-                self.st[L.S_SLOW_PINJ] = float(vals["p_inj_bar"])
+                self.fast.deactivate(self.state.safe_drive)
+            except Exception as exc:  # noqa: BLE001 - logged; the device's hold is the backstop
+                self.log.error("could not write safe outputs", error=str(exc))
+        finally:
+            try:
+                self.fast.cleanup()
+            finally:
+                for d in self.slow:
+                    try:
+                        d.cleanup()
+                    except Exception as exc:  # noqa: BLE001
+                        self.log.error("slow driver close failed", driver=d.name,
+                                       error=str(exc))
+                self.supervisor.join(2.0)
+                self.recorder.close()
+
+    # --- internals ------------------------------------------------------------------------
+    def _recorder_failed(self, exc: BaseException) -> None:
+        self.supervisor.recorder_failed(exc)
+
+    def _make_sink(self, record, n_expected: int) -> Sink:
+        if isinstance(record, str) and record == "memory":
+            return MemorySink(n_expected)
+        spec = record if isinstance(record, RecordSpec) else RecordSpec(record)
+        w = int(self.state.st[L.S_W])
+        last = self.recorder.ring[(w - 1) % self.recorder.n] if w else None
+        plant = self.config.plant or {}
+        meta: dict[str, Any] = {"kind": "run", "omega_rpm": plant.get("omega_rpm", 0.0),
+                                "p_inj_bar": plant.get("p_inj_bar", float("nan"))}
+        if last is not None and np.isfinite(last[F.REC["omega_rpm"]]):
+            meta["omega_rpm"] = float(last[F.REC["omega_rpm"]])
+        if last is not None and np.isfinite(last[F.REC["p_inj_bar"]]):
+            meta["p_inj_bar"] = float(last[F.REC["p_inj_bar"]])
+        if self.controller is not None:
+            meta["controller"] = str(self.controller.source)
+        meta.update(spec.meta)
+        return H5Sink(spec.path, fs=self.fs, meta=meta, config_text=self.loaded.text,
+                      chunk_frames=self.config.recorder.chunk_frames)
+
+
+def _segment_arrays(excitation, events, pre: int, post: int):
+    """Validate a segment's inputs (caller's thread); the padded excitation and the events."""
+    exc = np.asarray(excitation, dtype=float)
+    if exc.ndim != 2 or exc.shape[1] != 2:
+        raise InputError(f"excitation must be an (n, 2) array of [r_x, r_y] volts, got shape "
+                         f"{exc.shape}")
+    if not np.all(np.isfinite(exc)):
+        raise InputError("excitation contains NaN or Inf")
+    if pre < 0 or post < 0:
+        raise InputError("pre and post must be >= 0 cycles")
+    full = np.zeros((pre + len(exc) + post, 2))
+    full[pre:pre + len(exc)] = exc
+    evs = []
+    for off, fn in events:
+        idx = pre + int(off)
+        if not 0 <= idx < len(full):
+            raise InputError(f"event at cycle offset {off} is outside the segment "
+                             f"[-{pre}, {len(exc) + post})")
+        evs.append((idx, fn))
+    return full, evs

@@ -1,65 +1,116 @@
-"""The real-time runner of :class:`rigd.loop.loop.ControlLoop`: one cycle per period.
+"""The real-time clock: a loop thread running one cycle per period.
 
 The loop thread sets itself up (SCHED_FIFO, mlockall, CPU pinning, gc frozen; see
 :mod:`rigd.loop.clock`), then per period: wait for the deadline (sleep, then spin) → fast
-driver ``read`` → commands/segment bookkeeping → :func:`rigd.loop.cycle.rt_cycle` → fast
-driver ``write`` → publish the frame to the recorder → overrun accounting (skip or catch up).
+driver ``read`` → segment bookkeeping and queued commands → :func:`rigd.loop.cycle.rt_cycle`
+→ fast driver ``write`` → publish the frame to the recorder → overrun accounting (skip or
+catch up; an overrun storm requests the safe state).
+
+If anything in the loop thread raises, the supervisor puts the outputs in the safe state at
+once, latches ``loop_died`` and stops the loop (:meth:`rigd.loop.supervisor.Supervisor.loop_died`).
 """
 
 from __future__ import annotations
 
 import collections
 import sys
+import threading
 import time
 
-import numpy as np
-
 from rigd.loop import clock as CLK
-from rigd.loop import cycle as K
+from rigd.loop import cycle as C
 from rigd.loop import faults as FC
 from rigd.loop import layout as L
+from rigd.loop.segment import NO_EXCITATION
 
-_NO_EXC = np.zeros((1, 2))
 
+class RealTimeClock:
+    """Owner of the real-time loop thread and its timing counters.
 
-class RealTimeRunner:
-    """Mixin of ControlLoop: the real-time loop thread."""
+    Parameters
+    ----------
+    config : rigd.rigconfig.RigConfig
+    parts : rigd.loop.loop.ControlLoop
+        Provides ``state``, ``commands``, ``player``, ``recorder``, ``fast``, ``supervisor``,
+        ``requests``, ``slow_pollers`` and ``log`` (each owned there, used here).
+    """
 
-    # real time --------------------------------------------------------------------------
-    def _rt_main(self) -> None:
-        cfg = self.config.clock
+    def __init__(self, config, parts) -> None:
+        self._cfg = config.clock
+        self._sup = config.supervisor
+        self._p = parts
+        self.fs = config.loop.fs_hz
+        self.overruns = 0
+        self.skipped = 0
+        self.rt_warnings: list[str] = []
+        self.setup_s = 0.0
+        self._thread: threading.Thread | None = None
+        self._started = threading.Event()
+
+    @property
+    def alive(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    @property
+    def started(self) -> bool:
+        return self._thread is not None
+
+    def start(self, stop: threading.Event) -> None:
+        """Start the loop thread; returns once the first cycle is due (any thread)."""
+        self._thread = threading.Thread(target=self._main, args=(stop,), name="rigd-loop",
+                                        daemon=True)
+        self._thread.start()
+        self._started.wait(30.0)
+
+    def join(self, timeout: float) -> None:
+        if self._thread is not None:
+            self._thread.join(timeout)
+            self._thread = None
+
+    # --- the loop thread ---------------------------------------------------------------
+    def _main(self, stop: threading.Event) -> None:
+        cfg, p = self._cfg, self._p
         problems = CLK.try_realtime(cfg.priority, cfg.cpu)
-        if not any("SCHED_FIFO" in p for p in problems):
+        if not any("SCHED_FIFO" in x for x in problems):
             # the helper threads share the GIL with the loop: run them just below it, or a
             # preempted helper holding the GIL would stall the loop (priority inversion)
-            helpers = [self.recorder._thread, self._monitor, *self._slow_threads]
-            CLK.boost_threads([t.native_id for t in helpers if t is not None],
-                              max(1, cfg.priority - 1))
+            helpers = [p.recorder.native_id, p.supervisor.native_id,
+                       *p.slow_pollers.native_ids]
+            CLK.boost_threads([t for t in helpers if t is not None], max(1, cfg.priority - 1))
         if problems:
             self.rt_warnings = problems
-            self.log.warning("real-time scheduling not fully available, running best-effort",
-                             problems="; ".join(problems))
+            p.log.warning("real-time scheduling not fully available, running best-effort",
+                          problems="; ".join(problems))
         old_si = CLK.fast_switch_interval()
         t0 = time.perf_counter()
         CLK.freeze_gc()
         self.setup_s = time.perf_counter() - t0
         try:
-            self._rt_loop()
-        except BaseException as exc:  # never die silently: safe state and log
-            self.st[L.S_EXT_FAULT] = FC.DRIVER_EXCEPTION
-            self.log.error("loop thread crashed", error=repr(exc))
-            raise
+            self._loop(stop)
+        except BaseException as exc:  # noqa: BLE001 - never die silently: safe state, latch
+            p.supervisor.loop_died(exc, p.fast, stop)
         finally:
+            self._started.set()
+            p.player.abort("loop stopped during the segment")
             CLK.thaw_gc()
             sys.setswitchinterval(old_si)
             CLK.drop_realtime()
 
-    def _rt_loop(self) -> None:
-        cfg, sup = self.config.clock, self.config.supervisor
-        fin, prm, st, drive, ring, hist = (self.fin, self.prm, self.st, self.drive,
-                                           self.recorder.ring, self.hist)
-        read, write, rt_cycle = self.fast.read, self.fast.write, K.rt_cycle
-        publish, cmds, stop = self.recorder.publish, self._cmds, self._stop
+    def _loop(self, stop: threading.Event) -> None:
+        """The cycles, one per period, until ``stop``.
+
+        Runs in: loop thread — per cycle O(1), no array allocation, never blocks except the
+        deadline wait (drivers' read/write must honour the same contract).
+        """
+        cfg, sup, p = self._cfg, self._sup, self._p
+        s = p.state
+        fin, prm, st, drive, hist = s.fin, s.prm, s.st, s.drive, s.hist
+        ring = p.recorder.ring
+        read, write, rt_cycle = p.fast.read, p.fast.write, C.rt_cycle
+        publish = p.recorder.publish
+        commands, cq, player = p.commands, p.commands.queue, p.player
+        driver_failed = p.supervisor.driver_failed
+        post = p.requests.post_from_loop
         perf, wait_until = time.perf_counter_ns, CLK.wait_until
         period = int(round(1e9 / self.fs))
         spin = int(cfg.spin_us * 1000)
@@ -68,34 +119,33 @@ class RealTimeRunner:
         storm_ns = int(sup.overrun_storm_window_s * 1e9)
         S_W = L.S_W
         prev = -1
-        t_setup = perf()
-        nxt = t_setup + period
+        nxt = perf() + period
         self._started.set()
         while not stop.is_set():
             wake = wait_until(nxt, spin)
             try:
                 read(fin)
-            except Exception as exc:
-                self._driver_failed(exc)
-            seg = self._seg
+            except Exception as exc:  # noqa: BLE001 - a driver fault, not a loop death
+                driver_failed(exc)
+            seg = player.current
             if seg is not None:
                 if seg.first_seq < 0:
-                    self._seg_begin(seg)
-                self._fire_events(seg)
-            if cmds or self._pending_ctrl is not None:
-                self._apply_commands()
+                    seg.begin(st, commands)
+                if seg.events:
+                    seg.fire_events()
+            if cq or commands.swap is not None:
+                commands.apply()
             if seg is None:
-                rt_cycle(fin, prm, st, drive, ring, _NO_EXC, -1, hist, wake - nxt, prev)
+                rt_cycle(fin, prm, st, drive, ring, NO_EXCITATION, -1, hist, wake - nxt, prev)
             else:
                 rt_cycle(fin, prm, st, drive, ring, seg.exc, seg.i, hist, wake - nxt, prev)
                 seg.i += 1
                 if seg.i >= seg.n:
-                    self._seg = None
-                    self._seg_finish(seg)
+                    player.finished(seg, commands)
             try:
                 write(drive)
-            except Exception as exc:
-                self._driver_failed(exc)
+            except Exception as exc:  # noqa: BLE001
+                driver_failed(exc)
             publish(int(st[S_W]))
             done = perf()
             prev = done - wake
@@ -104,14 +154,9 @@ class RealTimeRunner:
                 self.overruns += 1
                 storm.append(done)
                 if len(storm) == storm.maxlen and done - storm[0] <= storm_ns:
-                    st[L.S_EXT_FAULT] = FC.OVERRUN_STORM
+                    post(FC.OVERRUN_STORM)
                     storm.clear()
                 if skip:
                     missed = (done - nxt) // period + 1
                     nxt += missed * period
                     self.skipped += missed
-        seg = self._seg
-        if seg is not None:
-            self._seg = None
-            seg.error = RuntimeError("loop stopped during the segment")
-            seg.done.set()
