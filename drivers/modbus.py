@@ -250,6 +250,12 @@ class ModbusDriver(SlowDriver):
         self._thread = threading.Thread(target=self._run, name="modbus-poll", daemon=True)
         self._thread.start()
 
+    def on_deactivate(self, safe_drive) -> None:
+        """Drop setpoints not yet sent: nothing reaches the regulators after the loop stops
+        commanding (the device keeps its last setpoints; polling goes on until cleanup)."""
+        with self._pending_lock:
+            self._pending.clear()
+
     def close(self) -> None:
         self._stop.set()
         if self._thread is not None:

@@ -95,6 +95,7 @@ class SerialFrameDriver(FastDriver):
         self._dev_status = 0
         self._reconnecting = threading.Lock()
         self._closed = True
+        self._hold = False           # deactivated: the device holds its safe voltage
         self.n_timeouts = 0
         self.n_disconnects = 0
         self.n_reconnects = 0
@@ -159,9 +160,22 @@ class SerialFrameDriver(FastDriver):
         self._in_timeout = False
         self._fd = ser.fileno()  # published last: read()/write() start using the port now
 
-    def close(self) -> None:
-        """Tell the device to hold its safe voltage (outputs disabled), then release the port."""
-        self._closed = True
+    # --- lifecycle (rigd.driver): configure = open, cleanup = close ------------------------
+    def on_activate(self) -> None:
+        """Drive frames enable the outputs again (also after a reconnect)."""
+        self._hold = False
+
+    def on_deactivate(self, safe_drive) -> None:
+        """Tell the device to hold its own safe voltage now (outputs disabled) and send no
+        further drive until activated again, across reconnects too. The device's host-timeout
+        hold stays the backstop if this frame is lost.
+
+        Runs in: any thread, including a dying loop thread — a few non-blocking writes.
+        """
+        self._hold = True
+        self._send_hold()
+
+    def _send_hold(self) -> None:
         fd = self._fd
         if fd >= 0:
             n = sp.encode_drive(self._tx, self._tx_seq, False, np.zeros(4))
@@ -170,6 +184,11 @@ class SerialFrameDriver(FastDriver):
                     os.write(fd, self._txmv[:n])
                 except OSError:
                     break
+
+    def close(self) -> None:
+        """Tell the device to hold its safe voltage (outputs disabled), then release the port."""
+        self._closed = True
+        self._send_hold()
         self._fd = -1
         if self._ser is not None:
             try:
@@ -294,7 +313,7 @@ class SerialFrameDriver(FastDriver):
 
     def write(self, drive: np.ndarray) -> None:
         fd = self._fd
-        if fd < 0:
+        if fd < 0 or self._hold:
             return
         self._tx_seq += 1
         n = sp.encode_drive(self._tx, self._tx_seq, True, drive)

@@ -92,15 +92,19 @@ def run(args: argparse.Namespace) -> int:
             logger.info("loop running", clock=loop.clock, fs_hz=loop.fs, config=args.config,
                         duration_s=args.duration, record=args.record)
             with service:
-                if loop.clock == "lockstep":
-                    if args.duration is None:
-                        while not loop.stopped:
-                            loop.run_cycles(loop.config.clock.batch_cycles)
+                try:
+                    if loop.clock == "lockstep":
+                        if args.duration is None:
+                            while not loop.stopped:
+                                loop.run_cycles(loop.config.clock.batch_cycles)
+                        else:
+                            loop.run_for(args.duration)
                     else:
-                        loop.run_for(args.duration)
-                else:
-                    loop.start()
-                    loop.wait(args.duration)
+                        loop.start()
+                        loop.wait(args.duration)
+                except Exception:
+                    if loop.loop_error is None:
+                        raise       # not the loop's death (that is reported below)
             if sink is not None:
                 try:
                     loop.stop_recording(sink)
@@ -116,6 +120,11 @@ def run(args: argparse.Namespace) -> int:
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
+    if loop.loop_error is not None:
+        # outputs were set safe when it died; a non-zero exit makes systemd restart us
+        print(f"rigd run: the loop died ({loop.loop_error!r}); outputs were set safe",
+              file=sys.stderr)
+        status = 3
     timing = loop.timing()
     faults = loop.faults()
     if args.json:

@@ -44,7 +44,8 @@ FAULTS: dict[int, tuple[str, str]] = {
                         "recording failed or recorder ring buffer full: frames not recorded"),
     SLOW_DRIVER: ("slow_driver", "a slow driver failed or its data went stale"),
     OPERATOR_STOP: ("operator_stop", "safe state requested by the operator"),
-    LOOP_DIED: ("loop_died", "the loop thread died or a cycle raised; outputs set safe, loop stopped"),
+    LOOP_DIED: ("loop_died",
+                "the loop thread died or a cycle raised; outputs set safe, loop stopped"),
 }
 
 #: fast-driver status bits (``drv_status`` input channel)

@@ -23,13 +23,13 @@ in their docstrings ("Runs in: loop thread — O(1), allocation-free, non-blocki
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from rigd import frame as F
-from rigd.rigconfig import LoadedConfig, RigConfig, default_config
 from rigd.errors import InputError
 from rigd.log import get_logger
 from rigd.loop import faults as FC
@@ -46,6 +46,7 @@ from rigd.loop.slow import SlowPollers
 from rigd.loop.state import KernelState, PackedController
 from rigd.loop.supervisor import Supervisor
 from rigd.loop.timing import summary
+from rigd.rigconfig import LoadedConfig, RigConfig, default_config
 
 __all__ = ["ControlLoop", "SegmentResult"]
 
@@ -134,7 +135,7 @@ class ControlLoop:
         """The controller in the loop (None: zero output)."""
         return self.state.controller
 
-    def open(self) -> "ControlLoop":
+    def open(self) -> ControlLoop:
         """Configure and activate the drivers, start the recorder, monitor and slow threads."""
         if self._opened:
             return self
@@ -168,7 +169,7 @@ class ControlLoop:
             # must never happen inside the loop thread
             pk(f.state.copy(), f.params.copy(), s.drive.copy(), s.fin.copy())
 
-    def __enter__(self) -> "ControlLoop":
+    def __enter__(self) -> ControlLoop:
         return self.open()
 
     def __exit__(self, *exc) -> None:

@@ -1,4 +1,4 @@
-"""Fault requests from Python to the cycle kernel: one writer per slot, nothing cleared by the reader.
+"""Fault requests from Python to the cycle kernel: one writer per slot, none cleared by the reader.
 
 A thread that wants the safe state (the operator's ``trip``, a driver exception, an overrun
 storm, a failed recording, a dead slow driver) *posts* a request. Each source ``s`` owns two

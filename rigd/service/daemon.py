@@ -122,6 +122,12 @@ class Daemon:
         return self
 
     def __exit__(self, *exc) -> None:
+        err = getattr(self.loop, "loop_error", None)
+        if err is not None:   # the loop died: say so (STATUS=, the log) before going
+            self.exit_reason = f"loop died: {err!r}"
+            self._drain_faults()
+            self.notifier.status(self._status_text(-1))
+            self.log.error("loop died, daemon exits for a restart", error=repr(err))
         self.notifier.stopping(f"stopping{': ' + self.exit_reason if self.exit_reason else ''}")
         if self.experiments is not None:
             self.experiments.stop()

@@ -13,12 +13,12 @@ import threading
 import numpy as np
 from loop_helpers import make_plant
 
-from rigd.rigconfig import default_config
 from rigd.loop import cycle as K
 from rigd.loop import faults as FC
 from rigd.loop import layout as L
 from rigd.loop import requests as RQ
 from rigd.loop.loop import ControlLoop
+from rigd.rigconfig import default_config
 
 
 def test_requests_are_counters_the_kernel_acknowledges_never_clears():

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from loop_helpers import make_plant
 
-from rigd.rigconfig import default_config
 from rigd.controller import Controller
 from rigd.driver import FastDriver
 from rigd.errors import InputError
 from rigd.loop import cycle as K
 from rigd.loop import faults as FC
 from rigd.loop.loop import ControlLoop
+from rigd.rigconfig import default_config
 
 
 class WatchedDriver(FastDriver):

@@ -13,8 +13,8 @@ import numpy as np
 from loop_helpers import make_plant
 
 import rigd_drivers.sim_plant as sim_plant
-from rigd.rigconfig import default_config
 from rigd.loop.loop import ControlLoop
+from rigd.rigconfig import default_config
 
 
 def _record_threads(monkeypatch):
@@ -47,7 +47,7 @@ def test_realtime_loop_thread_never_prepares_an_operating_point(monkeypatch):
         loop.start()
         for om in (1000.0, 2500.0, 4000.0):
             loop.set_operating_point(om, 5.0)
-            assert _wait(lambda: loop.status()["last_frame"]["omega_rpm"] == om), \
+            assert _wait(lambda om=om: loop.status()["last_frame"]["omega_rpm"] == om), \
                 loop.status()["last_frame"]
         assert loop.fast.operating_point == (4000.0, 5.0)
     assert len(seen) == 3

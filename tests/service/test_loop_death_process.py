@@ -1,0 +1,84 @@
+"""The real daemon whose loop thread dies: the front-end is told to hold its safe voltage at
+once (not only after its host timeout), the fault is latched and reported (systemd STATUS=,
+the log), and ``rigd run`` exits non-zero so systemd's Restart=on-failure restarts it.
+
+The daemon is the real ``rigd run`` process with the real serial driver on a pty, fed by the
+front-end emulator; the only thing added is a start-up wrapper that makes the cycle raise once
+the process gets SIGUSR1 (a stand-in for any bug in the loop thread).
+"""
+
+import signal
+import sys
+import time
+
+import daemon_helpers
+import numpy as np
+import pytest
+from daemon_helpers import Daemon, make_config
+
+WRAPPER = """\
+import signal, sys
+import rigd.loop.cycle as C
+
+armed = []
+real = C.rt_cycle
+
+def rt_cycle(*args):
+    if armed:
+        raise RuntimeError("injected: the cycle raised")
+    real(*args)
+
+if __name__ == "__main__":      # the socket process is spawned: it must not run the daemon
+    C.rt_cycle = rt_cycle
+    signal.signal(signal.SIGUSR1, lambda *a: armed.append(1))
+    from rigd.cli import main
+    sys.exit(main())
+"""
+
+
+@pytest.fixture()
+def emulator(tmp_path):
+    from rigd_drivers.frontend_emulator import FrontendEmulator
+
+    emu = FrontendEmulator(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.5,
+                           tx_buffer_s=0.5).start()
+    yield emu
+    emu.stop()
+
+
+def test_loop_death_in_the_daemon(tmp_path, monkeypatch, emulator):
+    wrapper = tmp_path / "rigd-wrapped"
+    wrapper.write_text(f"#!{sys.executable}\n{WRAPPER}")
+    wrapper.chmod(0o755)
+    monkeypatch.setattr(daemon_helpers, "RIGD", str(wrapper))
+    cfg = make_config(tmp_path, clock={"spin_us": 0.0},
+                      drivers={"fast": {"name": "serial", "options": {
+                          "port": emulator.port, "timeout_ms": 250.0, "fault_on_gap": False}}},
+                      supervisor={"stale_frames": 0})
+    d = Daemon(tmp_path, cfg)
+    try:
+        d.wait_notify("READY=1")
+        assert _wait(lambda: emulator.drive_frames > 100 and not emulator.holding)
+        assert int(emulator.last_drive[1]) & 1 == 1            # outputs enabled by the host
+        d.proc.send_signal(signal.SIGUSR1)
+        code = d.proc.wait(60)
+    finally:
+        code, _ = d.stop()
+    log = d.log()
+    assert code == 3, log
+    assert "rigd run: the loop died (RuntimeError('injected: the cycle raised'))" in log
+    # the host told the front-end to hold (enable bit cleared in its last drive frame): the
+    # device's host-timeout hold (0.5 s here) was not needed
+    assert int(emulator.last_drive[1]) & 1 == 0
+    assert emulator.holding and np.all(emulator.applied == emulator.hold_v)
+    assert any("STATUS=FAULT loop_died" in m for m in d.messages), d.messages
+    assert any("STOPPING=1" in m for m in d.messages)
+
+
+def _wait(pred, timeout=30.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.01)
+    return pred()
