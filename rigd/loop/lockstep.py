@@ -100,15 +100,16 @@ class LockstepClock:
                         p.player.abort("loop stopped during the segment")
                 else:
                     self.run(self._batch_cycles, None, stop)
-        except BaseException:  # noqa: BLE001 - run() made the outputs safe and latched
-            pass
+        except BaseException as exc:  # noqa: BLE001 - this thread's death: never silent
+            if p.supervisor.loop_error is None:       # (run() handled an Exception already)
+                p.supervisor.loop_died(exc, p.fast, stop)
         finally:
             p.player.abort("loop stopped during the segment")
 
     def run(self, n: int, seg, stop: threading.Event) -> int:
         """Run up to ``n`` cycles in this thread (the caller holds :attr:`lock` or is the
-        lock-step thread); returns the cycles run. A raise makes the outputs safe, latches
-        ``loop_died`` and stops the loop before it propagates.
+        lock-step thread); returns the cycles run. An exception makes the outputs safe,
+        latches ``loop_died`` and stops the loop before it propagates.
 
         Runs in: the thread running the cycles — between batches it applies commands, fires
         events and polls faults; it blocks only when the recorder ring is full.
@@ -116,7 +117,9 @@ class LockstepClock:
         p = self._p
         try:
             return self._run(n, seg, stop)
-        except BaseException as exc:
+        except Exception as exc:
+            # a KeyboardInterrupt (Ctrl-C in the caller's thread) is the caller stopping the
+            # run, not the loop dying: it propagates and close() makes the outputs safe
             p.supervisor.loop_died(exc, p.fast, stop)
             raise
 

@@ -179,9 +179,9 @@ class Recorder:
             with self._lock:
                 if sink in self._sinks:
                     self._sinks.remove(sink)
+            if self._on_error is not None:   # the fault is requested before anyone waiting
+                self._on_error(exc)          # on the sink learns of the failure
             sink.done.set()
-            if self._on_error is not None:
-                self._on_error(exc)
 
     def _consume(self) -> None:
         pub = self.published
