@@ -51,6 +51,7 @@ class SimPlantDriver(FastDriver):
     """
 
     name = "sim"
+    simulated = True
     Options = PlantOptions
 
     def __init__(self, options: dict[str, Any] | PlantOptions | None = None,

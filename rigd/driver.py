@@ -58,6 +58,8 @@ class Driver(ABC):  # noqa: B024 - abstract by intent: only FastDriver/SlowDrive
 
     kind: ClassVar[str] = "fast"
     name: ClassVar[str] = "driver"
+    #: True for a driver that simulates the plant: its records say ``source: simulated``.
+    simulated: ClassVar[bool] = False
 
     def __init__(self, options: dict[str, Any] | None = None, *, fs: float = 5000.0):
         self.options = options or {}
@@ -201,3 +203,20 @@ def driver_class(name: str) -> type[Driver]:
             return cls
     known = ", ".join(sorted(available_drivers())) or "none"
     raise InputError(f"unknown driver {name!r} (installed: {known})")
+
+
+def data_source(fast: Driver, slow: Any = ()) -> dict[str, Any]:
+    """Where a loop's data come from, for records and manifests.
+
+    Returns
+    -------
+    dict
+        ``{"source": "simulated" | "rig", "drivers": {"fast": name, "slow": [names]}}``:
+        *simulated* when any driver simulates the plant (:attr:`Driver.simulated`), else the
+        data come from the rig. ``rigd identify``/``compare``/``diagnose`` print it.
+    """
+    slow = list(slow or [])
+    simulated = any(bool(getattr(d, "simulated", False)) for d in (fast, *slow))
+    return {"source": "simulated" if simulated else "rig",
+            "drivers": {"fast": str(getattr(fast, "name", type(fast).__name__)),
+                        "slow": [str(getattr(d, "name", type(d).__name__)) for d in slow]}}

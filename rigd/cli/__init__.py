@@ -6,7 +6,9 @@ Each sub-command lives in its own module ``rigd/cli/<name>.py`` exposing::
     def add_arguments(parser: argparse.ArgumentParser) -> None: ...
     def run(args: argparse.Namespace) -> int: ...
 
-and is registered once in :data:`COMMANDS`. Any :class:`rigd.errors.InputError` escaping a
+and is registered once in :data:`COMMANDS`. A command parses its arguments, calls
+:mod:`rigd.api` and prints; commands never import each other (shared argument helpers are in
+``rigd/cli/_args.py``). Any :class:`rigd.errors.InputError` escaping a
 command becomes one line on stderr and exit status 2 (argparse uses 2 for bad arguments too).
 """
 
@@ -34,18 +36,6 @@ COMMANDS: dict[str, str] = {
 }
 
 
-def _available() -> dict[str, object]:
-    mods = {}
-    for name, modname in COMMANDS.items():
-        try:
-            mods[name] = importlib.import_module(modname)
-        except ModuleNotFoundError as exc:
-            if exc.name == modname:  # command not built yet
-                continue
-            raise
-    return mods
-
-
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="rigd", description="Rotor-gas bearing rig daemon "
                                      "and modelling workflow.")
@@ -53,12 +43,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     names = [only] if only in COMMANDS else list(COMMANDS)
     for name in names:
-        try:
-            mod = importlib.import_module(COMMANDS[name])
-        except ModuleNotFoundError as exc:
-            if exc.name == COMMANDS[name]:
-                continue
-            raise
+        mod = importlib.import_module(COMMANDS[name])
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)

@@ -3,10 +3,8 @@
     rigd analyze-impact RUN [--json] [--report DIR] [--window S]
 
 RUN is an impact run directory of ``rigd experiment`` (its ``manifest.json`` lists the records
-with ``controller_on``) or one record file (HDF5 or interchange CSV). Each impact is fitted by a
-damped sinusoid (:mod:`rigd.design.impact`); per operating point, axis and K∞ state the mean
-damping ratio, its uncertainty (standard error over repeats combined with the fit's own) and
-the closed/open ratio are reported.
+with ``controller_on``) or one record file (HDF5 or interchange CSV); the analysis is
+:func:`rigd.api.analyze_impact`.
 """
 
 from __future__ import annotations
@@ -14,11 +12,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
-
-import numpy as np
-
-from rigd.errors import InputError
 
 HELP = "damping ratio and frequency of impact responses (K∞ off/on) with uncertainty"
 
@@ -31,98 +24,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="free-response window after the impact, s (default 0.08)")
 
 
-def _records(run: Path) -> list[tuple[str, dict]]:
-    """(path, manifest entry) of every impact record of a run directory or a single file."""
-    if run.is_dir():
-        mpath = run / "manifest.json"
-        if not mpath.exists():
-            raise InputError("not a run directory (no manifest.json)", str(run))
-        try:
-            man = json.loads(mpath.read_text())
-        except json.JSONDecodeError as exc:
-            raise InputError(f"manifest.json is not valid JSON ({exc.msg})", str(mpath)) from None
-        files = [f for f in man.get("files", []) if f.get("kind", "impact") == "impact"]
-        if not files:
-            raise InputError("run has no impact records", str(mpath))
-        return [(str(run / f["path"]), f) for f in files]
-    if not run.exists():
-        raise InputError("no such file or directory", str(run))
-    return [(str(run), {})]
-
-
-def analyze(run: str | Path, *, window_s: float = 0.08, report: str | None = None) -> dict:
-    """Analyse every impact of ``run``; returns the JSON-ready result."""
-    from rigd.data import load_record
-    from rigd.design.impact import analyze_record
-
-    if not window_s > 0:
-        raise InputError(f"must be > 0 (got {window_s})", "--window")
-    impacts = []
-    recs = []
-    for path, entry in _records(Path(run)):
-        rec = load_record(path)
-        res = analyze_record(rec, window_s=window_s)
-        on = entry.get("controller_on", res.get("controller_on"))
-        om = entry.get("omega_rpm", res.get("omega_rpm"))
-        p = entry.get("p_inj_bar", res.get("p_inj_bar"))
-        for ax, fit in res["axes"].items():
-            impacts.append({"file": Path(path).name, "omega_rpm": om, "p_inj_bar": p,
-                            "controller_on": bool(on) if on is not None else None, **fit})
-            recs.append((rec, fit, ax, on, om, p))
-    groups: dict[tuple, list[dict]] = {}
-    for imp in impacts:
-        key = (imp["omega_rpm"], imp["p_inj_bar"], imp["axis"], imp["controller_on"])
-        groups.setdefault(key, []).append(imp)
-    summary = []
-    for (om, p, ax, on), g in sorted(groups.items(), key=lambda kv: str(kv[0])):
-        z = np.array([x["zeta"] for x in g])
-        zs = np.array([x["zeta_std"] for x in g])
-        fz = np.array([x["f_hz"] for x in g])
-        sem = float(z.std(ddof=1) / np.sqrt(len(z))) if len(z) > 1 else 0.0
-        summary.append({"omega_rpm": om, "p_inj_bar": p, "axis": ax, "controller_on": on,
-                        "n": len(g), "zeta": float(z.mean()),
-                        "zeta_std": float(np.sqrt(sem ** 2 + np.mean(zs ** 2))),
-                        "f_hz": float(fz.mean())})
-    ratios = []
-    for s in summary:
-        if s["controller_on"]:
-            off = [x for x in summary if x["controller_on"] is False and x["axis"] == s["axis"]
-                   and x["omega_rpm"] == s["omega_rpm"] and x["p_inj_bar"] == s["p_inj_bar"]]
-            if off:
-                ratios.append({"omega_rpm": s["omega_rpm"], "p_inj_bar": s["p_inj_bar"],
-                               "axis": s["axis"], "zeta_open": off[0]["zeta"],
-                               "zeta_closed": s["zeta"],
-                               "ratio": s["zeta"] / off[0]["zeta"]})
-    out = {"impacts": impacts, "summary": summary, "damping_increase": ratios}
-    if report:
-        from rigd.design.figures import fig_impact
-        from rigd.htmlreport import Report
-
-        rep = Report(report, "rigd analyze-impact")
-        rep.table(["Ω (rpm)", "P_I (bar)", "axis", "K∞", "n", "ζ", "±", "f (Hz)"],
-                  [[s["omega_rpm"], s["p_inj_bar"], s["axis"], s["controller_on"], s["n"],
-                    f"{s['zeta']:.4f}", f"{s['zeta_std']:.4f}", f"{s['f_hz']:.1f}"]
-                   for s in summary])
-        keys = sorted({(r[4], r[5], r[2]) for r in recs}, key=str)
-        for om, p, ax in keys:
-            runs = []
-            for rec, fit, a, on, o2, p2 in recs:
-                if (o2, p2, a) == (om, p, ax) and not any(lbl == _lbl(on) for lbl, *_ in runs):
-                    runs.append((_lbl(on), rec, fit))
-            fig_impact(rep, f"impact_{ax}_w{om:g}_p{p:g}",
-                       f"{'Horizontal' if ax == 'x' else 'Vertical'} impact at P_I = {p:g} bar, "
-                       f"Ω = {om:g} rpm, K∞ off and on (Figs. 6-7)", runs, ax)
-        rep.write()
-        out["report"] = str(report)
-    return out
-
-
-def _lbl(on) -> str:
-    return {True: "K∞ on", False: "K∞ off"}.get(on, "record")
-
-
 def run(args: argparse.Namespace) -> int:
-    out = analyze(args.run, window_s=args.window, report=args.report)
+    from rigd.api.impact import analyze_impact
+
+    out = analyze_impact(args.run, window_s=args.window, report=args.report)
     if args.json:
         json.dump(out, sys.stdout, default=float)
         sys.stdout.write("\n")

@@ -1,7 +1,8 @@
 """``rigd compare MODEL DATA``: fit per output, residual statistics, HTML report.
 
 The whole DATA record is simulated (give held-out data, or ``--part validation`` to use the
-validation part of the identification record as stored in the model file).
+validation part of the identification record as stored in the model file). The work is
+:func:`rigd.api.compare`.
 """
 
 from __future__ import annotations
@@ -9,6 +10,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+
+from rigd.cli._args import (add_plain_csv_arguments, add_range_argument, load_options,
+                            print_source)
 
 HELP = "compare an identified model with a measured record (fit, residuals, report)"
 
@@ -21,35 +25,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="which part of the record (the model file's split) to compare")
     p.add_argument("--report", metavar="DIR", help="write an HTML report into DIR")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    from rigd.cli.identify import add_range_argument
-
     add_range_argument(p)
-    g = p.add_argument_group("plain CSV without rig-data metadata (e.g. Silverbox)")
-    g.add_argument("--fs", help="sample rate, Hz (number or ratio)")
-    g.add_argument("--inputs", help="comma-separated input columns")
-    g.add_argument("--outputs", help="comma-separated output columns")
+    add_plain_csv_arguments(p)
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigd.cli.identify import apply_range, load_data
-    from rigd.ident.compare import compare_model, summary, write_report
-    from rigd.ident.modelfile import load_model
+    from rigd import api
 
-    model = load_model(args.model)
-    record = apply_range(load_data(args.data, args.fs, args.inputs, args.outputs), args.range)
-    runout = load_data(args.runout) if args.runout else None
-    comps = compare_model(model, record, runout, args.part)
-    res = summary(comps)
-    if args.report:
-        res["report"] = str(write_report(comps, args.report, f"{args.model} vs {args.data}"))
+    res = api.compare(args.model, args.data, runout=args.runout, part=args.part,
+                      report=args.report, title=f"{args.model} vs {args.data}",
+                      **load_options(args))
+    out = res.summary()
     if args.json:
-        json.dump(res, sys.stdout)
+        json.dump(out, sys.stdout)
         print()
     else:
-        for name, c in comps.items():
+        print_source(res.source)
+        for name, c in res.comparisons.items():
             print(f"[{name}] " + ", ".join(f"{o}: fit {f:.2f} %, residual rms "
                                           f"{c.residual[o]['rms']:.4g}"
                                           for o, f in zip(c.data.output_names, c.fit)))
         if args.report:
-            print(f"report: {res['report']}")
+            print(f"report: {out['report']}")
     return 0

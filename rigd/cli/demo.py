@@ -1,5 +1,7 @@
 """``rigd demo --out DIR``: the whole story in lock-step on the simulated plant (``make demo``).
 
+The pipeline is :func:`rigd.api.demo.run_demo`:
+
 1. records (``rigd experiment`` runner): PRBS + run-out at the design point
    (Ω = 4000 rpm, P_I = 7 bar) and a PRBS sweep over a small (Ω, P_I) grid;
 2. identification (``rigd.ident``): actuator + bearing model file G_p.yaml at the design point,
@@ -15,17 +17,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
-import time
-from pathlib import Path
-
-from rigd.errors import InputError
 
 HELP = "run the whole story (identify, design, deploy, impacts) on the simulated plant"
-
-DESIGN_POINT = (4000.0, 7.0)
-IMPACT_POINTS = (4.0, 7.0)
-GRID = {"omega_rpm": [0.0, 6000.0], "p_inj_bar": [3.0, 5.0, 7.0]}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -39,179 +32,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--jobs", type=int, default=2, help="processes for the sweep fits")
 
 
-def _say(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
-
-
-def _experiment(spec: dict, config: str, run_dir: Path, controller=None):
-    from rigd.experiments.runner import run_experiment
-    from rigd.loop.app import build_loop
-
-    loop = build_loop(config, clock="lockstep", controller=controller)
-    with loop:
-        man = run_experiment(spec, loop, run_dir, config_path=config)
-    if man.status != "complete":
-        raise InputError(f"experiment {spec.get('name')} ended {man.status}: {man.message}",
-                         str(run_dir))
-    return man
-
-
-def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
-             weights: str = "config/design.yaml", quick: bool = False, jobs: int = 2) -> dict:
-    from rigd.cli.analyze_impact import analyze
-    from rigd.cli.design import run_design
-    from rigd.data import load_record
-    from rigd.ident.workflow import identify_record
-
-    t_start = time.perf_counter()
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    timings = {}
-    om, p = DESIGN_POINT
-    dur = 1.5 if quick else 3.0
-
-    # 1. records at the design point
-    t0 = time.perf_counter()
-    _say(f"[1/5] PRBS and run-out records at Ω = {om:g} rpm, P_I = {p:g} bar")
-    rec_dir = out / "records"
-    op = {"omega_rpm": om, "p_inj_bar": p}
-    _experiment({"kind": "prbs", "name": "demo-prbs", "operating_point": op,
-                 "amplitude_v": 1.0, "seed": 1, "duration_s": dur, "lead_in_s": 0.4},
-                config, rec_dir / "prbs")
-    _experiment({"kind": "runout", "name": "demo-runout", "operating_point": op,
-                 "revolutions": 40}, config, rec_dir / "runout")
-    prbs = load_record(next((rec_dir / "prbs").glob("*.h5")))
-    runout = load_record(next((rec_dir / "runout").glob("*.h5")))
-    timings["records_s"] = time.perf_counter() - t0
-
-    # 2. identification
-    t0 = time.perf_counter()
-    _say("[2/5] identify actuator and bearing models (PEM)")
-    model = identify_record(prbs, "both", runout=runout)
-    model_path = out / "G_p.yaml"
-    model.save(model_path)
-    fits = {name: sm.fit_percent for name, sm in model.submodels.items()}
-    gbear_path = None
-    rob_source = "simulated plant truth (rigd.design.simtruth.plant_z): no sweep in --quick"
-    if not quick:
-        from rigd.ident.oprange import identify_sweep
-
-        _say(f"      sweep {GRID} and reassembled bearing model")
-        _experiment({"kind": "sweep", "name": "demo-sweep", "grid": GRID,
-                     "at_each": {"kind": "prbs", "amplitude_v": 1.0, "seed": 1,
-                                 "duration_s": 1.5, "lead_in_s": 0.4}},
-                    config, rec_dir / "sweep")
-        sw = identify_sweep(rec_dir / "sweep", out / "g_bear.yaml", jobs=jobs)
-        if sw.gbear is not None:
-            gbear_path = out / "g_bear.yaml"
-            rob_source = (f"reassembled bearing model from a {len(GRID['omega_rpm'])}x"
-                          f"{len(GRID['p_inj_bar'])} identified grid (g_bear.yaml) x the "
-                          "identified actuator")
-    timings["identify_s"] = time.perf_counter() - t0
-
-    # 3. design
-    t0 = time.perf_counter()
-    _say("[3/5] H∞ design, reduction, Tustin, robustness")
-    ctrl_path = out / "controller.yaml"
-    plant_at = None
-    if gbear_path is None:
-        from rigd.design import simtruth
-
-        plant_at = simtruth.plant_z
-    design = run_design(model_path, weights, ctrl_path, range_model=gbear_path,
-                        report=out / "design", plant_at=plant_at, plant_at_label=rob_source)
-    design["robustness_model"] = rob_source
-    timings["design_s"] = time.perf_counter() - t0
-
-    # 4.+5. deploy and impacts
-    t0 = time.perf_counter()
-    _say("[4/5] deploy K∞ and impact tests, K∞ off and on")
-    imp_dirs = []
-    for pi in IMPACT_POINTS:
-        for ax in ("x", "y"):
-            d = out / "impacts" / f"p{pi:g}_{ax}"
-            _experiment({"kind": "impact", "name": f"demo-impact-{ax}-p{pi:g}",
-                         "operating_point": {"omega_rpm": 0.0, "p_inj_bar": pi}, "axis": ax,
-                         "controller": [False, True], "repeats": 1 if quick else 2,
-                         "pre_s": 0.01, "post_s": 0.15, "spacing_s": 0.1, "peak_n": 20.0,
-                         "pulse_s": 0.001}, config, d, controller=ctrl_path)
-            imp_dirs.append(d)
-    timings["impacts_s"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    _say("[5/5] impact analysis and report")
-    open_, closed, per = {}, {}, []
-    for d in imp_dirs:
-        res = analyze(d, report=str(out / "impact_report" / d.name))
-        for r in res["damping_increase"]:
-            key = f"P{r['p_inj_bar']:g}bar_W{r['omega_rpm']:g}rpm_{r['axis']}"
-            open_[key] = r["zeta_open"]
-            closed[key] = r["zeta_closed"]
-        per += res["summary"]
-    rob = design["robustness"]
-    summary = {
-        "sensitivity_reduction_min": rob["sensitivity_reduction_min"],
-        "sensitivity_peak_max": rob["sensitivity_peak_max"],
-        "sensitivity_peak_hz": rob["sensitivity_peak_hz"],
-        "sensitivity_low_increase_max": rob["sensitivity_low_increase_max"],
-        "sensitivity_lowfreq_max": rob["sensitivity_lowfreq_max"],
-        "sensitivity_reduction_at_resonance_min": rob["sensitivity_reduction_at_resonance_min"],
-        "sensitivity_reduction_at_resonance_mode_direction_min":
-            rob["sensitivity_reduction_at_resonance_mode_direction_min"],
-        "disturbance_peak_reduction_min": rob["disturbance_peak_reduction_min"],
-        "robustness": rob,
-        "robustness_model": rob_source,
-        "damping_ratio_open": open_,
-        "damping_ratio_closed": closed,
-        "damping_increase": {k: closed[k] / open_[k] for k in open_},
-        "impacts": per,
-        "gamma": design["gamma"],
-        "controller_order": design["controller_order"],
-        "controller_order_full": design["order_full"],
-        "controller_band_error": design["band_error"],
-        "controller_highpass": design["highpass"],
-        "controller_gain_1hz_over_band_max": design["controller_gain_1hz_over_band_max"],
-        "controller_hankel_singular_values": design["hankel_singular_values"],
-        "fits_percent": fits,
-        "design_point": {"omega_rpm": om, "p_inj_bar": p},
-        "timings_s": timings,
-    }
-    _write_index(out, summary)
-    timings["report_s"] = time.perf_counter() - t0
-    summary["run_time_s"] = time.perf_counter() - t_start
-    from rigd.fileio import atomic_write_text
-
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, default=float))
-    return summary
-
-
-def _write_index(out: Path, s: dict) -> None:
-    from rigd.htmlreport import Report
-
-    rep = Report(out, "rigd demo: identify, design, deploy, impacts (simulated plant)")
-    rep.text("Design report (Figs. 3-5): design/index.html. Impact reports (Figs. 6-7): "
-             "impact_report/*/index.html. Numbers: summary.json.")
-    rep.table(["quantity", "value"],
-              [["gamma", f"{s['gamma']:.3f}"],
-               ["controller order (full)",
-                f"{s['controller_order']} ({s['controller_order_full']})"],
-               ["worst in-band S_o reduction (30 realizations)",
-                f"{s['sensitivity_reduction_min']:.2f}"],
-               ["worst S_o reduction at each realization's own resonances (max singular "
-                "value / mode direction)", f"{s['sensitivity_reduction_at_resonance_min']:.2f} / "
-                f"{s['sensitivity_reduction_at_resonance_mode_direction_min']:.2f}"],
-               ["peak |S_o|",
-                f"{s['sensitivity_peak_max']:.2f} at {s['sensitivity_peak_hz']:.0f} Hz"],
-               ["max |S_o| below 20 Hz", f"{s['sensitivity_lowfreq_max']:.3f}"],
-               ["|K(1 Hz)| / max |K| in band", f"{s['controller_gain_1hz_over_band_max']:.4f}"],
-               ["robustness model", s["robustness_model"]]])
-    rep.table(["impact", "zeta open", "zeta closed", "ratio"],
-              [[k, f"{s['damping_ratio_open'][k]:.4f}", f"{s['damping_ratio_closed'][k]:.4f}",
-                f"{s['damping_increase'][k]:.2f}"] for k in s["damping_ratio_open"]])
-    rep.write()
-
-
 def run(args: argparse.Namespace) -> int:
+    from rigd.api.demo import run_demo
+
     s = run_demo(args.out, config=args.config, weights=args.weights, quick=args.quick,
                  jobs=args.jobs)
     print(json.dumps({k: s[k] for k in ("sensitivity_reduction_min",

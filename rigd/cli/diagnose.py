@@ -1,26 +1,15 @@
 """``rigd diagnose DATA``: where the model fails, which physical effect is missing, and how
-much adding it helps (see docs/diagnose.md)."""
+much adding it helps (see docs/diagnose.md); the work is :func:`rigd.api.diagnose`."""
 
 from __future__ import annotations
 
 import argparse
 import json
 
-from rigd.errors import InputError
+from rigd.api.data import source_text
+from rigd.cli._args import load_options
 
 HELP = "diagnose a model on a record: where it fails, which physical effect is missing"
-
-
-def _slice(text: str | None, what: str) -> slice | None:
-    if text is None:
-        return None
-    try:
-        a, b = text.split(":")
-        s = slice(int(a) if a else None, int(b) if b else None)
-    except ValueError:
-        raise InputError(f"{what} must be START:STOP sample indices, got {text!r}",
-                         f"--{what}") from None
-    return s
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -54,41 +43,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigd.diagnose.diagnosis import diagnose_record
-    from rigd.effects import REGISTRY
+    from rigd import api
 
-    est, val = _slice(args.est, "est"), _slice(args.val, "val")
-    if (est is None) != (val is None):
-        raise InputError("give both --est and --val, or neither", "--est/--val")
-    effects = None
-    if args.effects:
-        effects = [e.strip() for e in args.effects.split(",") if e.strip()]
-        bad = [e for e in effects if e not in REGISTRY]
-        if bad:
-            raise InputError(f"unknown effect(s) {', '.join(bad)} (known: "
-                             f"{', '.join(REGISTRY)})", "--effects")
-    if args.split is not None and est is not None:
-        raise InputError("give --split or --est/--val, not both", "--split")
-    if args.steps < 1:
-        raise InputError(f"--steps must be at least 1 (got {args.steps})", "--steps")
-    from rigd.cli.identify import apply_range, load_data
-
-    rec = apply_range(load_data(args.data, args.fs, args.inputs, args.outputs), args.range)
-    ro = load_data(args.runout) if args.runout else None
-    if est is not None:
-        for s, what in ((est, "est"), (val, "val")):
-            a, b = s.indices(rec.n)[:2]
-            if b - a < 100:
-                raise InputError(f"{what} range has {max(b - a, 0)} samples of {rec.n}; need "
-                                 "at least 100", f"--{what}")
-    diag = diagnose_record(rec, runout=ro, submodels=args.submodel, est=est, val=val,
-                           effects=effects, refit=not args.no_refit, hold=args.hold,
-                           split=args.split, max_steps=args.steps)
-    out = diag.to_json()
-    if args.report:
-        from rigd.diagnose.report_page import write_report
-
-        out["report"] = str(write_report(diag, args.report))
+    res = api.diagnose(args.data, runout=args.runout, submodels=args.submodel, est=args.est,
+                       val=args.val, split=args.split, effects=args.effects,
+                       refit=not args.no_refit, hold=args.hold, steps=args.steps,
+                       report=args.report, **load_options(args))
+    out = res.summary()
     if args.json:
         print(json.dumps(out))
     else:
@@ -98,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
 
 def summary(out: dict) -> str:
     """Human-readable summary of the JSON result."""
-    lines = [f"base model fit: {out['fit_percent']} %"]
+    lines = [source_text(out.get("source") or {}), f"base model fit: {out['fit_percent']} %"]
     steps = out.get("steps", [])
     for sub, seq in (steps.items() if isinstance(steps, dict) else [("", steps)]):
         if len(seq) > 1:

@@ -3,22 +3,28 @@
     rigd experiment config/experiments/prbs.yaml --lockstep --out runs/prbs-1
     rigd experiment config/experiments/sweep.yaml --config config/sim.yaml
 
-With a daemon up on the control socket (and no ``--lockstep``), the experiment runs inside
-the daemon (``experiment.start``) and this command follows its progress; otherwise it builds a
-loop in-process from ``--config`` (lock-step on the simulated plant with ``--lockstep``).
-A progress bar on a terminal, structured log lines otherwise. Ctrl-C stops after the current
-segment: completed points are kept and the missing ones listed (exit status 130).
+Where it runs is the caller's choice, never a fall-back:
+
+* ``--lockstep`` and/or ``--config CONFIG``: in this process, on a loop built from CONFIG
+  (default ``config/sim.yaml`` if present, else the built-in simulated rig), lock-step with
+  ``--lockstep``, else on the real-time clock;
+* otherwise inside the daemon on the control socket (``--socket``, ``$RIGD_SOCKET`` or
+  ``/run/rigd/rigd.sock``): ``experiment.start``, then its progress is followed. A socket that
+  is missing or does not answer ``ping`` within ``--timeout`` is one line and exit 2; nothing
+  runs elsewhere instead.
+
+Records and ``manifest.json`` say ``source: simulated | rig`` and the driver names. A progress
+bar on a terminal, structured log lines otherwise. Ctrl-C stops after the current segment:
+completed points are kept and the missing ones listed (exit status 130). The work is
+:func:`rigd.api.run_experiment` / :func:`rigd.api.run_experiment_daemon`.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import sys
 import threading
-import time
-from pathlib import Path
 
 from rigd.errors import InputError
 
@@ -27,14 +33,18 @@ HELP = "run an experiment YAML (PRBS, multisine, chirp, multilevel, runout, impa
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", help="experiment YAML (see config/experiments/)")
-    p.add_argument("--config", help="rig configuration YAML (default: config/sim.yaml if "
-                   "present, else the built-in simulated rig)")
+    p.add_argument("--config", help="run in-process on this rig configuration YAML (real-time "
+                   "clock unless --lockstep); never uses the daemon")
     p.add_argument("--lockstep", action="store_true", help="run in-process, lock-step (as fast "
-                   "as possible) on the simulated plant; never uses the daemon")
+                   "as possible), on --config or else config/sim.yaml if present, else the "
+                   "built-in simulated rig; never uses the daemon")
     p.add_argument("--out", metavar="RUN_DIR", help="new run directory (default: "
                    "runs/<time>-<name>)")
     p.add_argument("--runs-root", default="runs", help="where default run directories go")
-    p.add_argument("--socket", help="daemon control socket (default /run/rigd/rigd.sock)")
+    p.add_argument("--socket", help="daemon control socket (default $RIGD_SOCKET, else "
+                   "/run/rigd/rigd.sock)")
+    p.add_argument("--timeout", type=float, default=10.0, metavar="S",
+                   help="seconds to wait for the daemon's reply (default 10)")
 
 
 def _progress_sink(total_hint: str):
@@ -67,45 +77,18 @@ def _confirm(message: str) -> bool:
     return ans.strip().lower() in ("y", "yes")
 
 
-def _daemon(socket_path: str | None):
-    from rigd.service.client import DEFAULT_SOCKET, ControlClient
-
-    path = socket_path or DEFAULT_SOCKET
-    if not os.path.exists(path):
-        if socket_path:
-            raise InputError("no daemon socket here (is rigd running?)", path)
-        return None
-    client = ControlClient(path, timeout=10.0)
-    try:
-        client.connect()
-        client.call("ping")
-    except Exception:
-        client.close()
-        if socket_path:
-            raise
-        return None
-    return client
-
-
 def run(args: argparse.Namespace) -> int:
     from rigd.experiments.runner import load
 
     exp = load(args.file)  # validate first: bad YAML -> one line, exit 2, nothing created
-    if not args.lockstep:
-        client = _daemon(args.socket)
-        if client is not None:
-            return _via_daemon(client, args)
-    return _in_process(exp, args)
-
-
-def _config(args):
-    from rigd.rigconfig import default_config, load_config
-
-    if args.config:
-        return load_config(args.config)
-    if Path("config/sim.yaml").exists():
-        return load_config("config/sim.yaml")
-    return default_config()
+    if args.lockstep or args.config:
+        if args.socket:
+            raise InputError("--socket runs the experiment in the daemon, --lockstep/--config "
+                             "in this process: give one or the other", "--socket")
+        return _in_process(exp, args)
+    if not args.timeout > 0:
+        raise InputError(f"must be > 0 (got {args.timeout})", "--timeout")
+    return _via_daemon(args, exp.name)
 
 
 class _SigintStop(threading.Event):
@@ -136,25 +119,20 @@ class _SigintStop(threading.Event):
 
 
 def _in_process(exp, args) -> int:
-    from rigd.experiments.runner import run_experiment
-    from rigd.loop.app import build_loop
-
-    lc = _config(args)
-    loop = build_loop(lc, clock="lockstep" if args.lockstep else None)
-    cb, close = _progress_sink(exp.name)
+    from rigd.api.experiment import run_experiment
     from rigd.log import get_logger
 
+    cb, close = _progress_sink(exp.name)
     log = None if sys.stderr.isatty() else get_logger("rigd.experiment")
     stop = _SigintStop()
     try:
-        with loop, stop:
-            man = run_experiment(exp, loop, args.out, cb, runs_root=args.runs_root,
-                                 config_path=getattr(lc, "path", None),
-                                 config_text=getattr(lc, "text", None), confirm=_confirm,
-                                 log=log, stop=stop)
+        with stop:
+            res = run_experiment(exp, config=args.config, lockstep=args.lockstep, out=args.out,
+                                 runs_root=args.runs_root, progress=cb, stop=stop,
+                                 confirm=_confirm, log=log)
     finally:
         close()
-    return _report(man.status, man.message, str(man.path))
+    return _report(res.status, res.message, res.manifest)
 
 
 def _report(status: str, message: str, manifest: str) -> int:
@@ -165,34 +143,18 @@ def _report(status: str, message: str, manifest: str) -> int:
     return 130 if status == "interrupted" else 1
 
 
-def _via_daemon(client, args) -> int:
-    path = str(Path(args.file).resolve())
-    run_dir = str(Path(args.out).resolve()) if args.out else None
-    from rigd.service.client import ControlError
+def _via_daemon(args, name: str) -> int:
+    from rigd.api.experiment import connect_daemon, run_experiment_daemon
+
+    client = connect_daemon(args.socket, timeout=args.timeout)
+    cb, close = _progress_sink(name or "experiment")
+
+    def stopping() -> None:
+        print("rigd experiment: stopping after the current segment ...", file=sys.stderr)
 
     try:
-        started = client.call("experiment.start", path=path, **({"run_dir": run_dir}
-                                                                  if run_dir else {}))
-    except ControlError as exc:
-        raise InputError(str(exc), "daemon") from None
-    cb, close = _progress_sink(started.get("name") or "experiment")
-    st: dict = {}
-    try:
-        while True:
-            try:
-                st = client.call("experiment.status")
-                if st.get("total"):
-                    cb(st.get("done", 0), st["total"], st.get("last", ""))
-                if st.get("state") not in ("starting", "running"):
-                    break
-                time.sleep(0.2)
-            except KeyboardInterrupt:
-                client.call("experiment.stop")
-                print("rigd experiment: stopping after the current segment ...",
-                      file=sys.stderr)
+        res = run_experiment_daemon(args.file, client=client, out=args.out, progress=cb,
+                                    on_stop=stopping)
     finally:
         close()
-        client.close()
-    manifest = st.get("manifest") or (str(Path(st["run_dir"]) / "manifest.json")
-                                      if st.get("run_dir") else "?")
-    return _report(st.get("state", "failed"), st.get("message", ""), manifest)
+    return _report(res.status, res.message, res.manifest)

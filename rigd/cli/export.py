@@ -7,7 +7,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 
 from rigd.errors import InputError
 
@@ -30,27 +29,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("-o", "--out", metavar="OUT", help="output interchange CSV (same as --csv)")
 
 
-def parse_fs(text: str) -> float:
-    """``"610.35"`` or ``"10000000/16384"`` -> Hz; InputError on anything else."""
-    try:
-        if "/" in text:
-            a, b = text.split("/", 1)
-            v = float(a) / float(b)
-        else:
-            v = float(text)
-    except (ValueError, ZeroDivisionError):
-        raise InputError(f"not a sample rate: {text!r} (a number of Hz or a ratio a/b)",
-                         "--fs") from None
-    if not (math.isfinite(v) and v > 0):
-        raise InputError(f"sample rate must be positive and finite, got {text!r}", "--fs")
-    return v
-
-
 def _split(v: str | None) -> list[str] | None:
     return None if v is None else [s.strip() for s in v.split(",") if s.strip()]
 
 
 def run(args: argparse.Namespace) -> int:
+    from rigd.api.data import parse_fs
     from rigd.data.export import convert_raw_csv, export_csv
 
     out = args.out or args.csv

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rigd.errors import InputError
+from rigd.cli._args import (add_plain_csv_arguments, add_range_argument, load_options,
+                            print_source)
 
 HELP = "identify grey-box actuator/bearing models (PEM) from a record or a sweep run directory"
 
@@ -51,97 +52,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--offset-samples", type=int, default=2000,
                    help="offsets = mean of the first N samples (default 2000, the paper's)")
     add_range_argument(p)
-    g = p.add_argument_group("plain CSV without rig-data metadata (e.g. Silverbox)")
-    g.add_argument("--fs", help="sample rate, Hz (number or ratio, e.g. 10000000/16384)")
-    g.add_argument("--inputs", help="comma-separated input columns")
-    g.add_argument("--outputs", help="comma-separated output columns")
-
-
-def add_range_argument(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--range", metavar="START:STOP", help="use only samples START:STOP of the "
-                   "record (Python slice, e.g. 40000: or 0:40000)")
-
-
-def apply_range(record, text: str | None):
-    """``record`` sliced by ``START:STOP`` (InputError on a malformed or empty range)."""
-    if not text:
-        return record
-    try:
-        a, b = text.split(":")
-        start = int(a) if a.strip() else None
-        stop = int(b) if b.strip() else None
-    except ValueError:
-        raise InputError(f"--range must look like START:STOP, got {text!r}", "--range") from None
-    out = record.slice(start, stop)
-    if out.n == 0:
-        raise InputError(f"--range {text} selects no samples of {record.n}", "--range")
-    return out
-
-
-def load_data(path: str, fs: str | None = None, inputs: str | None = None,
-              outputs: str | None = None):
-    """Load a record through ``rigd.data.io.load_record`` (plain CSV if ``fs`` is given)."""
-    from rigd.data.io import load_record
-
-    if fs is None:
-        if inputs or outputs:
-            raise InputError("--inputs/--outputs are for plain CSV files and need --fs")
-        return load_record(path)
-    from rigd.cli.export import parse_fs
-
-    def split(v):
-        return [c.strip() for c in v.split(",") if c.strip()] if v else None
-
-    return load_record(path, fs=parse_fs(fs), inputs=split(inputs), outputs=split(outputs))
-
-
-def parse_effects(text: str | None) -> list[str]:
-    """Effect names from ``--add``; unknown names -> InputError listing the known ones."""
-    if not text:
-        return []
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    try:
-        from rigd.effects import REGISTRY
-    except ImportError:  # pragma: no cover
-        REGISTRY = {}
-    unknown = [n for n in names if n not in REGISTRY]
-    if unknown:
-        raise InputError(f"unknown effect(s) {', '.join(unknown)} (known: "
-                         f"{', '.join(sorted(REGISTRY)) or 'none'})", "--add")
-    return names
-
-
-def prefilter_options(args):
-    from rigd.ident.prefilter import PrefilterOptions
-
-    if args.offset_samples <= 0:
-        raise InputError("--offset-samples must be positive", "--offset-samples")
-    return PrefilterOptions(offsets=not args.no_offsets, median=not args.no_median,
-                            runout=not args.no_runout_filter,
-                            offset_samples=args.offset_samples)
-
-
-def summary_json(model, effects: list[str]) -> dict:
-    """The ``--json`` object of ../shared/DESIGN.md for a model file."""
-    subs = model.submodels
-    if len(subs) == 1:
-        (name, sm), = subs.items()
-        fp = sm.fit_percent["validation_mean"]
-        params = sm.parameters
-        std = {n: float(s) for n, s in zip(sm.structure.names, sm.std)}
-        ro = sm.readouts
-    else:
-        fp = {n: sm.fit_percent["validation_mean"] for n, sm in subs.items()}
-        params = {n: sm.parameters for n, sm in subs.items()}
-        std = {n: {p: float(s) for p, s in zip(sm.structure.names, sm.std)}
-               for n, sm in subs.items()}
-        ro = {n: sm.readouts for n, sm in subs.items()}
-    from rigd.ident.modelfile import _plain
-
-    return {"fit_percent": fp, "parameters": params, "effects": effects,
-            "std": std, "readouts": _plain(ro),
-            "fit_percent_per_output": {n: sm.fit_percent for n, sm in subs.items()},
-            "split": model.split, "operating_point": model.operating_point}
+    add_plain_csv_arguments(p)
 
 
 def _print_human(model, out) -> None:
@@ -184,36 +95,34 @@ def _fmt_poles(poles) -> str:
     return f"{v.real:.5g} ± {abs(v.imag):.5g}j"
 
 
+def _prefilter_kw(args: argparse.Namespace) -> dict:
+    return {"offsets": not args.no_offsets, "median": not args.no_median,
+            "runout_filter": not args.no_runout_filter, "offset_samples": args.offset_samples}
+
+
 def run(args: argparse.Namespace) -> int:
-    from rigd.ident.modelfile import load_model, sha256_file
+    from rigd import api
 
-    effects = parse_effects(args.add)
     if Path(args.data).is_dir():
-        from rigd.ident.oprange import identify_sweep
-
-        res = identify_sweep(args.data, out=args.out, jobs=args.jobs, method=args.method,
-                             options=prefilter_options(args), split=args.split)
+        api.parse_effects(args.add)
+        res = api.identify_sweep(args.data, out=args.out, jobs=args.jobs, method=args.method,
+                                 split=args.split, **_prefilter_kw(args))
         if args.json:
-            json.dump(res.summary(), sys.stdout)
+            json.dump({**res.summary(), "source": res.source}, sys.stdout)
             print()
         else:
+            print_source(res.source)
             print(res.text())
         return 0
-    from rigd.ident.workflow import identify_record
-
-    record = apply_range(load_data(args.data, args.fs, args.inputs, args.outputs), args.range)
-    runout = load_data(args.runout) if args.runout else None
-    init = load_model(args.init) if args.init else None
-    model = identify_record(record, args.model, runout=runout, options=prefilter_options(args),
-                            method=args.method, init=init, effects=effects, split=args.split,
-                            data_hash=sha256_file(args.data), hold=args.hold)
-    if args.out:
-        model.save(args.out)
+    idf = api.identify(args.data, args.model, runout=args.runout, add=args.add,
+                       method=args.method, init=args.init, split=args.split, hold=args.hold,
+                       out=args.out, **_prefilter_kw(args), **load_options(args))
     if args.json:
-        json.dump(summary_json(model, effects), sys.stdout)
+        json.dump(idf.summary(), sys.stdout)
         print()
     else:
-        _print_human(model, sys.stdout)
+        print_source(idf.source)
+        _print_human(idf.model, sys.stdout)
         if args.out:
             print(f"model written to {args.out}")
     return 0

@@ -2,29 +2,17 @@
 
 Parses the arguments, configures logging, builds the loop from the config, runs it for
 ``--duration`` seconds (or until SIGINT/SIGTERM or a service ``stop``) and prints the timing
-statistics. When the service package provides ``rigd.service.daemon.Daemon`` the run is wrapped
-in it (control socket, sd_notify, signals).
+statistics. The run is wrapped in :class:`rigd.service.daemon.Daemon` (control socket,
+sd_notify, signals). A ``--record`` file says its ``source`` (simulated or rig) and drivers.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import importlib
 import json
-import signal
 import sys
 
 HELP = "run the 5 kHz control loop (simulated plant by default), print timing statistics"
-
-
-def _daemon_module():
-    try:
-        return importlib.import_module("rigd.service.daemon")
-    except ModuleNotFoundError as exc:
-        if exc.name in ("rigd.service.daemon",):
-            return None
-        raise
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -41,9 +29,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="enable the loaded K∞ at start (bumpless ramp)")
     p.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
     p.add_argument("--json", action="store_true", help="print the timing statistics as JSON")
-    mod = _daemon_module()
-    if mod is not None and hasattr(mod, "add_arguments"):
-        mod.add_arguments(p)
+    from rigd.service import daemon
+
+    daemon.add_arguments(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -70,56 +58,47 @@ def run(args: argparse.Namespace) -> int:
         print(f"{args.config}: configuration OK ({loop.clock} clock, fast driver "
               f"{lc.config.drivers.fast.name!r})")
         return 0
-    mod = _daemon_module()
-    service = (mod.Daemon(loop, lc, args) if mod is not None and hasattr(mod, "Daemon")
-               else contextlib.nullcontext())
-    previous = {}
+    from rigd.driver import data_source
+    from rigd.loop.sinks import RecordSpec
+    from rigd.service.daemon import Daemon
 
-    def _stop(signum, _frame):
-        loop.stop()
-
-    if mod is None:
-        for s in (signal.SIGINT, signal.SIGTERM):
-            previous[s] = signal.signal(s, _stop)
+    service = Daemon(loop, lc, args)
     sink = None
     status = 0
-    try:
-        with loop:
-            if args.record:
-                sink = loop.start_recording(args.record)
-            if args.enable_controller:
-                loop.enable_controller(True)
-            logger.info("loop running", clock=loop.clock, fs_hz=loop.fs, config=args.config,
-                        duration_s=args.duration, record=args.record)
-            with service:
-                try:
-                    if loop.clock == "lockstep":
-                        if args.duration is None:
-                            while not loop.stopped:
-                                loop.run_cycles(loop.config.clock.batch_cycles)
-                        else:
-                            loop.run_for(args.duration)
+    with loop:
+        if args.record:
+            sink = loop.start_recording(RecordSpec(args.record,
+                                                   data_source(loop.fast, loop.slow)))
+        if args.enable_controller:
+            loop.enable_controller(True)
+        logger.info("loop running", clock=loop.clock, fs_hz=loop.fs, config=args.config,
+                    duration_s=args.duration, record=args.record)
+        with service:
+            try:
+                if loop.clock == "lockstep":
+                    if args.duration is None:
+                        while not loop.stopped:
+                            loop.run_cycles(loop.config.clock.batch_cycles)
                     else:
-                        loop.start()
-                        loop.wait(args.duration)
-                except Exception:
-                    if loop.loop_error is None:
-                        raise       # not the loop's death (that is reported below)
-            if sink is not None:
-                try:
-                    loop.stop_recording(sink)
-                except Exception as exc:  # e.g. disk full: already a latched fault, logged
-                    from rigd.loop.recorder import RecordingFailed
+                        loop.run_for(args.duration)
+                else:
+                    loop.start()
+                    loop.wait(args.duration)
+            except Exception:
+                if loop.loop_error is None:
+                    raise       # not the loop's death (that is reported below)
+        if sink is not None:
+            try:
+                loop.stop_recording(sink)
+            except Exception as exc:  # e.g. disk full: already a latched fault, logged
+                from rigd.loop.recorder import RecordingFailed
 
-                    first = str(exc).splitlines()[0]
-                    # RecordingFailed already names the file, the reason and what it keeps
-                    failed = (first if isinstance(exc, RecordingFailed)
-                              else f"recording {args.record} incomplete: {first}")
-                    print(f"rigd run: {failed}", file=sys.stderr)
-                    status = 1
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
+                first = str(exc).splitlines()[0]
+                # RecordingFailed already names the file, the reason and what it keeps
+                failed = (first if isinstance(exc, RecordingFailed)
+                          else f"recording {args.record} incomplete: {first}")
+                print(f"rigd run: {failed}", file=sys.stderr)
+                status = 1
     if loop.loop_error is not None:
         # outputs were set safe when it died; a non-zero exit makes systemd restart us
         print(f"rigd run: the loop died ({loop.loop_error!r}); outputs were set safe",

@@ -12,6 +12,7 @@ Every experiment run writes into a NEW directory (never reused, nothing overwrit
     {"rigd_manifest": 1, "experiment": {"name", "kind", "source", "spec", "spec_sha256"},
      "status": "running" | "complete" | "interrupted" | "failed",
      "started": ISO, "finished": ISO | null, "host": str, "mode": "lockstep" | "realtime",
+     "source": "simulated" | "rig", "drivers": {"fast": name, "slow": [names]},
      "software": {"rigd_version", "python", "numpy", "h5py"},
      "config": {"path": str | null, "sha256": str | null}, "fs_hz": float,
      "points": [{"index", "omega_rpm", "p_inj_bar", "status": "done" | "missing" | "failed"
@@ -109,6 +110,8 @@ class Manifest:
     config: dict[str, Any] = field(default_factory=lambda: {"path": None, "sha256": None})
     points: list[dict[str, Any]] = field(default_factory=list)
     files: list[dict[str, Any]] = field(default_factory=list)
+    source: str | None = None
+    drivers: dict[str, Any] = field(default_factory=dict)
     status: str = "running"
     started: str = field(default_factory=now_iso)
     finished: str | None = None
@@ -143,6 +146,8 @@ class Manifest:
             "finished": self.finished,
             "host": platform.node(),
             "mode": self.mode,
+            "source": self.source,
+            "drivers": self.drivers,
             "software": software(),
             "config": self.config,
             "fs_hz": self.fs_hz,

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from rigd.driver import data_source
 from rigd.errors import FaultError, InputError
 from rigd.experiments.manifest import Manifest, new_run_dir, now_iso, sha256_text
 from rigd.experiments.points import (
@@ -114,6 +115,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         raise InputError("K∞ on is requested (controller) but the loop has no controller "
                          "loaded: set 'controller:' in the rig config", exp.source)
     k_was = controller_enabled(loop)
+    src = data_source(loop.fast, getattr(loop, "slow", ()))
     rd = new_run_dir(run_dir, exp.name, runs_root)
     cfg_text = config_text
     if cfg_text is None:
@@ -126,7 +128,8 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
                     "spec_sha256": sha256_text(exp.text) if exp.text else None},
         mode=str(getattr(loop, "clock", "unknown")), fs_hz=fs,
         config={"path": config_path or getattr(getattr(loop, "loaded", None), "path", None),
-                "sha256": sha256_text(cfg_text) if cfg_text else None})
+                "sha256": sha256_text(cfg_text) if cfg_text else None},
+        **src)
     if isinstance(exp.spec, SweepSpec):
         ops = exp.spec.points()
     else:
@@ -147,7 +150,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
     def should_stop() -> bool:
         return stop is not None and stop.is_set()
 
-    base_meta = {"experiment": exp.name, "run_dir": rd.name}
+    base_meta = {"experiment": exp.name, "run_dir": rd.name, **src}
     runner = PointRunner(loop, man, fs, base_meta, tick, should_stop)
     current: dict[str, Any] | None = None
     try:

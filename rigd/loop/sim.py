@@ -14,6 +14,7 @@ import numpy as np
 
 from rigd import __version__
 from rigd.data.record import Record
+from rigd.driver import data_source
 from rigd.frame import RECORD_NAMES
 from rigd.rigconfig import LoadedConfig, RigConfig, default_config, load_config
 
@@ -105,6 +106,7 @@ def simulate_record(config=None, excitation=None, *, effects=None, seed: int | N
                          "kind": kind, "seed": info.get("seed", seed),
                          "effects": info.get("effects_enabled", []),
                          "first_seq": res.first_seq, "faults": res.faults,
-                         "rigd_version": __version__}   # made by rigd's loop, as a recording
+                         "rigd_version": __version__,   # made by rigd's loop, as a recording
+                         **data_source(plant, loop.slow)}
     m.update(meta or {})
     return Record(cols, lc.config.loop.fs_hz, m, source="<simulate_record>")

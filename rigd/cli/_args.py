@@ -1,0 +1,36 @@
+"""Argument helpers shared by the modelling commands (not a command itself).
+
+Commands never import each other; what several of them parse is defined once here.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+
+def add_range_argument(p: argparse.ArgumentParser) -> None:
+    """``--range START:STOP``: use only these samples of the record."""
+    p.add_argument("--range", metavar="START:STOP", help="use only samples START:STOP of the "
+                   "record (Python slice, e.g. 40000: or 0:40000)")
+
+
+def add_plain_csv_arguments(p: argparse.ArgumentParser) -> None:
+    """``--fs/--inputs/--outputs`` for plain CSV files without rig-data metadata."""
+    g = p.add_argument_group("plain CSV without rig-data metadata (e.g. Silverbox)")
+    g.add_argument("--fs", help="sample rate, Hz (number or ratio, e.g. 10000000/16384)")
+    g.add_argument("--inputs", help="comma-separated input columns")
+    g.add_argument("--outputs", help="comma-separated output columns")
+
+
+def load_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The keyword arguments of :func:`rigd.api.load` given on the command line."""
+    return {"fs": args.fs, "inputs": args.inputs, "outputs": args.outputs,
+            "range": args.range}
+
+
+def print_source(info: dict[str, Any], file: Any = None) -> None:
+    """Say where the record came from (``source: simulated (drivers: fast sim)``)."""
+    from rigd.api.data import source_text
+
+    print(source_text(info), file=file)
