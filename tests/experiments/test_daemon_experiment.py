@@ -69,6 +69,7 @@ def test_experiment_runs_inside_the_daemon(tmp_path):
         assert man["status"] == "complete"
         # played by the daemon's loop thread, not in-process lock-step
         assert man["mode"] == "realtime"
+        assert man["source"] == "simulated" and man["drivers"] == {"fast": "sim", "slow": []}
         files = man["files"]
         assert len(files) == 1 and files[0]["kind"] == "prbs"
         rec = load_record(out / files[0]["path"])
@@ -78,6 +79,7 @@ def test_experiment_runs_inside_the_daemon(tmp_path):
         x = rec.col("x_x")
         assert set(np.unique(np.round(x[x != 0], 9))) == {-0.5, 0.5}
         assert rec.p_inj_bar == 4.0
+        assert rec.meta["source"] == "simulated" and rec.meta["drivers"]["fast"] == "sim"
 
         # a bad experiment file is refused by the client before the daemon sees it
         bad = tmp_path / "bad.yaml"
