@@ -23,11 +23,23 @@ from __future__ import annotations
 
 from rigd.api.data import apply_range, describe_source, load, parse_fs, parse_range
 from rigd.api.design import Design, design
-from rigd.api.experiment import (ExperimentResult, connect_daemon, run_experiment,
-                                 run_experiment_daemon)
+from rigd.api.experiment import (
+                                 ExperimentResult,
+                                 connect_daemon,
+                                 run_experiment,
+                                 run_experiment_daemon,
+)
 from rigd.api.impact import analyze_impact
-from rigd.api.modelling import (ComparisonResult, DiagnosisResult, Identification, compare,
-                                diagnose, identify, identify_sweep, parse_effects)
+from rigd.api.modelling import (
+                                 ComparisonResult,
+                                 DiagnosisResult,
+                                 Identification,
+                                 compare,
+                                 diagnose,
+                                 identify,
+                                 identify_sweep,
+                                 parse_effects,
+)
 
 __all__ = ["ComparisonResult", "Design", "DiagnosisResult", "ExperimentResult",
            "Identification", "analyze_impact", "apply_range", "compare", "connect_daemon",

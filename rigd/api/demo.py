@@ -200,13 +200,15 @@ def _write_index(out: Path, s: dict) -> None:
              "impact_report/*/index.html. Numbers: summary.json.")
     rep.table(["quantity", "value"],
               [["gamma", f"{s['gamma']:.3f}"],
-               ["controller order (full)", f"{s['controller_order']} ({s['controller_order_full']})"],
+               ["controller order (full)",
+                f"{s['controller_order']} ({s['controller_order_full']})"],
                ["worst in-band S_o reduction (30 realizations)",
                 f"{s['sensitivity_reduction_min']:.2f}"],
                ["worst S_o reduction at each realization's own resonances (max singular "
                 "value / mode direction)", f"{s['sensitivity_reduction_at_resonance_min']:.2f} / "
                 f"{s['sensitivity_reduction_at_resonance_mode_direction_min']:.2f}"],
-               ["peak |S_o|", f"{s['sensitivity_peak_max']:.2f} at {s['sensitivity_peak_hz']:.0f} Hz"],
+               ["peak |S_o|",
+                f"{s['sensitivity_peak_max']:.2f} at {s['sensitivity_peak_hz']:.0f} Hz"],
                ["max |S_o| below 20 Hz", f"{s['sensitivity_lowfreq_max']:.3f}"],
                ["|K(1 Hz)| / max |K| in band", f"{s['controller_gain_1hz_over_band_max']:.4f}"],
                ["robustness model", s["robustness_model"]]])

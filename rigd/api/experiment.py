@@ -11,9 +11,10 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from rigd.errors import InputError
 
@@ -61,7 +62,8 @@ class ExperimentResult:
 
 def default_config():
     """``config/sim.yaml`` if present in the working directory, else the built-in sim rig."""
-    from rigd.rigconfig import default_config as builtin, load_config
+    from rigd.rigconfig import default_config as builtin
+    from rigd.rigconfig import load_config
 
     if Path("config/sim.yaml").exists():
         return load_config("config/sim.yaml")
@@ -72,7 +74,8 @@ def run_experiment(spec: Any, *, config: Any = None, lockstep: bool = True,
                    out: str | Path | None = None, runs_root: str | Path = "runs",
                    controller: str | Path | None = None, progress: Progress | None = None,
                    stop: threading.Event | None = None,
-                   confirm: Callable[[str], bool] | None = None, log: Any = None) -> ExperimentResult:
+                   confirm: Callable[[str], bool] | None = None,
+                   log: Any = None) -> ExperimentResult:
     """Run an experiment in this process on a loop built from a rig configuration.
 
     Parameters
@@ -102,9 +105,9 @@ def run_experiment(spec: Any, *, config: Any = None, lockstep: bool = True,
         Status, message and the manifest path; records are HDF5 files in the run directory,
         their metadata and the manifest say ``source: simulated | rig`` and the drivers.
     """
-    from rigd.rigconfig import LoadedConfig, load_config
     from rigd.experiments.runner import run_experiment as _run
     from rigd.loop.app import build_loop
+    from rigd.rigconfig import LoadedConfig, load_config
 
     if config is None:
         lc = default_config()

@@ -11,8 +11,7 @@ import argparse
 import json
 import sys
 
-from rigd.cli._args import (add_plain_csv_arguments, add_range_argument, load_options,
-                            print_source)
+from rigd.cli._args import add_plain_csv_arguments, add_range_argument, load_options, print_source
 
 HELP = "compare an identified model with a measured record (fit, residuals, report)"
 

@@ -9,7 +9,6 @@ import shutil
 import control
 import numpy as np
 import yaml
-
 from testpaths import ROOT
 
 DOC = ROOT / "docs" / "api.md"

@@ -10,9 +10,9 @@ import subprocess
 import sys
 
 import pytest
+from testpaths import ROOT
 
 from rigd.data import load_record
-from testpaths import ROOT
 
 RIGD = [sys.executable, "-c", "import sys; from rigd.cli import main; sys.exit(main())"]
 EXP = ("kind: prbs\noperating_point: {omega_rpm: 0, p_inj_bar: 4}\namplitude_v: 1\n"
