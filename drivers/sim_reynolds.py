@@ -41,6 +41,7 @@ class ReynoldsPlantDriver(FastDriver):
     """
 
     name = "sim_reynolds"
+    simulated = True            # its records say source: simulated
     Options = ReynoldsOptions
 
     def __init__(self, options: dict[str, Any] | ReynoldsOptions | None = None,

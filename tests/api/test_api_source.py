@@ -70,3 +70,20 @@ def test_api_results_carry_source(files):
     idf = api.identify(rec, "actuator")
     assert idf.source == SIM and idf.summary()["source"] == SIM
     assert api.compare(idf, rec).source == SIM
+
+
+def test_every_simulated_driver_says_so():
+    """A simulated plant must never label its records `source: rig`: every registered driver
+    named sim* declares `simulated`, the hardware drivers do not."""
+    from rigd.driver import available_drivers, data_source, driver_class
+
+    names = available_drivers()
+    assert {"sim", "serial", "modbus"} <= set(names)
+    for name in names:
+        cls = driver_class(name)
+        assert cls.simulated is name.startswith("sim"), name
+    fake = type("D", (), {"name": "serial", "simulated": False})()
+    sim = type("S", (), {"name": "sim", "simulated": True})()
+    assert data_source(fake, [])["source"] == "rig"
+    assert data_source(fake, [sim]) == {"source": "simulated",
+                                        "drivers": {"fast": "serial", "slow": ["sim"]}}
