@@ -90,6 +90,17 @@ def test_experiment_runs_inside_the_daemon(tmp_path):
         assert len(r.stderr.strip().splitlines()) == 1 and "duration_s" in r.stderr
         assert "Traceback" not in r.stderr
         assert not (tmp_path / "run2").exists()
+
+        # the same from Python (rigd.api), progress reported, the manifest says its source
+        from rigd.api import run_experiment_daemon
+
+        seen = []
+        res = run_experiment_daemon(exp, socket=sock, out=tmp_path / "run3",
+                                    progress=lambda d, t, s: seen.append((d, t)))
+        assert res.ok and res.mode == "daemon" and seen and seen[-1][1] >= 1
+        man3 = res.read_manifest()
+        assert man3["mode"] == "realtime" and man3["source"] == "simulated"
+        assert len(man3["files"]) == 1 and (tmp_path / "run3" / man3["files"][0]["path"]).exists()
         # the daemon is still alive and well
         assert proc.poll() is None
     finally:
