@@ -142,7 +142,8 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
              method: str = "pem", init: Any = None, split: float = DEFAULT_SPLIT,
              hold: str = "auto", offsets: bool = True, median: bool = True,
              runout_filter: bool = True, offset_samples: int = 2000,
-             out: str | Path | None = None, **load_kw: Any) -> Identification:
+             out: str | Path | None = None, order: str | int = "auto",
+             **load_kw: Any) -> Identification:
     """Identify grey-box models of a record by the prediction-error method (paper Sec. 4).
 
     Parameters
@@ -170,6 +171,9 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
         filter on e_x, e_y, run-out filter (with ``runout``).
     out : path, optional
         Write the model file here.
+    order : "auto" or int
+        Generic records: modes of the base model, or ``auto`` (chosen from the data,
+        :func:`rigd.ident.order.choose_order`).
 
     Returns
     -------
@@ -190,7 +194,7 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
     model = identify_record(record, submodels, runout=ro, options=options, method=method,
                             init=_as_model(init) if init is not None else None,
                             effects=effects, split=split, data_hash=_data_hash(data),
-                            hold=hold)
+                            hold=hold, order=order)
     if out:
         model.save(out)
     return Identification(model, effects, describe_source(record.meta))
@@ -354,7 +358,7 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
              submodels: list[str] | None = None, est: str | slice | None = None,
              val: str | slice | None = None, split: float | None = None,
              effects: str | list[str] | None = None, refit: bool = True, hold: str = "auto",
-             steps: int = 3, report: str | Path | None = None,
+             steps: int = 3, report: str | Path | None = None, order: str | int = "auto",
              **load_kw: Any) -> DiagnosisResult:
     """Diagnose a record: residual analysis, catalogue signatures, forward selection.
 
@@ -380,6 +384,8 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
         Most effects added one after another (forward selection).
     report : path, optional
         Write the report page into this directory.
+    order : "auto" or int
+        Generic records: modes of the base model (as :func:`identify`).
 
     Returns
     -------
@@ -415,7 +421,7 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
                                  "at least 100", f"--{what}")
     diag = diagnose_record(rec, runout=ro, submodels=submodels, est=est_s, val=val_s,
                            effects=names, refit=refit, hold=hold, split=split,
-                           max_steps=steps)
+                           max_steps=steps, order=order)
     res = DiagnosisResult(diag, describe_source(rec.meta))
     if report:
         from rigd.diagnose.report_page import write_report

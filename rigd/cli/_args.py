@@ -15,6 +15,28 @@ def add_range_argument(p: argparse.ArgumentParser) -> None:
                    "record (Python slice, e.g. 40000: or 0:40000)")
 
 
+def parse_order(text: str) -> str | int:
+    """``auto`` or a number of modes ≥ 1 (argparse type of ``--order``)."""
+    if text == "auto":
+        return text
+    try:
+        v = int(text)
+    except ValueError:
+        v = 0
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be 'auto' or a number of modes >= 1, got "
+                                         f"{text!r}")
+    return v
+
+
+def add_order_argument(p: argparse.ArgumentParser) -> None:
+    """``--order auto|N``: modes of a generic record's base model (rigd.ident.order)."""
+    p.add_argument("--order", type=parse_order, default="auto", metavar="auto|N",
+                   help="generic records: number of modes of the base model, or auto (chosen "
+                        "from the data: subspace estimate + output-error refit, kept while a "
+                        "mode adds >= 0.5 validation points; default)")
+
+
 def add_plain_csv_arguments(p: argparse.ArgumentParser) -> None:
     """``--fs/--inputs/--outputs`` for plain CSV files without rig-data metadata."""
     g = p.add_argument_group("plain CSV without rig-data metadata (e.g. Silverbox)")

@@ -7,7 +7,7 @@ import argparse
 import json
 
 from rigd.api.data import source_text
-from rigd.cli._args import load_options
+from rigd.cli._args import add_order_argument, load_options
 
 HELP = "diagnose a model on a record: where it fails, which physical effect is missing"
 
@@ -34,6 +34,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="inputs between samples: held (zoh) or linear (foh); auto, as rigd "
                         "identify: declared by the record, known for rigd recordings, else "
                         "chosen from the data by fit")
+    add_order_argument(p)
     p.add_argument("--no-refit", action="store_true",
                    help="signature tests only (fit_percent_with = base fit)")
     p.add_argument("--fs", help="sample rate of a plain CSV without metadata, Hz (number or "
@@ -48,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
     res = api.diagnose(args.data, runout=args.runout, submodels=args.submodel, est=args.est,
                        val=args.val, split=args.split, effects=args.effects,
                        refit=not args.no_refit, hold=args.hold, steps=args.steps,
+                       order=args.order,
                        report=args.report, **load_options(args))
     out = res.summary()
     if args.json:

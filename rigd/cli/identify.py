@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rigd.cli._args import add_plain_csv_arguments, add_range_argument, load_options, print_source
+from rigd.cli._args import (add_order_argument, add_plain_csv_arguments, add_range_argument,
+                         load_options, print_source)
 
 HELP = "identify grey-box actuator/bearing models (PEM) from a record or a sweep run directory"
 
@@ -50,6 +51,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="parallel processes for a run directory (default: all cores)")
     p.add_argument("--offset-samples", type=int, default=2000,
                    help="offsets = mean of the first N samples (default 2000, the paper's)")
+    add_order_argument(p)
     add_range_argument(p)
     add_plain_csv_arguments(p)
 
@@ -115,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     idf = api.identify(args.data, args.model, runout=args.runout, add=args.add,
                        method=args.method, init=args.init, split=args.split, hold=args.hold,
-                       out=args.out, **_prefilter_kw(args), **load_options(args))
+                       order=args.order, out=args.out, **_prefilter_kw(args), **load_options(args))
     if args.json:
         json.dump(idf.summary(), sys.stdout)
         print()

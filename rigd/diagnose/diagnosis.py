@@ -49,6 +49,7 @@ class Diagnosis:
                       if multi else [s.to_json() for s in self.parts[0].steps]),
             "tests": {p.submodel: p.tests for p in self.parts},
             "analysed_samples": {p.submodel: list(p.window) for p in self.parts},
+            "order": {p.submodel: p.order for p in self.parts if p.order is not None},
             "notes": list(self.notes),
         }
 
@@ -70,7 +71,7 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                     effects: list[str] | None = None, refit: bool = True,
                     max_samples: int = MAX_SAMPLES, options=None,
                     hold: str = "auto", split: float | None = None,
-                    max_steps: int = MAX_STEPS) -> Diagnosis:
+                    max_steps: int = MAX_STEPS, order: str | int = "auto") -> Diagnosis:
     """Diagnose a :class:`rigd.data.Record` (prefilters of §4.4, then each sub-model).
 
     The base model of each sub-model is what ``rigd identify --method oe`` fits on the same
@@ -83,6 +84,12 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
 
     Records longer than ``max_samples`` are analysed on their central ``max_samples``
     samples (a note says which; ``rigd identify --range A:B`` fits the same window).
+
+    ``order`` (generic records): ``"auto"`` — the number of modes is chosen from the data
+    (:func:`rigd.ident.order.choose_order`: subspace estimate of what the residual still
+    carries, output-error refinement, kept while it adds ≥ 0.5 validation points), so the
+    effects are sought on the best linear model of the class; or the number of modes.
+    A higher order than one mode per output is reported (note and ``order`` in the JSON).
     """
     from rigd.errors import InputError
     from rigd.ident.workflow import DEFAULT_SPLIT, prepare
@@ -116,8 +123,26 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                              where=record.source)
         notes.append(f"{sub}: inputs between samples: {choice.describe()}")
         structure = structure_for(sub, data, hold=choice.hold)
+        theta0, chosen = None, None
+        if sub == "generic":
+            from rigd.ident.order import ModalStructure, choose_order
+
+            try:
+                chosen = choose_order(structure, data, est, val, order)
+            except ValueError as exc:
+                raise InputError(str(exc), "--order") from None
+            structure, theta0 = chosen.structure, chosen.theta
+            notes.append(f"{sub}: base model order: {chosen.describe()}")
+            if isinstance(structure, ModalStructure):
+                missed = ", ".join(f"{f:.4g} Hz" for f, _, _ in structure.modes_of(theta0))
+                notes.append(f"{sub}: one mode per output misses mode(s) at {missed}: the "
+                             f"base model has {chosen.modes} modes (fit "
+                             f"{chosen.fits[structure.base.n]:.2f} % with "
+                             f"{structure.base.n})")
         sd = diagnose_data(data, sub, structure=structure, est=est, val=val, effects=effects,
-                           refit=refit, max_steps=max_steps)
+                           refit=refit, max_steps=max_steps, theta0=theta0)
+        if chosen is not None:
+            sd.order = chosen.to_json()
         sd.window = window
         parts.append(sd)
     return Diagnosis(parts, record.source, notes)

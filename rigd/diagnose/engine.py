@@ -94,6 +94,8 @@ class SubDiagnosis:
     refits: dict[str, Refit] = field(default_factory=dict)
     window: tuple[int, int] = (0, 0)
     steps: list[Step] = field(default_factory=list)
+    #: the base model's number of modes and how it was chosen (generic records)
+    order: dict[str, Any] | None = None
 
     @property
     def final(self) -> Step:
@@ -109,6 +111,8 @@ def _fit(structure, data, theta0=None, max_nfev=None):
 
 def model_resonances(structure, theta) -> list[float]:
     """Resonance frequencies (Hz) of the base model's linear part."""
+    if hasattr(structure, "resonances_hz"):  # parallel modes (rigd.ident.order)
+        return [round(f, 3) for f in structure.resonances_hz(theta)]
     try:
         if hasattr(structure, "continuous"):
             A = structure.continuous(theta)[0]

@@ -107,9 +107,11 @@ def summary(comps: dict[str, Comparison]) -> dict[str, Any]:
 def model_frequency_response(structure, theta, f_hz: np.ndarray) -> np.ndarray:
     """H(j2πf) (nf, ny, nu) of the linear part of ``structure`` at ``theta``."""
     base = structure
-    while hasattr(base, "base"):
+    while hasattr(base, "effect"):  # effect wrappers; a ModalStructure is a base
         base = base.base
-    A, B, C, D, _ = base.continuous(np.asarray(theta)[:len(base.names)])
+    th = np.asarray(theta)[:len(base.names)]
+    A, B, C, D = (base.full_abcd(th) if hasattr(base, "full_abcd")
+                  else base.continuous(th)[:4])
     n = A.shape[0]
     out = np.empty((len(f_hz), C.shape[0], B.shape[1]), complex)
     for i, f in enumerate(f_hz):

@@ -64,6 +64,8 @@ class StructureSpec(StrictModel):
     nu: int | None = None
     hold: str | None = None
     effects: list[str] = Field(default_factory=list)
+    #: parallel modes beyond one per output (generic, rigd.ident.order.ModalStructure)
+    extra_modes: int = Field(0, ge=0)
 
 
 class SubmodelEntry(StrictModel):
@@ -106,8 +108,8 @@ class Submodel:
 
     def ss(self):
         """Continuous python-control StateSpace of the (linear part of the) sub-model."""
-        st = getattr(self.structure, "base", self.structure)
-        while hasattr(st, "base"):
+        st = self.structure
+        while hasattr(st, "effect"):  # effect wrappers; a ModalStructure is a base
             st = st.base
         return st.ss(np.asarray(self.theta)[:len(st.names)])
 
@@ -141,7 +143,7 @@ class ModelFile:
         for name, sm in self.submodels.items():
             spec = dict(sm.structure.spec()) if hasattr(sm.structure, "spec") else {}
             base = sm.structure
-            while hasattr(base, "base"):
+            while hasattr(base, "effect"):  # effect wrappers; a ModalStructure is a base
                 base = base.base
             spec = dict(base.spec())
             spec["effects"] = list(getattr(sm.structure, "effects", []))
@@ -192,6 +194,12 @@ def rebuild_structure(spec: StructureSpec | dict, where: str = "<model>"):
     if spec.kind not in ("actuator", "bearing", "generic"):
         raise InputError(f"unknown structure kind {spec.kind!r}", where)
     st = structure_for(spec.kind, spec=spec.model_dump())
+    if spec.extra_modes:
+        if spec.kind != "generic":
+            raise InputError("extra_modes is for generic structures only", where)
+        from rigd.ident.order import ModalStructure
+
+        st = ModalStructure(st, spec.extra_modes)
     if spec.effects:
         st = apply_effects(st, spec.effects, where)
     return st

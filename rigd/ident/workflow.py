@@ -74,7 +74,7 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData) -> np.ndarray:
     state gives the regressors.
     """
     base = structure
-    while hasattr(base, "base"):
+    while hasattr(base, "effect"):  # effect wrappers (their parameters come last)
         base = base.base
     idx = list(getattr(base, "x0_index", []))
     if not idx:
@@ -123,7 +123,8 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                     runout: Record | None = None, options: PrefilterOptions | None = None,
                     method: str = "pem", init: ModelFile | None = None,
                     effects: list[str] | None = None, split: float = DEFAULT_SPLIT,
-                    data_hash: str | None = None, hold: str | None = None) -> ModelFile:
+                    data_hash: str | None = None, hold: str | None = None,
+                    order: str | int = "auto") -> ModelFile:
     """Identify the asked sub-models of ``record``; returns a :class:`ModelFile`.
 
     Parameters
@@ -146,6 +147,9 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     hold : {"zoh", "foh", "auto"}, optional
         How the inputs behave between samples; default/``"auto"``: declared by the record,
         known for rigd recordings, else chosen from the data (:mod:`rigd.ident.hold`).
+    order : "auto" or int
+        Generic records: number of modes, or ``auto`` to choose it from the data
+        (:func:`rigd.ident.order.choose_order`, as ``rigd diagnose``).
     """
     if isinstance(submodels, str):
         submodels = resolve_submodels(record, submodels)
@@ -164,6 +168,19 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         base = structure_for(sm, data, hold=choice.hold)
         th0 = _start_values(base, init, sm, est)
         res = fit(base, est, method=method, theta0=th0)
+        order_info = None
+        if sm == "generic":
+            from rigd.ident.order import choose_order
+
+            try:
+                oc = choose_order(base, data, slice(0, k), slice(k, data.n), order,
+                                  base_theta=res.theta if res.method == "oe" else None)
+            except ValueError as exc:
+                raise InputError(str(exc), "--order") from None
+            order_info = oc.to_json()
+            if oc.structure is not base:
+                base = oc.structure
+                res = fit(base, est, method=method, theta0=oc.theta)
         structure, theta, std, used = base, res.theta, res.std, res.method
         applied = _effects_for(effects, sm)
         if applied:
@@ -182,7 +199,8 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                             {"estimation": fe.tolist(), "validation": fv.tolist(),
                              "validation_mean": float(np.mean(fv)),
                              "outputs": data.output_names,
-                             "input_hold": choice.as_dict()},
+                             "input_hold": choice.as_dict(),
+                             **({"order": order_info} if order_info else {})},
                             readouts, residual_stats(data.y[k:], ysim[k:], data.output_names))
         subs[sm].residual["iterations"] = {"nfev": res.nfev, "status": res.status}
         split_info = {"estimation": [0, k], "validation": [k, data.n], "fraction": split}

@@ -1,0 +1,62 @@
+"""Base model of the right order (rigd.ident.order, rigd.ident.subspace): subspace estimate,
+output-error refinement, number of modes by validation fit; model files and compare."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy import signal
+
+import benchmarks as B  # tests/diagnose/benchmarks.py
+from rigd.cli import main
+from rigd.ident.subspace import continuous_modes, n4sid_a
+
+
+def test_n4sid_recovers_two_modes_of_a_known_system():
+    fs = 1000.0
+    modes = [(31.0, 0.02), (140.0, 0.03)]
+    num, den = np.array([0.0]), np.array([1.0])
+    for f, z in modes:
+        w = 2 * np.pi * f
+        num = np.polyadd(np.polymul(num, [1, 2 * z * w, w * w]), np.polymul(den, [w * w]))
+        den = np.polymul(den, [1, 2 * z * w, w * w])
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(6000)
+    _, y = signal.dlsim(signal.cont2discrete((num, den), 1 / fs, "zoh"), u)
+    y = y[:, 0] + 0.01 * np.std(y) * rng.standard_normal(len(u))
+    A, _, _ = n4sid_a(u[:, None], y[:, None], 4, horizon=20)
+    got = continuous_modes(A, fs)
+    assert len(got) == 2
+    for (f, z), (ft, zt) in zip(got, modes):
+        assert abs(f - ft) < 0.01 * ft and abs(z - zt) < 0.3 * zt, got
+
+
+def _csv(path, rec):
+    u, y = rec.inputs[0], rec.outputs[0]
+    np.savetxt(path, np.column_stack([rec.col(u), rec.col(y)]), delimiter=",",
+               header=f"{u},{y}", comments="")
+    return ["--fs", str(rec.fs), "--inputs", u, "--outputs", y]
+
+
+def test_identify_order_auto_model_file_and_compare(tmp_path, capsys):
+    rec = B.three_mode(seed=5)
+    opts = _csv(tmp_path / "d.csv", rec)
+    assert main(["identify", str(tmp_path / "d.csv"), *opts, "--method", "oe", "--json",
+                 "-o", str(tmp_path / "m.yaml")]) == 0
+    js = json.loads(capsys.readouterr().out)
+    assert js["fit_percent"] >= 95.0
+    assert js["fit_percent_per_output"]["generic"]["order"]["modes"] == 3
+    # the model file keeps the modes (and their initial states, re-estimated by compare)
+    assert main(["compare", str(tmp_path / "m.yaml"), str(tmp_path / "d.csv"), *opts,
+                 "--range", "5000:", "--json"]) == 0
+    cmp = json.loads(capsys.readouterr().out)
+    assert cmp["fit_percent"] >= 95.0
+    # a fixed order below one mode per output is refused in one line
+    with pytest.raises(SystemExit) as e:
+        main(["identify", str(tmp_path / "d.csv"), *opts, "--order", "0"])
+    assert e.value.code == 2 and "--order" in capsys.readouterr().err
+    assert main(["identify", str(tmp_path / "d.csv"), *opts, "--order", "1", "--method", "oe",
+                 "--json"]) == 0
+    js1 = json.loads(capsys.readouterr().out)
+    assert js1["fit_percent_per_output"]["generic"]["order"]["modes"] == 1
+    assert js1["fit_percent"] < js["fit_percent"] - 10
