@@ -16,8 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
-from rigd.cli._args import (add_order_argument, add_plain_csv_arguments, add_range_argument,
-                         load_options, print_source)
+from rigd.cli._args import (
+    add_order_argument,
+    add_plain_csv_arguments,
+    add_range_argument,
+    load_options,
+    print_source,
+)
 
 HELP = "identify grey-box actuator/bearing models (PEM) from a record or a sweep run directory"
 

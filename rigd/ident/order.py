@@ -131,7 +131,7 @@ class ModalStructure(Structure):
         sb = np.asarray(self.base.scale(th[:self.nb]), float)
         se = []
         ys = float(np.max(sb[self.base.x0_index[:self.n]]))  # output scale of the base
-        for f, z, g in self.modes_of(th):
+        for f, _z, g in self.modes_of(th):
             gs = max(float(np.max(np.abs(g))), 1e-300) if g.size else 1.0
             se += [max(abs(f), 1e-9), 0.05] + [gs] * g.size + [ys] * (2 * self.n)
         return np.concatenate([sb, se])

@@ -3,11 +3,11 @@ output-error refinement, number of modes by validation fit; model files and comp
 
 import json
 
+import benchmarks as B  # tests/diagnose/benchmarks.py
 import numpy as np
 import pytest
 from scipy import signal
 
-import benchmarks as B  # tests/diagnose/benchmarks.py
 from rigd.cli import main
 from rigd.ident.subspace import continuous_modes, n4sid_a
 
