@@ -12,6 +12,9 @@ Figures (``make bench`` / ``python -m bench loop``):
   dispatch), mean.
 * ``rt_lateness_us`` {p50, p99, p999, max}, ``rt_compute_us`` and ``rt_miss_fraction``: 10 s at
   5 kHz on the real-time clock with the simulated plant (``ControlLoop.timing()``).
+* ``op_change_miss_fraction``: miss fraction (overruns / cycles) on the real-time clock while
+  the operating point changes every 100 ms, and ``op_change_idle_miss_fraction`` in the same
+  run without changes (alternating 1 s blocks, 10 s in all; target: changes <= idle + 1e-3).
 """
 
 from __future__ import annotations
@@ -130,6 +133,46 @@ def realtime(seconds: float = RT_SECONDS) -> dict:
     return t
 
 
+def op_change(seconds: float = RT_SECONDS, every_s: float = 0.1) -> dict:
+    """Miss fraction with an operating-point change every ``every_s`` vs idle, same run.
+
+    One real-time run alternates 1 s blocks: idle, then changes every 100 ms (from this
+    thread, as the service would), so both see the same machine load. Returns both fractions.
+    """
+    from rigd.loop.loop import ControlLoop
+    from rigd.rigconfig import default_config
+
+    cfg = default_config(clock={"mode": "realtime"},
+                         supervisor={"overrun_storm_count": 10**9})
+    loop = ControlLoop(cfg, _plant(), controller=_controller())
+    rng = np.random.default_rng(0)
+    acc = {"idle": [0, 0], "change": [0, 0]}          # overruns, cycles
+    n_changes = 0
+    with loop:
+        loop.enable_controller(True)
+        loop.start()
+        loop.wait(0.5)                                 # past the start-up
+        for b in range(max(2, int(round(seconds)))):
+            mode = "idle" if b % 2 == 0 else "change"
+            t = loop.timing()
+            o0, c0 = t["overruns"], t["cycles"]
+            t_end = time.monotonic() + 1.0
+            while time.monotonic() < t_end:
+                if mode == "change":
+                    loop.set_operating_point(float(rng.uniform(0, 6000)),
+                                             float(rng.uniform(3, 7)))
+                    n_changes += 1
+                loop.wait(min(every_s, max(0.0, t_end - time.monotonic())))
+            t = loop.timing()
+            acc[mode][0] += t["overruns"] - o0
+            acc[mode][1] += t["cycles"] - c0
+        loop.stop()
+    frac = {k: (o / c if c else float("nan")) for k, (o, c) in acc.items()}
+    return {"op_change_miss_fraction": frac["change"],
+            "op_change_idle_miss_fraction": frac["idle"],
+            "op_change_count": n_changes}
+
+
 def _percentiles(us: np.ndarray) -> dict:
     return {"p50": round(float(np.percentile(us, 50)), 3),
             "p99": round(float(np.percentile(us, 99)), 3),
@@ -142,7 +185,9 @@ def run() -> dict:
     samples, kernel_ns = compute_samples()
     samples14, kernel14_ns = compute_samples(order=14)
     t = realtime()
+    oc = op_change()
     return {
+        **oc,
         "lockstep_cycles_per_s": round(cps),
         "loop_compute_us": _percentiles(samples / 1000.0),
         "loop_kernel_ns": round(kernel_ns, 1),

@@ -2,25 +2,28 @@
 
 :func:`param_block` turns (options, Ω, P_I, f_s) into the active-parameter block of
 :mod:`rigd_drivers.sim_kernel` (exact ZOH/FOH discretisations included);
-:func:`rest_state` gives the plant at rest under a constant drive.
+:func:`rest_state` gives the plant at rest under a constant drive. The matrix exponentials run
+without the GIL (:mod:`.sim_expm`): an operating-point change is prepared in another thread
+while the loop thread cycles.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
-import scipy.linalg as la
 
 from rigd_drivers import sim_kernel as k
 from rigd_drivers import sim_physics as phys
+from rigd_drivers.sim_expm import expm
 from rigd_drivers.sim_options import PlantOptions
 
 
 def zoh(A: np.ndarray, B: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretisation: x+ = Φx + Γu."""
+    """Exact zero-order-hold discretisation: x+ = Φx + Γu (e^M without the GIL)."""
     n, m = B.shape
-    E = la.expm(np.block([[A, B], [np.zeros((m, n + m))]]) * T)
+    E = expm(np.ascontiguousarray(np.block([[A, B], [np.zeros((m, n + m))]]) * T))
     return E[:n, :n], E[:n, n:]
 
 
@@ -34,7 +37,7 @@ def foh(A: np.ndarray, B: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray,
     big = np.block([[A * T, B * T, Z((n, m))],
                     [Z((m, n + m)), np.eye(m)],
                     [Z((m, n + 2 * m))]])
-    E = la.expm(big)
+    E = expm(np.ascontiguousarray(big))
     Phi, Ga, Gb = E[:n, :n], E[:n, n:n + m], E[:n, n + m:]
     return Phi, Ga - Gb, Gb
 
@@ -62,6 +65,24 @@ def bearing_augmented(opts: PlantOptions, omega_rpm: float, p_inj_bar: float):
     return A, B, C
 
 
+@functools.lru_cache(maxsize=8)
+def _valve_block(f_scale: float, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """ZOH of the four valves (independent of the operating point: computed once per
+    (f_scale, T)); returns read-only Φ (16,), Γ (8,), offsets (4,)."""
+    vphi, vgam, voff = np.zeros(16), np.zeros(8), np.zeros(4)
+    for i, v in enumerate(phys.valve_params(f_scale)):
+        w = v.omega
+        Av = np.array([[0.0, 1.0], [-w * w, -2 * v.zeta * w]])
+        Bv = np.array([[0.0], [v.gain * w * w]])
+        Pv, Gv = zoh(Av, Bv, T)
+        vphi[4 * i:4 * i + 4] = Pv.ravel()
+        vgam[2 * i:2 * i + 2] = Gv.ravel()
+        voff[i] = v.offset_v
+    for a in (vphi, vgam, voff):
+        a.flags.writeable = False
+    return vphi, vgam, voff
+
+
 def param_block(opts: PlantOptions, omega_rpm: float, p_inj_bar: float,
                 fs: float) -> np.ndarray:
     """The active parameter block (float64[NA]) for the kernel at (Ω, P_I)."""
@@ -79,14 +100,10 @@ def param_block(opts: PlantOptions, omega_rpm: float, p_inj_bar: float,
     b[k.A_SG1:k.A_SG1 + k.NX * k.NW] = G1.ravel()
     b[k.A_C:k.A_C + 2 * k.NX] = C.ravel()
     b[k.A_NSUB] = n_sub
-    for i, v in enumerate(phys.valve_params(opts.valves.f_scale)):
-        w = v.omega
-        Av = np.array([[0.0, 1.0], [-w * w, -2 * v.zeta * w]])
-        Bv = np.array([[0.0], [v.gain * w * w]])
-        Pv, Gv = zoh(Av, Bv, T)
-        b[k.A_VPHI + 4 * i:k.A_VPHI + 4 * i + 4] = Pv.ravel()
-        b[k.A_VGAM + 2 * i:k.A_VGAM + 2 * i + 2] = Gv.ravel()
-        b[k.A_VOFF + i] = v.offset_v
+    vphi, vgam, voff = _valve_block(float(opts.valves.f_scale), T)
+    b[k.A_VPHI:k.A_VPHI + 16] = vphi
+    b[k.A_VGAM:k.A_VGAM + 8] = vgam
+    b[k.A_VOFF:k.A_VOFF + 4] = voff
     ef = opts.effects
     if ef.cubic_stiffness.enabled:
         bm = phys.bearing_matrices(omega_rpm, p_inj_bar)
