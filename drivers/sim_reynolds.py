@@ -63,7 +63,8 @@ class ReynoldsPlantDriver(FastDriver):
         super().__init__(opts.model_dump(), fs=fs)
         self.opts = opts
         self.kernel = k.plant_step
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()           # impact hammer requests
+        self._stage_lock = threading.Lock()     # staged parameter block writers
         self._omega = opts.omega_rpm
         self._p_inj = opts.p_inj_bar
         self._arr = an.make_arrays(opts, fs)
@@ -72,6 +73,8 @@ class ReynoldsPlantDriver(FastDriver):
         self._out = np.zeros(N_IN)
         o = self._arr.lay.st[k.T_FRAME]
         self._frame_view = self.state[o:o + N_IN]
+        stg = int(self.params[k.H_STG])
+        self._staged_view = self.params[stg:stg + int(self.params[k.H_NA])]
         self.reset()
 
     # --- FastDriver --------------------------------------------------------------------
@@ -99,19 +102,39 @@ class ReynoldsPlantDriver(FastDriver):
 
         The supply pressure steps; film and shaft carry on from their current state.
         """
+        self.prepare_operating_point(omega_rpm, p_inj_bar)()
+
+    def prepare_operating_point(self, omega_rpm: float, p_inj_bar: float):
+        """Build the parameter block of (Ω rpm, P_I bar) now; return its O(1) swap.
+
+        Runs in: the caller's thread (shaft step matrices, allocations). The returned callable
+        stages the block under the sequence lock (one copy into a preallocated view); the
+        kernel swaps it in whole at the start of its next step.
+
+        Raises
+        ------
+        InputError
+            Operating point outside Ω ∈ [0, 6000] rpm, P_I ∈ [3, 7] bar.
+        """
         try:
             phys.check_operating_point(float(omega_rpm), float(p_inj_bar))
         except (TypeError, ValueError) as exc:
             raise InputError(str(exc), "set_operating_point") from None
         block = param_block(self.opts, self._arr.lay, self._arr.shaft, float(omega_rpm),
                             float(p_inj_bar), self.fs)
-        stg = int(self.params[k.H_STG])
-        with self._lock:
-            seq = self.params[k.H_STAGE_SEQ]
-            self.params[k.H_STAGE_SEQ] = seq + 1.0
-            self.params[stg:stg + block.size] = block
-            self.params[k.H_STAGE_SEQ] = seq + 2.0
-            self._omega, self._p_inj = float(omega_rpm), float(p_inj_bar)
+        point = (float(omega_rpm), float(p_inj_bar))
+        params, staged, lock = self.params, self._staged_view, self._stage_lock
+
+        def swap() -> None:
+            """Stage the prepared block (loop thread: O(1), no allocation, no wait)."""
+            with lock:
+                seq = params[k.H_STAGE_SEQ]
+                params[k.H_STAGE_SEQ] = seq + 1.0          # odd: writing
+                np.copyto(staged, block)
+                params[k.H_STAGE_SEQ] = seq + 2.0          # even: complete
+                self._omega, self._p_inj = point
+
+        return swap
 
     @property
     def operating_point(self) -> tuple[float, float]:
