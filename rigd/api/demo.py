@@ -180,6 +180,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
         "controller_gain_1hz_over_band_max": design["controller_gain_1hz_over_band_max"],
         "controller_hankel_singular_values": design["hankel_singular_values"],
         "fits_percent": fits,
+        "fit_percent": {name: f["validation_mean"] for name, f in fits.items()},
         "design_point": {"omega_rpm": om, "p_inj_bar": p},
         "timings_s": timings,
     }
