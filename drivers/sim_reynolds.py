@@ -21,6 +21,7 @@ from rigd.frame import N_IN, N_OUT
 from rigd_drivers import sim_physics as phys
 from rigd_drivers import sim_reynolds_analysis as an
 from rigd_drivers import sim_reynolds_kernel as k
+from rigd_drivers import sim_reynolds_layout as L
 from rigd_drivers.sim_reynolds_options import ReynoldsOptions
 from rigd_drivers.sim_reynolds_params import param_block
 
@@ -71,10 +72,10 @@ class ReynoldsPlantDriver(FastDriver):
         self.params = self._arr.params
         self.state = self._arr.state
         self._out = np.zeros(N_IN)
-        o = self._arr.lay.st[k.T_FRAME]
+        o = self._arr.lay.st[L.T_FRAME]
         self._frame_view = self.state[o:o + N_IN]
-        stg = int(self.params[k.H_STG])
-        self._staged_view = self.params[stg:stg + int(self.params[k.H_NA])]
+        stg = int(self.params[L.H_STG])
+        self._staged_view = self.params[stg:stg + int(self.params[L.H_NA])]
         self.reset()
 
     # --- FastDriver --------------------------------------------------------------------
@@ -91,9 +92,9 @@ class ReynoldsPlantDriver(FastDriver):
         """Put the plant at rest under a constant drive (film at its steady state, journal at
         the force equilibrium). Not thread-safe with a running loop."""
         v0 = self.opts.valves.initial_drive_v if drive_v is None else float(drive_v)
-        seq = self.params[k.H_STAGE_SEQ]
+        seq = self.params[L.H_STAGE_SEQ]
         self._arr.set_block(self._omega, self._p_inj)
-        self.params[k.H_STAGE_SEQ] = seq
+        self.params[L.H_STAGE_SEQ] = seq
         an.rest(self._arr, v0)
         k.plant_sense(self.state, self.params, self._out)
 
@@ -128,10 +129,10 @@ class ReynoldsPlantDriver(FastDriver):
         def swap() -> None:
             """Stage the prepared block (loop thread: O(1), no allocation, no wait)."""
             with lock:
-                seq = params[k.H_STAGE_SEQ]
-                params[k.H_STAGE_SEQ] = seq + 1.0          # odd: writing
+                seq = params[L.H_STAGE_SEQ]
+                params[L.H_STAGE_SEQ] = seq + 1.0          # odd: writing
                 np.copyto(staged, block)
-                params[k.H_STAGE_SEQ] = seq + 2.0          # even: complete
+                params[L.H_STAGE_SEQ] = seq + 2.0          # even: complete
                 self._omega, self._p_inj = point
 
         return swap
@@ -152,10 +153,10 @@ class ReynoldsPlantDriver(FastDriver):
             raise InputError(f"impact duration must be in [{2 * T:g}, 0.1] s "
                              f"(got {duration_s!r})", "impact")
         with self._lock:
-            self.params[k.H_IMP_AXIS] = 0.0 if axis == "x" else 1.0
-            self.params[k.H_IMP_PEAK] = float(peak_n)
-            self.params[k.H_IMP_DUR] = float(duration_s)
-            self.params[k.H_IMP_SEQ] += 1.0
+            self.params[L.H_IMP_AXIS] = 0.0 if axis == "x" else 1.0
+            self.params[L.H_IMP_PEAK] = float(peak_n)
+            self.params[L.H_IMP_DUR] = float(duration_s)
+            self.params[L.H_IMP_SEQ] += 1.0
 
     def run(self, drives: np.ndarray, frames: np.ndarray | None = None) -> np.ndarray:
         """Open-loop batch: apply ``drives`` (n, 4) V, return the sensor frames (n, N_IN)."""
@@ -169,7 +170,7 @@ class ReynoldsPlantDriver(FastDriver):
 
     def counters(self) -> dict[str, int]:
         """Sub-steps whose Newton update did not reach 1e-6 p_a (health of the solver)."""
-        return {"newton_not_converged": int(self._arr.stsc[k.ST_FAIL])}
+        return {"newton_not_converged": int(self._arr.stsc[L.ST_FAIL])}
 
     def linear_modes(self, drive_v: float | None = None) -> an.LinearModes:
         """Modes of the linearised plant at rest at the current operating point (≈ 1 s)."""

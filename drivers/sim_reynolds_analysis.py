@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from rigd_drivers import sim_reynolds_kernel as k
+from rigd_drivers import sim_reynolds_layout as L
+from rigd_drivers import sim_reynolds_step as S
 from rigd_drivers.sim_reynolds_film import G_AREA, G_C, G_N, NV, film_force, film_rates
 from rigd_drivers.sim_reynolds_options import ReynoldsOptions
 from rigd_drivers.sim_reynolds_params import Layout, build_layout, param_block, shaft_model
@@ -36,7 +38,7 @@ class PlantArrays:
         return self.state[o:o + size]
 
     def _blk(self, slot: int, size: int) -> np.ndarray:
-        o = int(self.params[k.H_ACT]) + self.lay.block[slot]
+        o = int(self.params[L.H_ACT]) + self.lay.block[slot]
         return self.params[o:o + size]
 
     @property
@@ -46,38 +48,38 @@ class PlantArrays:
     @property
     def p(self) -> np.ndarray:
         """Film pressures (view), Pa abs, k = i·mz + j."""
-        return self._st(k.T_P, self.n)
+        return self._st(L.T_P, self.n)
 
     @property
     def geo(self) -> np.ndarray:
-        return self._blk(k.O_GEO, G_N)
+        return self._blk(L.O_GEO, G_N)
 
     @property
     def cs(self) -> np.ndarray:
-        return self._blk(k.O_CS, 4 * self.lay.nt)
+        return self._blk(L.O_CS, 4 * self.lay.nt)
 
     @property
     def wts(self) -> np.ndarray:
-        return self._blk(k.O_WTS, NV * self.n)
+        return self._blk(L.O_WTS, NV * self.n)
 
     @property
     def scalars(self) -> np.ndarray:
-        return self._blk(k.O_SC, k.N_SC)
+        return self._blk(L.O_SC, L.N_SC)
 
     @property
     def stsc(self) -> np.ndarray:
-        return self._st(k.T_SC, k.N_STSC)
+        return self._st(L.T_SC, L.N_STSC)
 
     @property
     def afrac(self) -> np.ndarray:
-        return self._st(k.W_AF, NV)
+        return self._st(L.W_AF, NV)
 
     def set_block(self, omega_rpm: float, p_inj_bar: float) -> None:
         """Write the active (and staged) parameter block for (Ω, P_I) directly."""
         blk = param_block(self.opts, self.lay, self.shaft, omega_rpm, p_inj_bar, self.fs)
         na = blk.size
-        a = int(self.params[k.H_ACT])
-        s = int(self.params[k.H_STG])
+        a = int(self.params[L.H_ACT])
+        s = int(self.params[L.H_STG])
         self.params[a:a + na] = blk
         self.params[s:s + na] = blk
 
@@ -91,7 +93,7 @@ def make_arrays(opts: ReynoldsOptions | dict | None = None, fs: float = 5000.0,
     shaft = shaft_model(opts)
     lay = build_layout(nt, mz, 2 * shaft.n_modes)
     params = np.zeros(lay.n_params)
-    params[:k.N_HEADER] = lay.header
+    params[:L.N_HEADER] = lay.header
     state = np.zeros(lay.n_state)
     pa = PlantArrays(opts, lay, shaft, params, state, fs)
     pa.set_block(opts.omega_rpm if omega_rpm is None else omega_rpm,
@@ -107,7 +109,7 @@ def steady(pa: PlantArrays, xb: float, yb: float, afrac, *, tol: float = 1e-12,
     Returns (p copy, F_x, F_y) (Pa, N). Raises RuntimeError if Newton does not converge.
     """
     pa.afrac[:] = afrac
-    upd = k.steady_film(pa.state, pa.params, float(xb), float(yb), max_it, tol)
+    upd = S.steady_film(pa.state, pa.params, float(xb), float(yb), max_it, tol)
     if not upd < 1e-9:
         raise RuntimeError(f"steady film did not converge (last update {upd:.2e} p_a)")
     fx, fy = film_force(pa.geo, pa.cs, pa.p)
@@ -165,15 +167,15 @@ def rest(pa: PlantArrays, drive_v: float) -> None:
     xb = equilibrium(pa, af)
     o = pa.lay.st
     for i, v in enumerate(phys.valve_params(pa.opts.valves.f_scale)):
-        pa.state[o[k.T_XV] + 2 * i] = v.gain * drive_v
-        pa.state[o[k.T_VPREV] + i] = drive_v
-    pa.state[o[k.T_AF0]:o[k.T_AF0] + NV] = af
+        pa.state[o[L.T_XV] + 2 * i] = v.gain * drive_v
+        pa.state[o[L.T_VPREV] + i] = drive_v
+    pa.state[o[L.T_AF0]:o[L.T_AF0] + NV] = af
     pa.afrac[:] = af
     n = pa.n
-    pa.state[o[k.T_P1]:o[k.T_P1] + n] = pa.p
+    pa.state[o[L.T_P1]:o[L.T_P1] + n] = pa.p
     psi = psi_of(pa, pa.p, xb)
-    pa.state[o[k.T_PSI]:o[k.T_PSI] + n] = psi
-    pa.state[o[k.T_PSI1]:o[k.T_PSI1] + n] = psi
+    pa.state[o[L.T_PSI]:o[L.T_PSI] + n] = psi
+    pa.state[o[L.T_PSI1]:o[L.T_PSI1] + n] = psi
     # shaft: rigid pivoting (mode 0, zero frequency) carries the journal to x_b
     m = pa.lay.m
     nm = m // 2
@@ -181,10 +183,10 @@ def rest(pa: PlantArrays, drive_v: float) -> None:
     phi0 = pa.shaft.phi_journal[0]
     q[0] = xb[0] / phi0
     q[nm] = xb[1] / phi0
-    pa.state[o[k.T_Q]:o[k.T_Q] + m] = q
-    pa.state[o[k.T_Q1]:o[k.T_Q1] + m] = q
-    pa.stsc[k.ST_XB:k.ST_XB + 2] = xb
-    pa.stsc[k.ST_APPLIED] = pa.params[k.H_STAGE_SEQ]
+    pa.state[o[L.T_Q]:o[L.T_Q] + m] = q
+    pa.state[o[L.T_Q1]:o[L.T_Q1] + m] = q
+    pa.stsc[L.ST_XB:L.ST_XB + 2] = xb
+    pa.stsc[L.ST_APPLIED] = pa.params[L.H_STAGE_SEQ]
 
 
 def psi_of(pa: PlantArrays, p: np.ndarray, xb) -> np.ndarray:
@@ -207,7 +209,7 @@ def _rates(pa: PlantArrays, p, xb, yb, afrac):
     md = np.zeros(NV)
     dmd = np.zeros(NV)
     sc = pa.scalars
-    film_rates(pa.geo, pa.cs, pa.wts, p, xb, yb, sc[k.SC_OMEGA_RAD], sc[k.SC_PSUP],
+    film_rates(pa.geo, pa.cs, pa.wts, p, xb, yb, sc[L.SC_OMEGA_RAD], sc[L.SC_PSUP],
                np.asarray(afrac, float), rate, outf, z2, z3, z2, zn, zn, md, dmd, False)
     return rate, outf[0], md
 
@@ -218,7 +220,7 @@ def ode_rhs(pa: PlantArrays, y: np.ndarray, afrac) -> np.ndarray:
     nt = pa.lay.nt
     p, q, v = y[:n], y[n:n + m], y[n + m:]
     Pb, _ = pa.shaft.coupling()
-    C, K = pa.shaft.matrices(pa.scalars[k.SC_OMEGA_RAD])
+    C, K = pa.shaft.matrices(pa.scalars[L.SC_OMEGA_RAD])
     xb = Pb @ q
     vb = Pb @ v
     rate, _, _ = _rates(pa, p, xb[0], xb[1], afrac)
@@ -252,7 +254,7 @@ def linear_modes(pa: PlantArrays, afrac, *, f_max_hz: float = 1000.0) -> LinearM
     """
     n, m = pa.n, pa.lay.m
     o = pa.lay.st
-    y0 = np.concatenate([pa.p.copy(), pa.state[o[k.T_Q]:o[k.T_Q] + m],
+    y0 = np.concatenate([pa.p.copy(), pa.state[o[L.T_Q]:o[L.T_Q] + m],
                          np.zeros(m)])
     N = y0.size
     J = np.zeros((N, N))

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rigd_drivers import sim_physics as phys
-from rigd_drivers import sim_reynolds_kernel as k
+from rigd_drivers import sim_reynolds_layout as L
 from rigd_drivers.sim_params import zoh
 from rigd_drivers.sim_reynolds_film import (
     G_AREA,
@@ -67,18 +67,18 @@ def build_layout(nt: int, mz: int, m: int) -> Layout:
         blk[name] = pos
         pos += size
 
-    take(k.O_GEO, G_N)
-    take(k.O_CS, 4 * nt)
-    take(k.O_WTS, NV * n)
-    take(k.O_SINV, m * m)
-    take(k.O_CR, m * m)
-    take(k.O_PHIB, 2 * m)
-    take(k.O_PHID, 2 * m)
-    take(k.O_CB, 4)
-    take(k.O_VPHI, 16)
-    take(k.O_VGAM, 8)
-    take(k.O_VOFF, 4)
-    take(k.O_SC, k.N_SC)
+    take(L.O_GEO, G_N)
+    take(L.O_CS, 4 * nt)
+    take(L.O_WTS, NV * n)
+    take(L.O_SINV, m * m)
+    take(L.O_CR, m * m)
+    take(L.O_PHIB, 2 * m)
+    take(L.O_PHID, 2 * m)
+    take(L.O_CB, 4)
+    take(L.O_VPHI, 16)
+    take(L.O_VGAM, 8)
+    take(L.O_VOFF, 4)
+    take(L.O_SC, L.N_SC)
     na = pos
     st = {}
     pos = 0
@@ -89,54 +89,54 @@ def build_layout(nt: int, mz: int, m: int) -> Layout:
         pos += size
 
     mm = mz * mz
-    stake(k.T_P, n)
-    stake(k.T_P1, n)
-    stake(k.T_PSI, n)
-    stake(k.T_PSI1, n)
-    stake(k.T_Q, m)
-    stake(k.T_V, m)
-    stake(k.T_Q1, m)
-    stake(k.T_V1, m)
-    stake(k.T_XV, 8)
-    stake(k.T_VPREV, 4)
-    stake(k.T_AF0, 4)
-    stake(k.T_SC, k.N_STSC)
+    stake(L.T_P, n)
+    stake(L.T_P1, n)
+    stake(L.T_PSI, n)
+    stake(L.T_PSI1, n)
+    stake(L.T_Q, m)
+    stake(L.T_V, m)
+    stake(L.T_Q1, m)
+    stake(L.T_V1, m)
+    stake(L.T_XV, 8)
+    stake(L.T_VPREV, 4)
+    stake(L.T_AF0, 4)
+    stake(L.T_SC, L.N_STSC)
     from rigd.frame import N_IN
-    stake(k.T_FRAME, N_IN)
-    stake(k.W_RATE, n)
-    stake(k.W_JA, n)
-    stake(k.W_JB, nt * mm)
-    stake(k.W_JC, n)
-    stake(k.W_DRX, n)
-    stake(k.W_DRY, n)
-    stake(k.W_D, n * (NR + 1))
-    stake(k.W_DINV, nt * mm)
-    stake(k.W_E, nt * mm)
-    stake(k.W_T1, mm)
-    stake(k.W_T2, mm)
-    stake(k.W_FB, mm)
-    stake(k.W_G, mm)
-    stake(k.W_GV, mz * (NR + 1))
-    stake(k.W_MD, NV)
-    stake(k.W_DMD, NV)
-    stake(k.W_AF, NV)
-    stake(k.W_OUT, 1)
-    stake(k.W_CAP, NR * NR)
-    stake(k.W_CAPI, NR * NR)
-    stake(k.W_RK, m)
-    stake(k.W_HIST, n)
-    stake(k.W_VR, 2 * NR)
-    stake(k.W_TMP, 2 * m)
+    stake(L.T_FRAME, N_IN)
+    stake(L.W_RATE, n)
+    stake(L.W_JA, n)
+    stake(L.W_JB, nt * mm)
+    stake(L.W_JC, n)
+    stake(L.W_DRX, n)
+    stake(L.W_DRY, n)
+    stake(L.W_D, n * (NR + 1))
+    stake(L.W_DINV, nt * mm)
+    stake(L.W_E, nt * mm)
+    stake(L.W_T1, mm)
+    stake(L.W_T2, mm)
+    stake(L.W_FB, mm)
+    stake(L.W_G, mm)
+    stake(L.W_GV, mz * (NR + 1))
+    stake(L.W_MD, NV)
+    stake(L.W_DMD, NV)
+    stake(L.W_AF, NV)
+    stake(L.W_OUT, 1)
+    stake(L.W_CAP, NR * NR)
+    stake(L.W_CAPI, NR * NR)
+    stake(L.W_RK, m)
+    stake(L.W_HIST, n)
+    stake(L.W_VR, 2 * NR)
+    stake(L.W_TMP, 2 * m)
     n_state = pos
-    h = np.zeros(k.N_HEADER)
-    act = k.N_HEADER
-    h[k.H_ACT] = act
-    h[k.H_STG] = act + na
-    h[k.H_SCR] = act + 2 * na
-    h[k.H_NA] = na
-    h[k.H_NT] = nt
-    h[k.H_MZ] = mz
-    h[k.H_M] = m
+    h = np.zeros(L.N_HEADER)
+    act = L.N_HEADER
+    h[L.H_ACT] = act
+    h[L.H_STG] = act + na
+    h[L.H_SCR] = act + 2 * na
+    h[L.H_NA] = na
+    h[L.H_NT] = nt
+    h[L.H_MZ] = mz
+    h[L.H_M] = m
     for slot, off in blk.items():
         h[slot] = off
     for slot, off in st.items():
@@ -209,13 +209,13 @@ def shaft_model(opts: ReynoldsOptions) -> ShaftModel:
 def param_block(opts: ReynoldsOptions, lay: Layout, shaft: ShaftModel, omega_rpm: float,
                 p_inj_bar: float, fs: float) -> np.ndarray:
     """The parameter block at (Ω, P_I): geometry, shaft step matrices, valves, scalars."""
-    b = np.zeros(int(lay.header[k.H_NA]))
+    b = np.zeros(int(lay.header[L.H_NA]))
     o = lay.block
     g = geometry_vector(opts)
-    b[o[k.O_GEO]:o[k.O_GEO] + G_N] = g
-    b[o[k.O_CS]:o[k.O_CS] + 4 * lay.nt] = trig_vector(lay.nt)
+    b[o[L.O_GEO]:o[L.O_GEO] + G_N] = g
+    b[o[L.O_CS]:o[L.O_CS] + 4 * lay.nt] = trig_vector(lay.nt)
     n = lay.nt * lay.mz
-    b[o[k.O_WTS]:o[k.O_WTS] + NV * n] = feed_weights(opts)
+    b[o[L.O_WTS]:o[L.O_WTS] + NV * n] = feed_weights(opts)
     T = 1.0 / fs
     dt = T / opts.substeps
     al = 3.0 / (2.0 * dt)
@@ -225,34 +225,34 @@ def param_block(opts: ReynoldsOptions, lay: Layout, shaft: ShaftModel, omega_rpm
     S = al * al * np.eye(m) + al * C + K
     Sinv = np.linalg.inv(S)
     Pb, Pd = shaft.coupling()
-    b[o[k.O_SINV]:o[k.O_SINV] + m * m] = Sinv.ravel()
-    b[o[k.O_CR]:o[k.O_CR] + m * m] = C.ravel()
+    b[o[L.O_SINV]:o[L.O_SINV] + m * m] = Sinv.ravel()
+    b[o[L.O_CR]:o[L.O_CR] + m * m] = C.ravel()
     # Φ rows stored transposed-free: row 0 (x) then row 1 (y), each of length m
-    b[o[k.O_PHIB]:o[k.O_PHIB] + 2 * m] = Pb.ravel()
-    b[o[k.O_PHID]:o[k.O_PHID] + 2 * m] = Pd.ravel()
-    b[o[k.O_CB]:o[k.O_CB] + 4] = (Pb @ Sinv @ Pb.T).ravel()
+    b[o[L.O_PHIB]:o[L.O_PHIB] + 2 * m] = Pb.ravel()
+    b[o[L.O_PHID]:o[L.O_PHID] + 2 * m] = Pd.ravel()
+    b[o[L.O_CB]:o[L.O_CB] + 4] = (Pb @ Sinv @ Pb.T).ravel()
     for i, v in enumerate(phys.valve_params(opts.valves.f_scale)):
         wv = v.omega
         Av = np.array([[0.0, 1.0], [-wv * wv, -2 * v.zeta * wv]])
         Bv = np.array([[0.0], [v.gain * wv * wv]])
         Pv, Gv = zoh(Av, Bv, T)
-        b[o[k.O_VPHI] + 4 * i:o[k.O_VPHI] + 4 * i + 4] = Pv.ravel()
-        b[o[k.O_VGAM] + 2 * i:o[k.O_VGAM] + 2 * i + 2] = Gv.ravel()
-        b[o[k.O_VOFF] + i] = v.offset_v
-    s = o[k.O_SC]
-    b[s + k.SC_OMEGA_RAD] = w
-    b[s + k.SC_OMEGA_RPM] = omega_rpm
-    b[s + k.SC_PINJ] = p_inj_bar
-    b[s + k.SC_PSUP] = p_inj_bar * 1e5 + P_ATM
-    b[s + k.SC_DT] = dt
-    b[s + k.SC_NSUB] = opts.substeps
-    b[s + k.SC_NEWTON] = opts.newton_iterations
-    b[s + k.SC_T] = T
-    b[s + k.SC_NOISE_E] = opts.noise.e_um
-    b[s + k.SC_NOISE_Y] = opts.noise.y_p_v
-    b[s + k.SC_SEED] = float(opts.seed)
-    b[s + k.SC_UNB] = opts.unbalance_g_mm * 1e-6 * w * w
-    b[s + k.SC_UNB_PH] = math.radians(opts.unbalance_phase_deg)
-    b[s + k.SC_ALPHA] = al
-    b[s + k.SC_SENS] = 1e6
+        b[o[L.O_VPHI] + 4 * i:o[L.O_VPHI] + 4 * i + 4] = Pv.ravel()
+        b[o[L.O_VGAM] + 2 * i:o[L.O_VGAM] + 2 * i + 2] = Gv.ravel()
+        b[o[L.O_VOFF] + i] = v.offset_v
+    s = o[L.O_SC]
+    b[s + L.SC_OMEGA_RAD] = w
+    b[s + L.SC_OMEGA_RPM] = omega_rpm
+    b[s + L.SC_PINJ] = p_inj_bar
+    b[s + L.SC_PSUP] = p_inj_bar * 1e5 + P_ATM
+    b[s + L.SC_DT] = dt
+    b[s + L.SC_NSUB] = opts.substeps
+    b[s + L.SC_NEWTON] = opts.newton_iterations
+    b[s + L.SC_T] = T
+    b[s + L.SC_NOISE_E] = opts.noise.e_um
+    b[s + L.SC_NOISE_Y] = opts.noise.y_p_v
+    b[s + L.SC_SEED] = float(opts.seed)
+    b[s + L.SC_UNB] = opts.unbalance_g_mm * 1e-6 * w * w
+    b[s + L.SC_UNB_PH] = math.radians(opts.unbalance_phase_deg)
+    b[s + L.SC_ALPHA] = al
+    b[s + L.SC_SENS] = 1e6
     return b

@@ -14,6 +14,7 @@ import pytest
 from rigd.frame import IN_E_X, IN_E_Y, N_IN
 from rigd_drivers import sim_reynolds_analysis as an
 from rigd_drivers import sim_reynolds_kernel as k
+from rigd_drivers import sim_reynolds_layout as L
 
 QUIET = {"noise": {"e_um": 0.0, "y_p_v": 0.0}}
 C = 25e-6
@@ -108,10 +109,10 @@ def test_cross_coupled_stiffness_grows_with_speed():
 def _run(pa, drives, impact=None):
     frames = np.zeros((drives.shape[0], N_IN))
     if impact is not None:
-        pa.params[k.H_IMP_AXIS] = 0.0 if impact[0] == "x" else 1.0
-        pa.params[k.H_IMP_PEAK] = impact[1]
-        pa.params[k.H_IMP_DUR] = 1e-3
-        pa.params[k.H_IMP_SEQ] += 1
+        pa.params[L.H_IMP_AXIS] = 0.0 if impact[0] == "x" else 1.0
+        pa.params[L.H_IMP_PEAK] = impact[1]
+        pa.params[L.H_IMP_DUR] = 1e-3
+        pa.params[L.H_IMP_SEQ] += 1
     k.run_batch(pa.state, pa.params, drives, frames)
     return frames
 
@@ -120,8 +121,8 @@ def _bdf2_mass(pa):
     """(3 M_n − M_{n−1})/2: the film mass of the BDF2 balance (× R_g T, Pa m³)."""
     o = pa.lay.st
     n = pa.n
-    m0 = 2 * pa.state[o[k.T_PSI]:o[k.T_PSI] + n].sum()
-    m1 = 2 * pa.state[o[k.T_PSI1]:o[k.T_PSI1] + n].sum()
+    m0 = 2 * pa.state[o[L.T_PSI]:o[L.T_PSI] + n].sum()
+    m1 = 2 * pa.state[o[L.T_PSI1]:o[L.T_PSI1] + n].sum()
     return 0.5 * (3 * m0 - m1)
 
 
@@ -136,13 +137,13 @@ def test_film_mass_is_conserved(newton, tol):
     an.rest(pa, 5.0)
     b0 = _bdf2_mass(pa)
     sc = pa.stsc
-    in0, out0 = sc[k.ST_MIN], sc[k.ST_MOUT]
+    in0, out0 = sc[L.ST_MIN], sc[L.ST_MOUT]
     drives = np.full((300, 4), 5.0)
     drives[50:150, 0] = 7.0
     drives[100:, 3] = 3.0
     _run(pa, drives, impact=("y", 30.0))
-    net = (sc[k.ST_MIN] - in0) - (sc[k.ST_MOUT] - out0)
-    through = sc[k.ST_MIN] - in0
+    net = (sc[L.ST_MIN] - in0) - (sc[L.ST_MOUT] - out0)
+    through = sc[L.ST_MIN] - in0
     assert through > 0
     assert abs((_bdf2_mass(pa) - b0) - net) < tol * through
 

@@ -1,0 +1,145 @@
+"""Periodic block-tridiagonal linear solver (compiled, allocation-free) for the film Jacobian.
+
+The film unknowns ordered z-fast (k = i·mz + j) give, with the 5-point stencil and periodic θ,
+rows A_i x_{i−1} + B_i x_i + C_i x_{i+1} = d_i (indices mod n) with A_i, C_i diagonal and B_i
+tridiagonal (stored dense). :func:`block_cyclic_solve` solves it for several right-hand sides
+at once (the Newton residual and the low-rank update columns).
+"""
+
+from __future__ import annotations
+
+import numba
+
+
+@numba.njit(cache=True, nogil=True)
+def _inv_small(a, out, m):
+    """out = a⁻¹ (m × m, Gauss–Jordan with partial pivoting; a is overwritten)."""
+    for r in range(m):
+        for s in range(m):
+            out[r, s] = 1.0 if r == s else 0.0
+    for col in range(m):
+        piv = col
+        big = abs(a[col, col])
+        for r in range(col + 1, m):
+            if abs(a[r, col]) > big:
+                big = abs(a[r, col])
+                piv = r
+        if piv != col:
+            for s in range(m):
+                t = a[col, s]
+                a[col, s] = a[piv, s]
+                a[piv, s] = t
+                t = out[col, s]
+                out[col, s] = out[piv, s]
+                out[piv, s] = t
+        d = 1.0 / a[col, col]
+        for s in range(m):
+            a[col, s] *= d
+            out[col, s] *= d
+        for r in range(m):
+            if r != col:
+                f = a[r, col]
+                if f != 0.0:
+                    for s in range(m):
+                        a[r, s] -= f * a[col, s]
+                        out[r, s] -= f * out[col, s]
+
+
+@numba.njit(cache=True, nogil=True)
+def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
+    """Solve the periodic block-tridiagonal system in place: ``d`` ← x.
+
+    Row i: A_i x_{i−1} + B_i x_i + C_i x_{i+1} = d_i (indices mod n), A_i and C_i diagonal
+    (``jA``, ``jC``: (n, m) diagonals), B_i dense (``jB``: (n, m, m), overwritten). ``d`` has
+    shape (n, m, ≥nrhs); work arrays: Dinv, E (n, m, m), T1, T2, Fb, G (m, m), g (m, ≥nrhs).
+    Periodic block Thomas: forward elimination carrying the spike column E_i (coupling to
+    x_{n−1}), the bottom row reduced alongside, back substitution.
+    """
+    n = jB.shape[0]
+    m = jB.shape[1]
+    for i in range(n - 1):
+        if i == 0:
+            for a in range(m):
+                for b in range(m):
+                    E[0, a, b] = 0.0
+                E[0, a, a] = jA[0, a]
+        else:
+            # L = A_i Dinv_{i−1}: row scaling
+            for a in range(m):
+                aa = jA[i, a]
+                for b in range(m):
+                    T1[a, b] = aa * Dinv[i - 1, a, b]
+            for a in range(m):
+                for b in range(m):
+                    e = 0.0
+                    for q in range(m):
+                        e += T1[a, q] * E[i - 1, q, b]
+                    jB[i, a, b] -= T1[a, b] * jC[i - 1, b]
+                    E[i, a, b] = -e
+                for r in range(nrhs):
+                    s = 0.0
+                    for q in range(m):
+                        s += T1[a, q] * d[i - 1, q, r]
+                    d[i, a, r] -= s
+        if i == n - 2:
+            for a in range(m):
+                E[i, a, a] += jC[i, a]
+        for a in range(m):
+            for b in range(m):
+                T2[a, b] = jB[i, a, b]
+        _inv_small(T2, Dinv[i], m)
+    # bottom row: Fb x_j + G x_{n−1} = g
+    for a in range(m):
+        for b in range(m):
+            Fb[a, b] = 0.0
+            G[a, b] = jB[n - 1, a, b]
+        Fb[a, a] = jC[n - 1, a]
+        for r in range(nrhs):
+            g[a, r] = d[n - 1, a, r]
+    for j in range(n - 1):
+        if j == n - 2:
+            for a in range(m):
+                Fb[a, a] += jA[n - 1, a]
+        for a in range(m):
+            for b in range(m):
+                s = 0.0
+                for q in range(m):
+                    s += Fb[a, q] * Dinv[j, q, b]
+                T1[a, b] = s
+        for a in range(m):
+            for b in range(m):
+                s = 0.0
+                for q in range(m):
+                    s += T1[a, q] * E[j, q, b]
+                G[a, b] -= s
+            for r in range(nrhs):
+                s = 0.0
+                for q in range(m):
+                    s += T1[a, q] * d[j, q, r]
+                g[a, r] -= s
+        if j < n - 2:
+            for a in range(m):
+                for b in range(m):
+                    Fb[a, b] = -T1[a, b] * jC[j, b]
+    _inv_small(G, T2, m)
+    for a in range(m):
+        for r in range(nrhs):
+            s = 0.0
+            for q in range(m):
+                s += T2[a, q] * g[q, r]
+            d[n - 1, a, r] = s
+    # back substitution x_j = Dinv_j (d_j − C_j x_{j+1} − E_j x_{n−1})
+    for j in range(n - 2, -1, -1):
+        for r in range(nrhs):
+            for a in range(m):
+                s = d[j, a, r]
+                for q in range(m):
+                    s -= E[j, a, q] * d[n - 1, q, r]
+                if j < n - 2:
+                    s -= jC[j, a] * d[j + 1, a, r]
+                g[a, r] = s
+            for a in range(m):
+                s = 0.0
+                for q in range(m):
+                    s += Dinv[j, a, q] * g[q, r]
+                d[j, a, r] = s
