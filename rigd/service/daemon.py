@@ -41,6 +41,9 @@ from rigd.service.protocol import Dispatcher
 
 #: the timing statistics in the socket's snapshot are refreshed this often, s
 TIMING_REFRESH_S = 0.2
+#: after the loop died, the socket keeps answering (``rigd ctl status`` shows ``loop_died``)
+#: this long before the daemon exits non-zero for systemd to restart it, s
+LOOP_DEATH_LINGER_S = 2.0
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -123,11 +126,15 @@ class Daemon:
 
     def __exit__(self, *exc) -> None:
         err = getattr(self.loop, "loop_error", None)
-        if err is not None:   # the loop died: say so (STATUS=, the log) before going
+        if err is not None:   # the loop died: say so (STATUS=, the log, the socket), then go
             self.exit_reason = f"loop died: {err!r}"
             self._drain_faults()
             self.notifier.status(self._status_text(-1))
-            self.log.error("loop died, daemon exits for a restart", error=repr(err))
+            self.log.error("loop died, daemon exits for a restart", error=repr(err),
+                           linger_s=LOOP_DEATH_LINGER_S)
+            if self.server is not None:
+                self.server.publish_now()
+                time.sleep(LOOP_DEATH_LINGER_S)   # the outputs are safe already
         self.notifier.stopping(f"stopping{': ' + self.exit_reason if self.exit_reason else ''}")
         if self.experiments is not None:
             self.experiments.stop()

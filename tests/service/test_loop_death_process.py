@@ -7,7 +7,9 @@ front-end emulator; the only thing added is a start-up wrapper that makes the cy
 the process gets SIGUSR1 (a stand-in for any bug in the loop thread).
 """
 
+import json
 import signal
+import socket
 import sys
 import time
 
@@ -60,7 +62,13 @@ def test_loop_death_in_the_daemon(tmp_path, monkeypatch, emulator):
         d.wait_notify("READY=1")
         assert _wait(lambda: emulator.drive_frames > 100 and not emulator.holding)
         assert int(emulator.last_drive[1]) & 1 == 1            # outputs enabled by the host
+        client = _Client(d.sock)                               # connected before the death
+        assert client.status()["fault"]["code"] == 0
         d.proc.send_signal(signal.SIGUSR1)
+        # what `rigd ctl status` shows while the daemon lingers before exiting
+        st = _poll(lambda: client.status(), lambda st: st["fault"]["name"] == "loop_died")
+        assert st["running"] is False and "injected" in st["loop_error"], st
+        client.close()
         code = d.proc.wait(60)
     finally:
         code, _ = d.stop()
@@ -82,3 +90,35 @@ def _wait(pred, timeout=30.0):
             return True
         time.sleep(0.01)
     return pred()
+
+
+class _Client:
+    """A raw control-socket client (one JSON line each way), kept open across the death."""
+
+    def __init__(self, path):
+        self.s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.s.settimeout(10.0)
+        self.s.connect(path)
+        self.f = self.s.makefile("r")
+        self.n = 0
+
+    def status(self):
+        self.n += 1
+        self.s.sendall(json.dumps({"id": self.n, "cmd": "status"}).encode() + b"\n")
+        reply = json.loads(self.f.readline())
+        assert reply["ok"], reply
+        return reply["result"]
+
+    def close(self):
+        self.f.close()
+        self.s.close()
+
+
+def _poll(get, pred, timeout=30.0):
+    end = time.monotonic() + timeout
+    v = get()
+    while not pred(v) and time.monotonic() < end:
+        time.sleep(0.02)
+        v = get()
+    assert pred(v), v
+    return v
