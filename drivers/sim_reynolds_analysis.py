@@ -197,6 +197,15 @@ def psi_of(pa: PlantArrays, p: np.ndarray, xb) -> np.ndarray:
     return (p.reshape(nt, mz) * h[:, None]).ravel() * pa.geo[G_AREA]
 
 
+def bdf2_mass(pa: PlantArrays) -> float:
+    """(3 M_n − M_{n−1})/2, M = film mass × R_g T (Pa m³): the mass of the BDF2 balance — its
+    change over a run equals the cumulative inflow − outflow (``ST_MIN`` − ``ST_MOUT``)."""
+    o, n = pa.lay.st, pa.n
+    m0 = 2 * pa.state[o[L.T_PSI]:o[L.T_PSI] + n].sum()
+    m1 = 2 * pa.state[o[L.T_PSI1]:o[L.T_PSI1] + n].sum()
+    return 0.5 * (3 * m0 - m1)
+
+
 # --- linearised coupled system --------------------------------------------------------------
 def _rates(pa: PlantArrays, p, xb, yb, afrac):
     n = pa.n
