@@ -195,6 +195,36 @@ def load_controller(path: str | Path, *, expected_fs_hz: float | None = None,
     return Controller(A, B, C, D, spec.fs_hz, where, meta)
 
 
+def for_loop(controller, fs_hz: float) -> Controller:
+    """A controller checked for a loop at ``fs_hz`` before it is handed over.
+
+    A path goes through :func:`load_controller`; a :class:`Controller` object gets the same
+    checks as a file (rate, matrix shapes, order <= :data:`MAX_ORDER`, finite, stable), so
+    nothing unchecked can raise in (or corrupt) the loop thread.
+
+    Raises
+    ------
+    InputError
+    """
+    if not isinstance(controller, Controller):
+        return load_controller(controller, expected_fs_hz=fs_hz)
+    where = str(controller.source)
+    mats = []
+    for name in "ABCD":
+        try:
+            m = np.asarray(getattr(controller, name), dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"controller {name} is not a numeric matrix", where) from None
+        if m.ndim != 2:
+            raise InputError(f"controller {name} must be a matrix, got {m.ndim} dimension(s)",
+                             where)
+        if not np.all(np.isfinite(m)):
+            raise InputError(f"controller {name} contains NaN or Inf", where)
+        mats.append(m)
+    check_controller(*mats, fs_hz=float(controller.fs_hz), expected_fs_hz=fs_hz, where=where)
+    return controller
+
+
 def save_controller(path: str | Path, A, B, C, D, *, fs_hz: float, **extra: Any) -> None:
     """Write a controller YAML atomically after the same checks the loader makes."""
     A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, C, D))

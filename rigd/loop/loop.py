@@ -40,8 +40,8 @@ from rigd.loop.cycle import cycle, hist_new, rt_cycle
 from rigd.loop.lockstep import LockstepClock
 from rigd.loop.realtime import RealTimeClock
 from rigd.loop.recorder import Recorder
-from rigd.loop.segment import Segment, SegmentPlayer, SegmentResult
-from rigd.loop.sinks import H5Sink, MemorySink, RecordSpec, Sink
+from rigd.loop.segment import Segment, SegmentPlayer, SegmentResult, segment_inputs
+from rigd.loop.sinks import H5Sink, MemorySink, RecordSpec, Sink, make_sink
 from rigd.loop.slow import SlowPollers
 from rigd.loop.state import KernelState, PackedController
 from rigd.loop.supervisor import Supervisor
@@ -107,28 +107,10 @@ class ControlLoop:
 
     # --- set-up -------------------------------------------------------------------------
     def _as_controller(self, controller):
-        """A :class:`~rigd.controller.Controller` checked for this loop (any thread).
+        """A controller checked for this loop (any thread; see ``rigd.controller.for_loop``)."""
+        from rigd.controller import for_loop
 
-        Files go through the loader's checks; an object is checked the same way (rate,
-        shapes, order <= 64, finite, stable) so nothing unchecked reaches the loop thread.
-        """
-        from rigd.controller import Controller, check_controller, load_controller
-
-        if not isinstance(controller, Controller):
-            return load_controller(controller, expected_fs_hz=self.fs)
-        where = str(controller.source)
-        mats = []
-        for name in "ABCD":
-            m = np.asarray(getattr(controller, name), dtype=float)
-            if m.ndim != 2:
-                raise InputError(f"controller {name} must be a matrix, got {m.ndim} "
-                                 f"dimension(s)", where)
-            if not np.all(np.isfinite(m)):
-                raise InputError(f"controller {name} contains NaN or Inf", where)
-            mats.append(m)
-        check_controller(*mats, fs_hz=float(controller.fs_hz), expected_fs_hz=self.fs,
-                         where=where)
-        return controller
+        return for_loop(controller, self.fs)
 
     @property
     def controller(self):
@@ -367,7 +349,7 @@ class ControlLoop:
         pre, post : int
             Cycles of zero excitation before and after.
         """
-        full, evs = _segment_arrays(excitation, events, pre, post)
+        full, evs = segment_inputs(excitation, events, pre, post)
         self._check_alive()
         if not self._opened:
             self.open()
@@ -436,42 +418,8 @@ class ControlLoop:
         self.supervisor.recorder_failed(exc)
 
     def _make_sink(self, record, n_expected: int) -> Sink:
-        if isinstance(record, str) and record == "memory":
-            return MemorySink(n_expected)
-        spec = record if isinstance(record, RecordSpec) else RecordSpec(record)
         w = int(self.state.st[L.S_W])
         last = self.recorder.ring[(w - 1) % self.recorder.n] if w else None
-        plant = self.config.plant or {}
-        meta: dict[str, Any] = {"kind": "run", "omega_rpm": plant.get("omega_rpm", 0.0),
-                                "p_inj_bar": plant.get("p_inj_bar", float("nan"))}
-        if last is not None and np.isfinite(last[F.REC["omega_rpm"]]):
-            meta["omega_rpm"] = float(last[F.REC["omega_rpm"]])
-        if last is not None and np.isfinite(last[F.REC["p_inj_bar"]]):
-            meta["p_inj_bar"] = float(last[F.REC["p_inj_bar"]])
-        if self.controller is not None:
-            meta["controller"] = str(self.controller.source)
-        meta.update(spec.meta)
-        return H5Sink(spec.path, fs=self.fs, meta=meta, config_text=self.loaded.text,
-                      chunk_frames=self.config.recorder.chunk_frames)
-
-
-def _segment_arrays(excitation, events, pre: int, post: int):
-    """Validate a segment's inputs (caller's thread); the padded excitation and the events."""
-    exc = np.asarray(excitation, dtype=float)
-    if exc.ndim != 2 or exc.shape[1] != 2:
-        raise InputError(f"excitation must be an (n, 2) array of [r_x, r_y] volts, got shape "
-                         f"{exc.shape}")
-    if not np.all(np.isfinite(exc)):
-        raise InputError("excitation contains NaN or Inf")
-    if pre < 0 or post < 0:
-        raise InputError("pre and post must be >= 0 cycles")
-    full = np.zeros((pre + len(exc) + post, 2))
-    full[pre:pre + len(exc)] = exc
-    evs = []
-    for off, fn in events:
-        idx = pre + int(off)
-        if not 0 <= idx < len(full):
-            raise InputError(f"event at cycle offset {off} is outside the segment "
-                             f"[-{pre}, {len(exc) + post})")
-        evs.append((idx, fn))
-    return full, evs
+        return make_sink(record, n_expected, fs=self.fs, config=self.config,
+                         config_text=self.loaded.text, last_frame=last,
+                         controller=self.controller)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rigd.errors import InputError
 from rigd.loop import layout as L
 
 #: the excitation of "no segment" (exc_i = -1)
@@ -134,3 +135,30 @@ class SegmentPlayer:
         seg, self.current = self.current, None
         if seg is not None:
             seg.abort(why)
+
+
+def segment_inputs(excitation, events, pre: int, post: int):
+    """Validate a segment's inputs in the caller's thread; the padded excitation and events.
+
+    Returns ``(full, events)``: float64 (pre + n + post, 2) and ``[(cycle index, callable)]``.
+    """
+    exc = np.asarray(excitation, dtype=float)
+    if exc.ndim != 2 or exc.shape[1] != 2:
+        raise InputError(f"excitation must be an (n, 2) array of [r_x, r_y] volts, got shape "
+                         f"{exc.shape}")
+    if not np.all(np.isfinite(exc)):
+        raise InputError("excitation contains NaN or Inf")
+    if pre < 0 or post < 0:
+        raise InputError("pre and post must be >= 0 cycles")
+    full = np.zeros((pre + len(exc) + post, 2))
+    full[pre:pre + len(exc)] = exc
+    evs = []
+    for off, fn in events:
+        idx = pre + int(off)
+        if not 0 <= idx < len(full):
+            raise InputError(f"event at cycle offset {off} is outside the segment "
+                             f"[-{pre}, {len(exc) + post})")
+        if not callable(fn):
+            raise InputError(f"event at cycle offset {off} is not callable ({fn!r})")
+        evs.append((idx, fn))
+    return full, evs

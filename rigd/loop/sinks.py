@@ -210,6 +210,31 @@ class H5Sink(Sink):
             pass
 
 
+def make_sink(record, n_expected: int, *, fs: float, config, config_text: str,
+              last_frame: np.ndarray | None, controller) -> Sink:
+    """The sink for ``record`` ("memory", a path or a :class:`RecordSpec`) of a loop.
+
+    The file's metadata: ``kind`` run, the operating point (the last frame's Ω and P_I when
+    finite, else the config's ``plant`` section), the controller's source, then ``spec.meta``.
+    """
+    if isinstance(record, str) and record == "memory":
+        return MemorySink(n_expected)
+    from rigd.frame import REC
+
+    spec = record if isinstance(record, RecordSpec) else RecordSpec(record)
+    plant = config.plant or {}
+    meta: dict[str, Any] = {"kind": "run", "omega_rpm": plant.get("omega_rpm", 0.0),
+                            "p_inj_bar": plant.get("p_inj_bar", float("nan"))}
+    for key in ("omega_rpm", "p_inj_bar"):
+        if last_frame is not None and np.isfinite(last_frame[REC[key]]):
+            meta[key] = float(last_frame[REC[key]])
+    if controller is not None:
+        meta["controller"] = str(controller.source)
+    meta.update(spec.meta)
+    return H5Sink(spec.path, fs=fs, meta=meta, config_text=config_text,
+                  chunk_frames=config.recorder.chunk_frames)
+
+
 def _attr_value(v: Any):
     if v is None:
         return "null"

@@ -142,3 +142,13 @@ def test_controller_objects_are_validated_before_they_reach_the_loop(sim_config,
         assert loop.status()["fault"]["code"] == 0
     with pytest.raises(InputError, match=what):
         ControlLoop(sim_config, make_plant(), controller=bad())
+
+
+def test_segment_inputs_are_validated_before_they_reach_the_loop(sim_config):
+    with ControlLoop(sim_config, make_plant()) as loop:
+        seq0 = loop.status()["seq"]
+        with pytest.raises(InputError, match="not callable"):
+            loop.run_segment(np.zeros((10, 2)), events=[(3, "impact")])
+        with pytest.raises(InputError, match="NaN"):
+            loop.run_segment(np.full((10, 2), np.nan))
+        assert loop.status()["seq"] == seq0 and loop.player.current is None
