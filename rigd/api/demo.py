@@ -98,7 +98,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     model.save(model_path)
     fits = {name: sm.fit_percent for name, sm in model.submodels.items()}
     gbear_path = None
-    rob_source = "simulated plant truth (rigd.design.simtruth.plant_z): no sweep in --quick"
+    rob_source = "simulated plant truth (rigd_drivers.sim_truth.plant_z): no sweep in --quick"
     if not quick:
         from rigd.ident.oprange import identify_sweep
 
@@ -121,7 +121,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     ctrl_path = out / "controller.yaml"
     plant_at = None
     if gbear_path is None:
-        from rigd.design import simtruth
+        from rigd_drivers import sim_truth as simtruth
 
         plant_at = simtruth.plant_z
     design = run_design(model_path, weights, ctrl_path, range_model=gbear_path,
@@ -173,6 +173,11 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
         "damping_increase": {k: closed[k] / open_[k] for k in open_},
         "impacts": per,
         "gamma": design["gamma"],
+        "design_method": design["method"],
+        "gamma_full_order": design["gamma_full_order"],
+        "gamma_per_model": {r["label"]: r["gamma"] for r in design["design_set"]},
+        "design_comparison": design.get("comparison"),
+        "design_tuning_s": design["tuning"].get("time_s"),
         "controller_order": design["controller_order"],
         "controller_order_full": design["order_full"],
         "controller_band_error": design["band_error"],

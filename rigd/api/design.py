@@ -1,4 +1,5 @@
-"""design: mixed-sensitivity H∞ → balanced reduction → Tustin → controller file (paper Sec. 5)."""
+"""design: mixed-sensitivity H∞ → fixed-order tuning or balanced reduction → Tustin →
+controller file (paper Sec. 5); the work is :func:`rigd.design.workflow.design_from_model`."""
 
 from __future__ import annotations
 
@@ -6,8 +7,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-
-from rigd.errors import InputError
 
 
 @dataclass
@@ -55,7 +54,8 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
            out: str | Path = "controller.yaml", *, range_model: str | Path | None = None,
            report: str | Path | None = None,
            plant_at: Callable[[float, float], Any] | None = None,
-           plant_at_label: str = "") -> Design:
+           plant_at_label: str = "", method: str | None = None,
+           order: int | None = None) -> Design:
     """Design K∞ on an identified model, check its robustness, write the controller file.
 
     Parameters
@@ -77,6 +77,12 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
         Replaces ``range_model`` as the operating-range plant of the robustness check.
     plant_at_label : str
         What ``plant_at`` is, for the summary.
+    method : {"structured", "truncate"}, optional
+        Overrides the design YAML's ``method`` (structured: fixed-order multi-model H∞ tuning
+        on the design model and the operating range; truncate: balanced truncation of the
+        full-order controller).
+    order : int, optional
+        Controller states (overrides ``reduction.order``).
 
     Returns
     -------
@@ -86,54 +92,16 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
     Raises
     ------
     InputError
-        Bad files, a model without both sub-models, no stabilising reduced controller, or
+        Bad files, a model without both sub-models, an order that cannot hold the structure
+        or stabilise the design set, no stabilising reduced controller, or
         (without an operating range) a discrete closed loop unstable on the design model.
     """
-    from rigd.design import pipeline, robustness
-    from rigd.design.weights import load_design_config
-    from rigd.ident.modelfile import sha256_file
+    from rigd.design.workflow import design_from_model
 
-    cfg = load_design_config(weights)
     mf, model_path = _model_and_path(model)
-    shown = str(model_path) if model_path is not None else mf.source
-    G = mf.plant()
-    res = pipeline.design_controller(G, cfg)
-    pipeline.save_design(out, res, cfg,
-                         model_hash=sha256_file(model_path) if model_path else None,
-                         design_model=G,
-                         note=f"designed on {Path(shown).name} at "
-                              f"{mf.operating_point or 'unknown operating point'}")
-    summary: dict[str, Any] = {"controller": str(out), "model": shown, **res.summary()}
-    rob = None
-    if range_model:
-        from rigd.ident.oprange import ReassembledBearing
-
-        gb = ReassembledBearing.load(range_model)
-        Gact = mf.ss("actuator")
-        rob = robustness.analyze(lambda om, p: gb.at(om, p) * Gact, res.K_z, cfg.robustness)
-        summary["robustness"] = rob.summary()
-        summary["robustness_model"] = f"reassembled {range_model} x actuator of {shown}"
-    elif plant_at is not None:
-        rob = robustness.analyze(plant_at, res.K_z, cfg.robustness)
-        summary["robustness"] = rob.summary()
-        summary["robustness_model"] = plant_at_label
-    else:
-        r, _ = robustness.assess(G, res.K_z, robustness.default_freqs(cfg.fs_hz),
-                                 cfg.robustness.band_hz, cfg.robustness.low_hz)
-        if not r.stable:
-            raise InputError("discrete closed loop unstable on the design model", str(out))
-        summary["design_point_sensitivity"] = {"reduction_min": r.reduction_min,
-                                               "peak": r.peak, "peak_hz": r.peak_hz,
-                                               "low_increase": r.low_increase,
-                                               "lowfreq_max": r.low_increase,
-                                               "reduction_at_resonance":
-                                                   r.reduction_at_resonance,
-                                               "resonance_hz": r.resonance_hz}
-    if report:
-        from rigd.design.figures import design_report
-
-        design_report(report, cfg, res, rob, title=f"rigd design: {Path(out).name}")
-        summary["report"] = str(report)
+    res, summary = design_from_model(mf, weights, out, model_path=model_path,
+                                     range_model=range_model, report=report, plant_at=plant_at,
+                                     plant_at_label=plant_at_label, method=method, order=order)
     return Design(res.K_z, res.K_red, res.K_full, res, summary)
 
 

@@ -30,19 +30,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="reassembled bearing model over (Ω, P_I) for the robustness check")
     p.add_argument("--report", metavar="DIR", help="write figures (weights, S_o, K(z)) here")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--method", choices=("structured", "truncate"),
+                   help="structured: fixed-order multi-model H∞ tuning (default of "
+                        "config/design.yaml); truncate: balanced truncation of the full order")
+    p.add_argument("--order", type=int, metavar="N",
+                   help="controller states (default reduction.order of the design YAML)")
 
 
 def run(args: argparse.Namespace) -> int:
     from rigd.api.design import design
 
     s = design(args.model, args.weights, args.out, range_model=args.range_model,
-               report=args.report).summary
+               report=args.report, method=args.method, order=args.order).summary
     if args.json:
         json.dump(s, sys.stdout, default=float)
         sys.stdout.write("\n")
     else:
-        print(f"controller written: {s['controller']} (order {s['controller_order']} of "
-              f"{s['order_full']}, gamma = {s['gamma']:.3f})")
+        print(f"controller written: {s['controller']} ({s['method']}, order "
+              f"{s['controller_order']}; full order {s['order_full']}, gamma = {s['gamma']:.3f})")
         if "robustness" in s:
             r = s["robustness"]
             print(f"robustness over {r['n_realizations']} operating points: stable="

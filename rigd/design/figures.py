@@ -81,12 +81,27 @@ def fig_controller(rep: Report, res) -> None:
         a.grid(True, which="both", alpha=0.3)
 
 
-def design_report(out, cfg, res, rob=None, title="rigd design") -> Report:
+def design_report(out, cfg, res, rob=None, title="rigd design", comparison=None) -> Report:
     rep = Report(out, title)
     rep.heading("Design")
-    rep.table(["gamma", "full order", "order", "band error", "|K(1 Hz)| / max in band"],
-              [[f"{res.gamma:.3f}", res.order_full, res.order, f"{res.band_error:.3f}",
-                f"{res.lowfreq_gain_ratio:.4f}"]])
+    rep.table(["method", "gamma", "full order (gamma)", "order", "band error",
+               "|K(1 Hz)| / max in band"],
+              [[res.method, f"{res.gamma:.3f}", f"{res.order_full} ({res.gamma_full:.3f})",
+                res.order, f"{res.band_error:.3f}", f"{res.lowfreq_gain_ratio:.4f}"]])
+    if res.design_set:
+        rep.table(["design-set model", "gamma", "closed-loop spectral radius", "stable"],
+                  [[r["label"], f"{r['gamma']:.3f}", f"{r['rho']:.5f}", r["stable"]]
+                   for r in res.design_set])
+    if comparison:
+        keys = [("controller_order", "{}"), ("gamma", "{:.3f}"), ("all_stable", "{}"),
+                ("sensitivity_peak_max", "{:.2f}"), ("sensitivity_lowfreq_max", "{:.3f}"),
+                ("sensitivity_reduction_at_resonance_min", "{:.2f}"),
+                ("sensitivity_reduction_at_resonance_mode_direction_min", "{:.2f}"),
+                ("disturbance_peak_reduction_min", "{:.2f}")]
+        names = list(comparison)
+        rep.table(["quantity"] + names,
+                  [[k] + [fmt.format(comparison[n][k]) if k in comparison[n] else "-"
+                          for n in names] for k, fmt in keys])
     fig_weights(rep, cfg)
     if rob is not None:
         s = rob.summary()

@@ -1,6 +1,15 @@
-"""The whole design chain: H∞ synthesis → balanced reduction → Tustin → checks → file.
+"""The whole design chain: H∞ synthesis → fixed-order tuning or balanced reduction → Tustin
+→ checks → file.
 
-:func:`design_controller` runs it on a plant model G_p(s) (e.g. ``ModelFile.plant()``):
+:func:`design` picks the method (``DesignConfig.method``):
+
+* ``structured`` (default, :func:`design_structured`): the full-order H∞ controller is
+  synthesised (γ of the full order, and the start), then a K∞ of ``reduction.order`` states
+  with its zeros at DC built in is tuned on a *set* of plant models — the design model, the
+  four corners of the operating range and ``structured.n_samples`` random operating points
+  of ``plant_at`` — for the worst-case ‖F_l(P_i, K)‖∞ under closed-loop stability at every
+  model (:mod:`rigd.design.structured`);
+* ``truncate`` (:func:`design_controller`), the paper's route:
 
 1. full-order K∞(s) by mixed-sensitivity H∞ (:mod:`rigd.design.hinf`), γ reported; with a
    high-pass (``highpass.order`` m > 0) K∞ = H_hp·K̃;
@@ -23,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from rigd.design import discretize, hinf, reduce
-from rigd.design.robustness import freq_response, is_stable, match_domain
+from rigd.design.robustness import freq_response, is_stable
 from rigd.design.weights import DesignConfig
 from rigd.errors import InputError
 
@@ -46,9 +55,15 @@ class DesignResult:
     hsv: list = field(default_factory=list)   # Hankel singular values of the reduced part
     highpass: dict | None = None
     lowfreq_gain_ratio: float = float("nan")  # σ̄(K_z) at 1 Hz / max in band
+    method: str = "truncate"
+    gamma_full: float = float("nan")          # γ of the full-order H∞ controller
+    design_set: list = field(default_factory=list)   # [{label, gamma, rho}] (structured)
+    tuning: dict = field(default_factory=dict)       # starts, evaluations, time
 
     def summary(self) -> dict:
-        return {"gamma": self.gamma, "order_full": self.order_full,
+        return {"method": self.method, "gamma": self.gamma, "gamma_full_order": self.gamma_full,
+                "order_full": self.order_full, "design_set": self.design_set,
+                "tuning": self.tuning,
                 "order_requested": self.order_requested, "controller_order": self.order,
                 "closed_loop_stable": {"full": self.stable_full, "reduced": self.stable_reduced,
                                        "discrete": self.stable_discrete},
@@ -69,21 +84,77 @@ def band_error(K_ref, K_test, band_hz, n: int = 200) -> float:
     return float(np.max(num / np.maximum(den, 1e-300)))
 
 
-def design_controller(G, cfg: DesignConfig, *, max_band_error: float = 0.1) -> DesignResult:
-    """Run the design chain on the continuous plant model ``G`` (r → p, 2×2)."""
+def _synthesize(G, cfg: DesignConfig):
     if G.dt:
         raise InputError("the design model must be continuous (G_p(s))", "model")
-    hp = cfg.highpass
-    syn = hinf.synthesize(G, cfg.weights, hp)
+    syn = hinf.synthesize(G, cfg.weights, cfg.highpass)
     if not syn.closed_loop_stable:
         raise InputError(f"H∞ controller does not stabilise the design model (γ = "
                          f"{syn.gamma:.3g}); check the weights", "design")
+    return syn
+
+
+def design(G, cfg: DesignConfig, *, method: str | None = None, order: int | None = None,
+           plant_at=None, compare: bool = True) -> tuple[DesignResult, DesignResult | None]:
+    """The design by ``method`` (default ``cfg.method``) with ``order`` states (default
+    ``cfg.reduction.order``), and — for ``structured`` with ``compare`` — the truncated
+    full-order design for a side-by-side (None when truncation finds no order).
+
+    ``plant_at(Ω rpm, P_I bar) -> G_p(s)`` gives the operating-range models of the
+    structured design set (without it the set is the design model alone).
+    """
+    method = method or cfg.method
+    if order is not None:
+        cfg = cfg.model_copy(update={"reduction": cfg.reduction.model_copy(
+            update={"order": int(order)})})
+    syn = _synthesize(G, cfg)
+    if method == "truncate":
+        return design_controller(G, cfg, syn=syn), None
+    res = design_structured(G, cfg, syn=syn, plant_at=plant_at)
+    cmp = None
+    if compare:
+        try:
+            cmp = design_controller(G, cfg, syn=syn)
+        except InputError:
+            cmp = None
+    return res, cmp
+
+
+def design_structured(G, cfg: DesignConfig, *, syn=None, plant_at=None) -> DesignResult:
+    """Fixed-order multi-model H∞ tuning (:mod:`rigd.design.structured_design`)."""
+    from rigd.design.structured_design import tune_structured
+
+    syn = syn or _synthesize(G, cfg)
+    order = cfg.reduction.order
+    t = tune_structured(G, cfg, syn.K, order, plant_at)
+    Kr, Kz = t["K"], t["K_z"]
+    fs, band = cfg.fs_hz, cfg.robustness.band_hz
+    f_band = np.linspace(band[0], band[1], 121)
+    k_band = np.linalg.svd(freq_response(Kz, f_band), compute_uv=False)[:, 0].max()
+    k_1hz = np.linalg.svd(freq_response(Kz, np.array([1.0])), compute_uv=False)[0, 0]
+    hp = cfg.highpass
+    return DesignResult(K_full=syn.K, K_red=Kr, K_z=Kz, gamma=t["gamma"],
+                        order_full=syn.K.nstates, order_requested=order, order=Kz.nstates,
+                        stable_full=syn.closed_loop_stable, stable_reduced=is_stable(G, Kr),
+                        stable_discrete=is_stable(discretize.zoh(G, fs), Kz),
+                        band_error=band_error(syn.K, Kz, band), fs_hz=fs,
+                        hsv=[float(v) for v in reduce.hankel_singular_values(syn.K_tilde)],
+                        highpass=hp.model_dump() if hp.order else None,
+                        lowfreq_gain_ratio=float(k_1hz / k_band), method="structured",
+                        gamma_full=syn.gamma, design_set=t["design_set"], tuning=t["tuning"])
+
+
+def design_controller(G, cfg: DesignConfig, *, max_band_error: float = 0.1,
+                      syn=None) -> DesignResult:
+    """Truncation route on the continuous plant model ``G`` (r → p, 2×2)."""
+    hp = cfg.highpass
+    syn = syn or _synthesize(G, cfg)
     Kf = syn.K
     Kt = syn.K_tilde
     n_hp = Kf.nstates - Kt.nstates            # states of H_hp (2m), re-applied after reduction
     fs = cfg.fs_hz
     band = cfg.robustness.band_hz
-    Gz = match_domain(G, hinf_dt(fs))
+    Gz = discretize.zoh(G, fs)
     tried = []
     order = min(max(cfg.reduction.order, n_hp + 2), Kf.nstates)
     chosen = None
@@ -117,12 +188,7 @@ def design_controller(G, cfg: DesignConfig, *, max_band_error: float = 0.1) -> D
                         stable_discrete=st_z, band_error=err, fs_hz=fs, tried=tried,
                         hsv=[float(v) for v in reduce.hankel_singular_values(Kt)],
                         highpass=hp.model_dump() if hp.order else None,
-                        lowfreq_gain_ratio=float(k_1hz / k_band))
-
-
-class hinf_dt:  # noqa: N801 - tiny stand-in carrying a sample time for match_domain
-    def __init__(self, fs_hz: float):
-        self.dt = 1.0 / fs_hz
+                        lowfreq_gain_ratio=float(k_1hz / k_band), gamma_full=syn.gamma)
 
 
 def save_design(path, result: DesignResult, cfg: DesignConfig, *, model_hash: str | None = None,
@@ -138,7 +204,7 @@ def save_design(path, result: DesignResult, cfg: DesignConfig, *, model_hash: st
     Kz, Kr = result.K_z, result.K_red
     plant = dp = None
     if design_model is not None:
-        plant = match_domain(design_model, hinf_dt(result.fs_hz))
+        plant = discretize.zoh(design_model, result.fs_hz)
         dp = {k: np.asarray(getattr(plant, k)).tolist() for k in "ABCD"}
     save_controller(path, Kz.A, Kz.B, Kz.C, Kz.D, fs_hz=result.fs_hz,
                     continuous={"A": np.asarray(Kr.A).tolist(), "B": np.asarray(Kr.B).tolist(),

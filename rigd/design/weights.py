@@ -83,6 +83,18 @@ class Reduction(StrictModel):
     method: str = Field("truncate", pattern="^(truncate|matchdc)$")
 
 
+class Structured(StrictModel):
+    """Fixed-order multi-model tuning (:mod:`rigd.design.structured`)."""
+
+    n_random_starts: int = Field(4, ge=0, le=64)
+    n_samples: int = Field(8, ge=0, le=200, description="random operating points in the "
+                           "design set, besides the design model and the range's corners")
+    seed: int = Field(7, description="random starts and design-set samples (keep it apart "
+                      "from robustness.seed: the assessment points are not design points)")
+    screen_iters: int = Field(25, ge=1, le=1000)
+    polish_iters: int = Field(40, ge=1, le=1000)
+
+
 class Discretization(StrictModel):
     method: str = Field("tustin", pattern="^(tustin)$")
     prewarp_hz: float | None = Field(None, gt=0)
@@ -113,7 +125,12 @@ class DesignConfig(StrictModel):
     design_point: PlantSpec = PlantSpec()
     weights: Weights
     highpass: HighPass = HighPass(order=0)
+    method: str = Field("structured", pattern="^(structured|truncate)$",
+                        description="structured: fixed-order multi-model tuning of "
+                        "reduction.order states; truncate: balanced truncation of the "
+                        "full-order H∞ controller")
     reduction: Reduction = Reduction()
+    structured: Structured = Structured()
     discretization: Discretization = Discretization()
     robustness: Robustness = Robustness()
 

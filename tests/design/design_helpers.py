@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigd.design import simtruth
 from rigd.ident.mechanical import actuator_structure, bearing_structure
 from rigd.ident.modelfile import ModelFile, Submodel
+from rigd_drivers import sim_truth as simtruth
 
 
 def truth_model_file(path, omega_rpm=4000.0, p_inj_bar=7.0, fs=5000.0):
@@ -16,7 +16,7 @@ def truth_model_file(path, omega_rpm=4000.0, p_inj_bar=7.0, fs=5000.0):
     bm = sp.bearing_matrices(omega_rpm, p_inj_bar)
     bs = bearing_structure()
     tb = bs.pack(bm.K_id, bm.D_id, bm.B_id)
-    acts = simtruth._act_fit(fs)
+    acts = simtruth.actuator_fit(fs)
     K = np.diag([p1 * p2 for _, p1, p2 in acts])
     D = np.diag([p1 + p2 for _, p1, p2 in acts])
     B = np.diag([k * p1 * p2 for k, p1, p2 in acts])

@@ -9,8 +9,9 @@ from design_helpers import truth_model_file
 
 from rigd.cli import main
 from rigd.controller import load_controller
-from rigd.design import pipeline, robustness, simtruth
+from rigd.design import pipeline, robustness
 from rigd.design.weights import ThreeLevel, load_design_config, magnitude
+from rigd_drivers import sim_truth as simtruth
 
 CFG = "config/design.yaml"
 

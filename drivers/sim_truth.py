@@ -1,5 +1,6 @@
-"""The simulated plant's true G_p(Ω, P_I), for tests and for ``rigd demo`` when no
-identified operating-range model is available.
+"""The simulated plant's true G_p(Ω, P_I), for tests and for ``rigd demo --quick`` (no
+identified operating-range model there). It lives with the simulator it reads (``rigd.design``
+must not import the simulator).
 
 G_p = G_bear·G_act with G_bear from ``rigd_drivers.sim_physics.bearing_ss`` (Eqs. 5–6) and
 G_act the lumped valve pairs under their PD loops (``lumped_actuator_tf``, Eq. 8), both as the
@@ -19,6 +20,11 @@ def _sp():
     from rigd_drivers import sim_physics
 
     return sim_physics
+
+
+def actuator_fit(fs_hz: float = 5000.0):
+    """((κ, p1, p2) for x, y): the continuous second-order fit (Eq. 8) of the valves."""
+    return _act_fit(fs_hz)
 
 
 @lru_cache(maxsize=4)

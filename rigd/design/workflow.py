@@ -1,0 +1,118 @@
+"""``rigd design`` as a function: model file + weights → controller file, summary, report.
+
+:func:`design_from_files` is what the ``rigd design`` command and the demo call; it loads the
+model (and the reassembled operating-range model), runs :func:`rigd.design.pipeline.design`,
+writes the controller file, assesses robustness over the operating range for the chosen
+design and — for the structured design — for the truncated full-order design beside it
+(``comparison`` in the summary), and writes the figures.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def _side(res, rob, set_gamma) -> dict:
+    d = {"method": res.method, "controller_order": res.order,
+         "gamma": max(r["gamma"] for r in set_gamma), "gamma_per_model": set_gamma,
+         "band_error": res.band_error,
+         "controller_gain_1hz_over_band_max": res.lowfreq_gain_ratio,
+         "closed_loop_stable_design_model": res.stable_discrete}
+    if rob is not None:
+        s = rob.summary()
+        d.update({k: s[k] for k in (
+            "all_stable", "sensitivity_peak_max", "sensitivity_peak_hz",
+            "sensitivity_lowfreq_max", "sensitivity_reduction_min",
+            "sensitivity_reduction_at_resonance_min",
+            "sensitivity_reduction_at_resonance_mode_direction_min",
+            "disturbance_peak_reduction_min")})
+        d["reduction_at_resonance_per_realization"] = [
+            {"omega_rpm": r.omega_rpm, "p_inj_bar": r.p_inj_bar, "resonance_hz": r.resonance_hz,
+             "sigma_max": r.reduction_at_resonance, "mode_direction": r.reduction_at_resonance_mode}
+            for r in rob.realizations]
+    return d
+
+
+def design_from_model(mf, weights_path, out, *, model_path=None, range_model=None,
+                      report=None, plant_at=None, plant_at_label: str = "",
+                      method: str | None = None, order: int | None = None):
+    """Design, check and write; returns (DesignResult, summary dict).
+
+    Parameters
+    ----------
+    mf : rigd.ident.modelfile.ModelFile
+        Identified model with the actuator and bearing sub-models (G_p = G_bear·G_act).
+    weights_path : path
+        Design YAML (:class:`rigd.design.weights.DesignConfig`).
+    out : path
+        Controller YAML to write (atomically, after the checks).
+    model_path : path, optional
+        Where ``mf`` came from (its hash goes into the controller file).
+    range_model : path, optional
+        Reassembled G_bear(Ω, P_I) (``g_bear.yaml``): operating-range models for the
+        structured design set and the robustness check (× the model's actuator).
+    plant_at : callable, optional
+        ``plant_at(Ω rpm, P_I bar) -> G_p`` used instead of ``range_model`` (``demo --quick``
+        passes the simulated plant's truth); ``plant_at_label`` names it in the summary.
+    method, order : optional
+        Override ``method`` and ``reduction.order`` of the design YAML.
+    """
+    from rigd.design import pipeline, robustness
+    from rigd.design.weights import load_design_config
+    from rigd.errors import InputError
+    from rigd.ident.modelfile import sha256_file
+
+    cfg = load_design_config(weights_path)
+    shown = str(model_path) if model_path is not None else str(getattr(mf, "source", "model"))
+    G = mf.plant()
+    label = plant_at_label
+    if range_model:
+        from rigd.ident.oprange import ReassembledBearing
+
+        gb = ReassembledBearing.load(range_model)
+        Gact = mf.ss("actuator")
+
+        def plant_at(om, p):
+            return gb.at(om, p) * Gact
+
+        label = f"reassembled {range_model} x actuator of {shown}"
+    res, cmp = pipeline.design(G, cfg, method=method, order=order, plant_at=plant_at)
+    pipeline.save_design(out, res, cfg,
+                         model_hash=sha256_file(model_path) if model_path else None,
+                         design_model=G,
+                         note=f"{res.method} design of order {res.order} on "
+                              f"{Path(shown).name} at "
+                              f"{mf.operating_point or 'unknown operating point'}")
+    summary = {"controller": str(out), "model": shown, **res.summary()}
+    rob = rob_cmp = None
+    if plant_at is not None:
+        rob = robustness.analyze(plant_at, res.K_z, cfg.robustness)
+        summary["robustness"] = rob.summary()
+        summary["robustness_model"] = label
+        if cmp is not None:
+            rob_cmp = robustness.analyze(plant_at, cmp.K_z, cfg.robustness)
+    else:
+        r, _sig = robustness.assess(G, res.K_z, robustness.default_freqs(cfg.fs_hz),
+                                    cfg.robustness.band_hz, cfg.robustness.low_hz)
+        if not r.stable:
+            raise InputError("discrete closed loop unstable on the design model", str(out))
+        summary["design_point_sensitivity"] = {"reduction_min": r.reduction_min,
+                                               "peak": r.peak, "peak_hz": r.peak_hz,
+                                               "low_increase": r.low_increase,
+                                               "lowfreq_max": r.low_increase,
+                                               "reduction_at_resonance":
+                                                   r.reduction_at_resonance,
+                                               "resonance_hz": r.resonance_hz}
+    if cmp is not None:
+        from rigd.design.structured_design import gamma_on_set
+
+        summary["comparison"] = {
+            d.method: _side(d, r, gamma_on_set(G, cfg, d.K_z, plant_at))
+            for d, r in ((res, rob), (cmp, rob_cmp))}
+    if report:
+        from rigd.design.figures import design_report
+
+        design_report(report, cfg, res, rob, title=f"rigd design: {Path(out).name}",
+                      comparison=summary.get("comparison"))
+        summary["report"] = str(report)
+    return res, summary
