@@ -12,8 +12,8 @@ import numpy as np
 
 
 @numba.njit(cache=True)
-def weighted_sigma(K, G, y11, y12, y22, wp2, wu2, out):  # pragma: no cover - compiled
-    """out[i, k] = σ̄(F_l(P_i, K)) at frequency k.
+def weighted_sigma(K, G, y11, y12, y22, wp2, wu2, out, out_s):  # pragma: no cover - compiled
+    """out[i, k] = σ̄(F_l(P_i, K)) and out_s[i, k] = σ̄(S_o) at frequency k.
 
     Parameters
     ----------
@@ -23,7 +23,7 @@ def weighted_sigma(K, G, y11, y12, y22, wp2, wu2, out):  # pragma: no cover - co
         YYᴴ = I + W_d² G Gᴴ.
     wp2, wu2 : float (n_f,)
         |W_p|², |W_u|².
-    out : float (n_models, n_f)
+    out, out_s : float (n_models, n_f)
     """
     nm, nf = G.shape[0], G.shape[1]
     for i in range(nm):
@@ -36,6 +36,10 @@ def weighted_sigma(K, G, y11, y12, y22, wp2, wu2, out):  # pragma: no cover - co
             d = 1 + g21 * k12 + g22 * k22
             det = a * d - b * c
             s11, s12, s21, s22 = d / det, -b / det, -c / det, a / det
+            fro = abs(s11) ** 2 + abs(s12) ** 2 + abs(s21) ** 2 + abs(s22) ** 2
+            ds = abs(s11 * s22 - s12 * s21) ** 2
+            dd = fro * fro - 4.0 * ds
+            out_s[i, k] = np.sqrt(0.5 * (fro + np.sqrt(dd if dd > 0.0 else 0.0)))
             q11 = k11 * s11 + k12 * s21
             q12 = k11 * s12 + k12 * s22
             q21 = k21 * s11 + k22 * s21

@@ -34,6 +34,8 @@ from rigd.errors import InputError
 
 #: largest accepted closed-loop spectral radius (decay ≥ 2.5 s⁻¹ at 5 kHz)
 RHO_MAX = 0.9995
+#: κ of the penalty of the hard bound on σ̄(S_o) (see :meth:`Problem.lse`)
+PENALTY = 10.0
 
 
 @dataclass
@@ -71,6 +73,7 @@ class Problem:
     Wp: np.ndarray            # (n_f,) |W_p| (diagonal, equal channels)
     Wu: np.ndarray            # (n_f,) |W_u|
     wd: float
+    s_max: float | None = None    # hard bound on σ̄(S_o) at every model and frequency
     s_warp: np.ndarray = field(init=False)
 
     def __post_init__(self):
@@ -95,10 +98,15 @@ class Problem:
 
     def sigma_of(self, K: np.ndarray) -> np.ndarray:
         """σ̄(T_i) for any controller given by its response K(e^{jωT}) (n_f, 2, 2)."""
+        return self.sigmas_of(K)[0]
+
+    def sigmas_of(self, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(σ̄(T_i), σ̄(S_o,i)), each (n_models, n_f), for the response K(e^{jωT})."""
         out = np.empty((len(self.models), len(self.f_hz)))
+        out_s = np.empty_like(out)
         weighted_sigma(np.ascontiguousarray(K, dtype=complex), self._G, *self._y, self._wp2,
-                       self._wu2, out)
-        return out
+                       self._wu2, out, out_s)
+        return out, out_s
 
     def spectral_radius(self, x) -> np.ndarray:
         """ρ of the discrete closed loop (ZOH plant, Tustin K) of every model."""
@@ -120,9 +128,19 @@ class Problem:
         return self.lse(x, beta)
 
     def lse(self, x, beta: float) -> float:
-        g = np.log(self.sigma(x).ravel())
+        """log-sum-exp_β of ln σ̄(T) over models × grid (≥ ln γ, → ln γ as β → ∞), plus the
+        penalty κ·Σ max(0, ln(σ̄(S_o)/s_max))² of the hard bound on σ̄(S_o) (if any)."""
+        sig, sig_s = self.sigmas_of(self.K_grid(x))
+        g = np.log(sig.ravel())
         gmax = g.max()
-        return float(gmax + np.log(np.sum(np.exp(beta * (g - gmax)))) / beta)
+        pen = 0.0
+        if self.s_max is not None:
+            pen = PENALTY * float(np.sum(np.maximum(np.log(sig_s / self.s_max), 0.0) ** 2))
+        return float(gmax + np.log(np.sum(np.exp(beta * (g - gmax)))) / beta) + pen
+
+    def peak_s(self, x) -> float:
+        """max σ̄(S_o) over models and grid."""
+        return float(self.sigmas_of(self.K_grid(x))[1].max())
 
     def smooth_rho(self, x, beta: float = 200.0) -> float:
         r = self.spectral_radius(x)
@@ -157,13 +175,14 @@ def _fd_grad(fun, x, f0, h=1e-6):
 
 
 def _bfgs(fun, x0, maxiter: int, counter: list, grad_fun=None, max_step: float = 1.0,
-          tol: float = 1e-5):
+          tol: float = 1e-5, done=None):
     """BFGS with a backtracking (Armijo) line search that treats +∞ (a step out of the
     stable set) as "too far"; gradients by forward differences of ``grad_fun`` (default
     ``fun``: only σ̄ is needed for them, the stability check only for accepted steps).
     Quasi-Newton with an inexact line search copes with the kinks of a max (Lewis & Overton,
     2013); the log-sum-exp smoothing keeps them mild. Stops after ``maxiter`` iterations or
-    when 4 successive iterations gained less than ``tol`` (relative)."""
+    when 4 successive iterations gained less than ``tol`` (relative), or as soon as
+    ``done(f)`` is true."""
     grad_fun = grad_fun or fun
 
     def grad(x):
@@ -207,7 +226,7 @@ def _bfgs(fun, x0, maxiter: int, counter: list, grad_fun=None, max_step: float =
             H = V @ H @ V.T + rho * np.outer(sv, sv)
         slow = slow + 1 if f - fn < tol * max(1.0, abs(f)) else 0
         x, f, g = xn, fn, gn
-        if slow >= 4:
+        if slow >= 4 or (done is not None and done(f)):
             break
     return x
 
@@ -218,7 +237,8 @@ def stabilize(prob: Problem, x0, counter, maxiter: int = 200):
     for _ in range(3):
         if np.all(prob.spectral_radius(x) < RHO_MAX - 1e-4):
             return x
-        x = _bfgs(prob.smooth_rho, x, maxiter, counter)
+        x = _bfgs(prob.smooth_rho, x, maxiter, counter,
+                  done=lambda f: f < RHO_MAX - 2e-4)
     return x if np.all(prob.spectral_radius(x) < RHO_MAX) else None
 
 

@@ -54,7 +54,7 @@ def problem(models, cfg: DesignConfig, structure: FixedOrder, f_hz) -> structure
     dms = [structured.discretize_model(Gi, fs, f_hz, lab) for lab, Gi in models]
     return structured.Problem(structure, dms, np.asarray(f_hz), fs, cfg.discretization.prewarp_hz,
                               magnitude(cfg.weights.W_p, f_hz), magnitude(cfg.weights.W_u, f_hz),
-                              cfg.weights.W_d)
+                              cfg.weights.W_d, s_max=cfg.structured.peak_s_max)
 
 
 def tune_structured(G, cfg: DesignConfig, K_full, order: int,
@@ -107,6 +107,8 @@ def tune_structured(G, cfg: DesignConfig, K_full, order: int,
             "tuning": {"order": order, "dc_zeros": m, "strictly_proper": fo.strictly_proper,
                        "n_models": len(models), "n_freqs": len(prob.f_hz),
                        "gamma_grid": res.gamma, "starts": res.starts,
+                       "peak_s_max": cfg.structured.peak_s_max,
+                       "peak_s_design_set": dense.peak_s(res.x),
                        "n_evaluations": res.n_evals, "time_s": t_tune}}
 
 

@@ -91,6 +91,10 @@ class Structured(StrictModel):
                            "design set, besides the design model and the range's corners")
     seed: int = Field(7, description="random starts and design-set samples (keep it apart "
                       "from robustness.seed: the assessment points are not design points)")
+    peak_s_max: float | None = Field(1.9, gt=1.0, description="hard bound on σ̄(S_o) at "
+                                     "every model of the set and frequency (a penalty beside "
+                                     "γ, as systune's hard goals); null: only the weights bound "
+                                     "it (by γ/|W_p|)")
     screen_iters: int = Field(25, ge=1, le=1000)
     polish_iters: int = Field(40, ge=1, le=1000)
 

@@ -1,7 +1,7 @@
 """``rigd design`` as a function: model file + weights → controller file, summary, report.
 
-:func:`design_from_files` is what the ``rigd design`` command and the demo call; it loads the
-model (and the reassembled operating-range model), runs :func:`rigd.design.pipeline.design`,
+:func:`design_from_model` is what :func:`rigd.api.design` (``rigd design``, the demo) calls; it
+loads the reassembled operating-range model, runs :func:`rigd.design.pipeline.design`,
 writes the controller file, assesses robustness over the operating range for the chosen
 design and — for the structured design — for the truncated full-order design beside it
 (``comparison`` in the summary), and writes the figures.

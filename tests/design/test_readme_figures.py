@@ -1,0 +1,61 @@
+"""The README's demo figures cannot drift: the seeded demo (what `make demo` runs) is rerun
+and every figure between the README's demo-table markers must be within 2 % of what
+tools/readme_demo_table.py renders from the fresh demo-out/summary.json. The demo's own
+contract (the issue's must-show figures) is checked on the same run."""
+
+import json
+import sys
+
+import pytest
+from testpaths import ROOT
+
+from rigd.cli import main
+
+sys.path.insert(0, str(ROOT / "tools"))
+import readme_demo_table as tool  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def summary(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "demo-out"
+    assert main(["demo", "--out", str(out)]) == 0
+    return json.loads((out / "summary.json").read_text())
+
+
+def test_tool_detects_a_drifted_figure(tmp_path):
+    s = {"damping_ratio_open": {f"P{p}bar_W0rpm_{a}": 0.05 for p in (4, 7) for a in "xy"},
+         "damping_ratio_closed": {f"P{p}bar_W0rpm_{a}": 0.2 for p in (4, 7) for a in "xy"},
+         "damping_increase": {f"P{p}bar_W0rpm_{a}": 4.0 for p in (4, 7) for a in "xy"},
+         "design_method": "structured", "controller_order": 4, "gamma": 2.0,
+         "robustness": {"n_realizations": 30, "all_stable": True, "sensitivity_peak_max": 1.8,
+                        "sensitivity_peak_hz": 300.0}}
+    readme = f"x\n{tool.BEGIN}\n{tool.render(s)}\n{tool.END}\ny"
+    assert tool.compare(readme, s) == []
+    s2 = json.loads(json.dumps(s))
+    s2["robustness"]["sensitivity_peak_max"] = 1.8 * 1.03
+    assert len(tool.compare(readme, s2)) == 1
+    s2["robustness"]["sensitivity_peak_max"] = 1.8 * 1.01       # within 2 %: not a drift
+    assert tool.compare(readme, s2) == []
+    assert tool.rewrite(readme, s2).startswith("x\n" + tool.BEGIN)
+    assert tool.compare(tool.rewrite(readme, s2), s2) == []
+
+
+def test_readme_demo_table_matches_the_demo(summary):
+    drift = tool.compare((ROOT / "README.md").read_text(), summary)
+    assert not drift, "README demo figures drifted (run `make demo` and " \
+        "`python tools/readme_demo_table.py`): " + "; ".join(drift)
+
+
+def test_demo_meets_the_design_targets(summary):
+    s = summary
+    r = s["robustness"]
+    assert s["controller_order"] <= 6 and s["design_method"] == "structured"
+    assert r["n_realizations"] == 30 and r["all_stable"]
+    assert s["sensitivity_peak_max"] <= 2.0
+    assert s["disturbance_peak_reduction_min"] >= 3.0
+    assert s["sensitivity_reduction_at_resonance_mode_direction_min"] >= 3.0
+    assert s["sensitivity_lowfreq_max"] <= 1.3
+    inc = s["damping_increase"]
+    for ax in "xy":
+        assert inc[f"P4bar_W0rpm_{ax}"] >= 3.0
+        assert inc[f"P7bar_W0rpm_{ax}"] >= 4.0

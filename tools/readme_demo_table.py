@@ -1,0 +1,138 @@
+#!/usr/bin/env python3
+"""Rewrite the README's demo figures from ``demo-out/summary.json`` (what ``make demo`` writes).
+
+    python tools/readme_demo_table.py [--summary demo-out/summary.json] [--readme README.md]
+                                      [--check]
+
+The figures live between the marker comments ``<!-- demo-table:begin -->`` and
+``<!-- demo-table:end -->``; everything between them is replaced by :func:`render`. With
+``--check`` nothing is written and the exit status is 1 when the README's figures differ from
+the summary's by more than 2 % (:func:`compare`), so a figure cannot drift from the command
+that produces it. Plain Python (json, re, argparse), no rigd import.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+BEGIN, END = "<!-- demo-table:begin -->", "<!-- demo-table:end -->"
+NUMBER = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
+PAPER = {"open": (0.0567, 0.0282), "closed": (0.173, 0.1668), "increase": ("3", "6")}
+
+
+def _z(s: dict, kind: str, p: int, ax: str) -> float:
+    return s[f"damping_ratio_{kind}" if kind != "increase" else "damping_increase"][
+        f"P{p}bar_W0rpm_{ax}"]
+
+
+def _row(s, kind, label, fmt):
+    cells = [" / ".join(fmt.format(_z(s, kind, p, ax)) for ax in "xy") for p in (4, 7)]
+    paper = " / ".join(str(v) for v in PAPER[kind])
+    return f"| {label} | {cells[0]} | {cells[1]} | {paper} |"
+
+
+def render(s: dict) -> str:
+    """The README block (without markers) for a demo summary."""
+    lines = ["| | 4 bar, 0 rpm | 7 bar, 0 rpm | paper (4 / 7 bar) |", "|---|---|---|---|",
+             _row(s, "open", "impact damping ratio, K∞ off (x / y)", "{:.4f}"),
+             _row(s, "closed", "impact damping ratio, K∞ on (x / y)", "{:.4f}"),
+             _row(s, "increase", "increase (x / y)", "{:.2f}×"), ""]
+    cmp = s.get("design_comparison") or {}
+    names = [s["design_method"]] + [k for k in cmp if k != s["design_method"]]
+    sides = [cmp.get(n, {}) for n in names]
+    if not cmp:
+        sides = [{"controller_order": s["controller_order"], "gamma": s["gamma"],
+                  **s["robustness"]}]
+    head = [f"{n} (order {d.get('controller_order', '?')})" for n, d in zip(names, sides)]
+    lines += [f"Over {s['robustness']['n_realizations']} random operating points of the "
+              "reassembled model (`demo-out/summary.json`; the truncated full-order design "
+              "beside it, `design_comparison`):", "",
+              "| figure | " + " | ".join(head) + " | paper |",
+              "|---|" + "---|" * len(head) + "---|"]
+
+    def row(label, key, fmt, paper="–"):
+        cells = [fmt.format(d[key]) if key in d else "–" for d in sides]
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {paper} |")
+
+    row("γ, worst over the design set", "gamma", "{:.3f}")
+    row("all closed loops stable", "all_stable", "{}")
+    row("peak σ̄(S_o) (`sensitivity_peak_max`)", "sensitivity_peak_max", "{:.3f}", "1.8")
+    row("at (Hz)", "sensitivity_peak_hz", "{:.0f}", "280")
+    row("low-frequency increase (`sensitivity_lowfreq_max`)", "sensitivity_lowfreq_max",
+        "{:.3f}", "1.2")
+    row("disturbance-peak reduction (`disturbance_peak_reduction_min`)",
+        "disturbance_peak_reduction_min", "{:.2f}")
+    row("S_o reduction at each resonance, mode direction "
+        "(`sensitivity_reduction_at_resonance_mode_direction_min`)",
+        "sensitivity_reduction_at_resonance_mode_direction_min", "{:.2f}", "3–9")
+    row("the same, σ̄ (`sensitivity_reduction_at_resonance_min`)",
+        "sensitivity_reduction_at_resonance_min", "{:.2f}")
+    row("S_o reduction over the whole 70–190 Hz band (`sensitivity_reduction_min`)",
+        "sensitivity_reduction_min", "{:.2f}")
+    return "\n".join(lines)
+
+
+def numbers(text: str) -> list[float]:
+    return [float(v) for v in NUMBER.findall(text)]
+
+
+def block(readme: str) -> str:
+    """The text between the markers; ValueError when they are missing."""
+    i, j = readme.find(BEGIN), readme.find(END)
+    if i < 0 or j < i:
+        raise ValueError(f"README has no {BEGIN} ... {END} block")
+    return readme[i + len(BEGIN):j]
+
+
+def compare(readme: str, s: dict, rel: float = 0.02) -> list[str]:
+    """Differences (one line each) between the README block and ``render(s)``, beyond ``rel``."""
+    have, want = numbers(block(readme)), numbers(render(s))
+    if len(have) != len(want):
+        return [f"README block has {len(have)} figures, the summary gives {len(want)}: "
+                "rerun tools/readme_demo_table.py"]
+    out = []
+    for k, (a, b) in enumerate(zip(have, want)):
+        if abs(a - b) > rel * max(abs(b), 1e-12) and abs(a - b) > 0.5 * 10 ** -_decimals(a):
+            out.append(f"figure {k + 1}: README {a:g}, summary {b:g}")
+    return out
+
+
+def _decimals(v: float) -> int:
+    t = repr(v)
+    return len(t.split(".")[1]) if "." in t and "e" not in t else 0
+
+
+def rewrite(readme: str, s: dict) -> str:
+    i, j = readme.find(BEGIN), readme.find(END)
+    if i < 0 or j < i:
+        raise ValueError(f"README has no {BEGIN} ... {END} block")
+    return readme[:i + len(BEGIN)] + "\n" + render(s) + "\n" + readme[j:]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--summary", default="demo-out/summary.json")
+    ap.add_argument("--readme", default="README.md")
+    ap.add_argument("--check", action="store_true", help="compare only (exit 1 on drift)")
+    a = ap.parse_args(argv)
+    try:
+        s = json.loads(Path(a.summary).read_text())
+        text = Path(a.readme).read_text()
+        if a.check:
+            diff = compare(text, s)
+            for d in diff:
+                print(f"{a.readme}: {d}", file=sys.stderr)
+            return 1 if diff else 0
+        Path(a.readme).write_text(rewrite(text, s))
+    except (OSError, ValueError, KeyError) as exc:
+        print(f"readme_demo_table: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
