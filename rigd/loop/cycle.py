@@ -178,7 +178,11 @@ def pd_step(prm, st, i, ref, meas):
     return clamp(v, vmin, vmax)
 
 
-@njit(cache=True, inline="always")
+# supervise() checks the four sources' counters unrolled (the every-cycle fast path)
+assert N_REQ_SRC == 4, "update the unrolled request check in supervise()"
+
+
+@njit(cache=True)
 def take_requests(st):
     """Acknowledge the fault requests posted by Python (:mod:`rigd.loop.requests`).
 
@@ -205,9 +209,12 @@ def supervise(prm, st):
 
     Also updates the check counters in ``st`` (stale frames, frozen encoder, valve tracking).
     """
-    ext = take_requests(st)
-    if ext != 0:
-        return ext, -1
+    # every cycle: a cheap look whether any source's request counter moved (rarely)
+    if st[S_FREQ] != st[S_FREQ + 2] or st[S_FREQ + 3] != st[S_FREQ + 5] or \
+            st[S_FREQ + 6] != st[S_FREQ + 8] or st[S_FREQ + 9] != st[S_FREQ + 11]:
+        ext = take_requests(st)
+        if ext != 0:
+            return ext, -1
     code = 0
     detail = -1
     # NaN / Inf on the sensors the loop uses
