@@ -14,32 +14,11 @@ import math
 
 import numpy as np
 
+from rigd.lti import foh, zoh
 from rigd_drivers import sim_kernel as k
 from rigd_drivers import sim_physics as phys
 from rigd_drivers.sim_expm import expm
 from rigd_drivers.sim_options import PlantOptions
-
-
-def zoh(A: np.ndarray, B: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretisation: x+ = Φx + Γu (e^M without the GIL)."""
-    n, m = B.shape
-    E = expm(np.ascontiguousarray(np.block([[A, B], [np.zeros((m, n + m))]]) * T))
-    return E[:n, :n], E[:n, n:]
-
-
-def foh(A: np.ndarray, B: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Exact first-order-hold (input linear between samples) discretisation.
-
-    Returns Φ, G0, G1 with ``x_{k+1} = Φ x_k + G0 w_k + G1 w_{k+1}``.
-    """
-    n, m = B.shape
-    Z = np.zeros
-    big = np.block([[A * T, B * T, Z((n, m))],
-                    [Z((m, n + m)), np.eye(m)],
-                    [Z((m, n + 2 * m))]])
-    E = expm(np.ascontiguousarray(big))
-    Phi, Ga, Gb = E[:n, :n], E[:n, n:n + m], E[:n, n + m:]
-    return Phi, Ga - Gb, Gb
 
 
 def bearing_augmented(opts: PlantOptions, omega_rpm: float, p_inj_bar: float):
@@ -74,7 +53,7 @@ def _valve_block(f_scale: float, T: float) -> tuple[np.ndarray, np.ndarray, np.n
         w = v.omega
         Av = np.array([[0.0, 1.0], [-w * w, -2 * v.zeta * w]])
         Bv = np.array([[0.0], [v.gain * w * w]])
-        Pv, Gv = zoh(Av, Bv, T)
+        Pv, Gv = zoh(Av, Bv, T, expm=expm)
         vphi[4 * i:4 * i + 4] = Pv.ravel()
         vgam[2 * i:2 * i + 2] = Gv.ravel()
         voff[i] = v.offset_v
@@ -89,12 +68,12 @@ def param_block(opts: PlantOptions, omega_rpm: float, p_inj_bar: float,
     T = 1.0 / fs
     b = np.zeros(k.NA)
     A, B, C = bearing_augmented(opts, omega_rpm, p_inj_bar)
-    Phi, G0, G1 = foh(A, B, T)
+    Phi, G0, G1 = foh(A, B, T, expm=expm)
     b[k.A_PHI:k.A_PHI + k.NX * k.NX] = Phi.ravel()
     b[k.A_G0:k.A_G0 + k.NX * k.NW] = G0.ravel()
     b[k.A_G1:k.A_G1 + k.NX * k.NW] = G1.ravel()
     n_sub = opts.substeps
-    Phi, G0, G1 = foh(A, B, T / n_sub)
+    Phi, G0, G1 = foh(A, B, T / n_sub, expm=expm)
     b[k.A_SPHI:k.A_SPHI + k.NX * k.NX] = Phi.ravel()
     b[k.A_SG0:k.A_SG0 + k.NX * k.NW] = G0.ravel()
     b[k.A_SG1:k.A_SG1 + k.NX * k.NW] = G1.ravel()

@@ -41,13 +41,14 @@ class Design:
 
 
 def _model_and_path(model: Any):
+    from rigd.effects import resolve
     from rigd.ident.modelfile import ModelFile, load_model
 
     if isinstance(model, ModelFile):
         return model, None
     if hasattr(model, "model") and isinstance(model.model, ModelFile):  # Identification
         return model.model, None
-    return load_model(model), model
+    return load_model(model, resolve), model
 
 
 def design(model: Any, weights: str | Path = "config/design.yaml",

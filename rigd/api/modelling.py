@@ -26,29 +26,27 @@ def parse_effects(names: str | list[str] | None, what: str = "--add") -> list[st
     Raises
     ------
     InputError
-        An unknown name; the message lists the known ones (``rigd.effects.REGISTRY``).
+        An unknown name; the message lists the known ones (``rigd.effects.resolve``).
     """
     if not names:
         return []
     if isinstance(names, str):
         names = [n.strip() for n in names.split(",") if n.strip()]
-    from rigd.effects import REGISTRY
+    from rigd.effects import resolve
 
-    unknown = [n for n in names if n not in REGISTRY]
-    if unknown:
-        raise InputError(f"unknown effect(s) {', '.join(unknown)} (known: "
-                         f"{', '.join(sorted(REGISTRY))})", what)
+    resolve(names, what)
     return list(names)
 
 
 def _as_model(model: Any):
+    from rigd.effects import resolve
     from rigd.ident.modelfile import ModelFile, load_model
 
     if isinstance(model, Identification):
         return model.model
     if isinstance(model, ModelFile):
         return model
-    return load_model(model)
+    return load_model(model, resolve)
 
 
 def _data_hash(data: Any) -> str | None:
@@ -115,7 +113,7 @@ class Identification:
 
     def summary(self) -> dict[str, Any]:
         """The ``rigd identify --json`` object (DESIGN.md contract, plus ``source``)."""
-        from rigd.ident.modelfile import _plain
+        from rigd.plain import plain
 
         subs = self.model.submodels
         if len(subs) == 1:
@@ -131,7 +129,7 @@ class Identification:
                    for n, sm in subs.items()}
             ro = {n: sm.readouts for n, sm in subs.items()}
         return {"fit_percent": fp, "parameters": params, "effects": list(self.effects),
-                "std": std, "readouts": _plain(ro),
+                "std": std, "readouts": plain(ro),
                 "fit_percent_per_output": {n: sm.fit_percent for n, sm in subs.items()},
                 "split": self.model.split, "operating_point": self.model.operating_point,
                 "source": self.source}
@@ -181,6 +179,7 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
         ``.model`` (model file), ``.ss(name)`` / ``.plant()`` (python-control StateSpace),
         ``.fit_percent`` (%), ``.parameters``, ``.summary()`` (the ``--json`` object).
     """
+    from rigd.effects import resolve
     from rigd.ident.prefilter import PrefilterOptions
     from rigd.ident.workflow import identify_record
 
@@ -193,7 +192,8 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
     ro = as_record(runout) if runout is not None else None
     model = identify_record(record, submodels, runout=ro, options=options, method=method,
                             init=_as_model(init) if init is not None else None,
-                            effects=effects, split=split, data_hash=_data_hash(data),
+                            effects=resolve(effects), split=split,
+                            data_hash=_data_hash(data),
                             hold=hold, order=order)
     if out:
         model.save(out)
@@ -399,14 +399,7 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
         raise InputError("give both --est and --val, or neither", "--est/--val")
     names = None
     if effects:
-        from rigd.effects import REGISTRY
-
-        names = ([e.strip() for e in effects.split(",") if e.strip()]
-                 if isinstance(effects, str) else list(effects))
-        bad = [e for e in names if e not in REGISTRY]
-        if bad:
-            raise InputError(f"unknown effect(s) {', '.join(bad)} (known: "
-                             f"{', '.join(REGISTRY)})", "--effects")
+        names = parse_effects(effects, "--effects")
     if split is not None and est_s is not None:
         raise InputError("give --split or --est/--val, not both", "--split")
     if steps < 1:

@@ -22,6 +22,7 @@ import numpy as np
 
 from rigd.data.record import Record
 from rigd.errors import InputError
+from rigd.plain import plain
 
 HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
 
@@ -33,19 +34,6 @@ def is_hdf5(path: str | Path) -> bool:
             return fh.read(8) == HDF5_MAGIC
     except OSError:
         return False
-
-
-def _plain(value: Any) -> Any:
-    """HDF5 attribute value -> plain Python (str, float, int, list)."""
-    if isinstance(value, bytes):
-        return value.decode("utf-8", "replace")
-    if isinstance(value, np.ndarray):
-        return [_plain(v) for v in value.tolist()] if value.ndim else _plain(value.item())
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 def _decode_attr(v: Any) -> Any:
@@ -131,14 +119,14 @@ def open_recording(path: str | Path) -> Iterator[Recording]:
             raise InputError(f"/frames must be 2-D (N, C), has shape {ds.shape}", spath)
         if "channels" not in ds.attrs:
             raise InputError("/frames has no 'channels' attribute (channel names)", spath)
-        names = [str(n) for n in _plain(ds.attrs["channels"])]
+        names = [str(n) for n in plain(ds.attrs["channels"])]
         if len(names) != ds.shape[1]:
             raise InputError(f"/frames has {ds.shape[1]} columns but {len(names)} channel "
                              "names", spath)
         if len(set(names)) != len(names):
             raise InputError("duplicate channel names in /frames", spath)
-        units = [str(u) for u in _plain(ds.attrs.get("units", [""] * len(names)))]
-        meta = {k: _decode_attr(_plain(v)) for k, v in f.attrs.items()}
+        units = [str(u) for u in plain(ds.attrs.get("units", [""] * len(names)))]
+        meta = {k: _decode_attr(plain(v)) for k, v in f.attrs.items()}
         for k in ("omega_rpm", "p_inj_bar"):
             v = meta.get(k)
             if isinstance(v, float) and not np.isfinite(v):
@@ -170,9 +158,9 @@ def read_events(path: str | Path) -> list[dict[str, Any]]:
         if "events" not in f:
             return []
         g = f["events"]
-        seq = _plain(g["seq"][()]) if "seq" in g else []
-        code = _plain(g["code"][()]) if "code" in g else [None] * len(seq)
-        text = _plain(g["text"][()]) if "text" in g else [""] * len(seq)
+        seq = plain(g["seq"][()]) if "seq" in g else []
+        code = plain(g["code"][()]) if "code" in g else [None] * len(seq)
+        text = plain(g["text"][()]) if "text" in g else [""] * len(seq)
         return [{"seq": s, "code": c, "text": t} for s, c, t in zip(seq, code, text)]
     finally:
         f.close()

@@ -34,21 +34,37 @@ REGISTRY: dict[str, Effect] = {e.name: e for e in (
 _ORDER = {"state": 0, "input": 1, "output": 2}
 
 
+def resolve(names: Iterable[str], where: str | None = None) -> list[Effect]:
+    """The registered effects ``names``, in order (the one unknown-effect check).
+
+    Used for ``--add`` / ``--effects`` on the command line and to rebuild the effects a model
+    file names (``rigd.ident.modelfile.load_model(path, resolve_effects=resolve)``).
+
+    Raises
+    ------
+    InputError
+        Naming the unknown names (at ``where``) and listing the known ones.
+    """
+    names = list(names)
+    unknown = [n for n in names if n not in REGISTRY]
+    if unknown:
+        raise InputError(f"unknown effect(s) {', '.join(unknown)} (known: "
+                         f"{', '.join(sorted(REGISTRY))})", where)
+    return [REGISTRY[n] for n in names]
+
+
 def get(name: str) -> Effect:
     """The registered effect ``name``; InputError listing the known names otherwise."""
-    try:
-        return REGISTRY[name]
-    except KeyError:
-        raise InputError(f"unknown effect {name!r} (known: {', '.join(REGISTRY)})") from None
+    return resolve([name])[0]
 
 
 def extend(structure: Any, names: Iterable[str]) -> Any:
     """``structure`` extended by several effects (state-level first, output-level last)."""
-    effects = sorted((get(n) for n in names), key=lambda e: _ORDER.get(e.level, 1))
+    effects = sorted(resolve(names), key=lambda e: _ORDER.get(e.level, 1))
     for e in effects:
         structure = e.extend(structure)
     return structure
 
 
 __all__ = ["REGISTRY", "Effect", "Finding", "CannotReveal", "Context", "ExtendedStructure",
-           "get", "extend"]
+           "get", "resolve", "extend"]

@@ -15,7 +15,8 @@ import numpy as np
 
 from rigd.effects._signals import derivative, lag1
 from rigd.effects.base import Effect, dims
-from rigd.effects.context import Context, replace_inputs
+from rigd.effects.context import Context
+from rigd.ident.iddata import replace_inputs
 
 TAU_MAX_S = 0.05
 

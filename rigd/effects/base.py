@@ -20,28 +20,24 @@ Structures follow the contract of ``docs/ARCHITECTURE.md``: ``names``, ``theta0(
 
 This module holds :class:`Effect`, :class:`ExtendedStructure` and the helpers
 :func:`accepts_hooks` / :func:`dims`; the context and results live in
-:mod:`rigd.effects.context`, the signature regression in :mod:`rigd.effects.signature`, and
-both are re-exported here (``from rigd.effects.base import Context, Finding, ...`` keeps working).
+:mod:`rigd.effects.context`, the signature regression in :mod:`rigd.effects.signature`.
 """
 
 from __future__ import annotations
 
 import copy
+import inspect
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from .context import CannotReveal, Context, Finding, get_phi, replace_inputs
-from .signature import SignatureFit, effective_n, signature_fit
+from rigd.effects.context import CannotReveal, Context
+from rigd.effects.signature import SignatureFit, signature_fit
+from rigd.effects.state_level import fixed_point
+from rigd.ident.simulate import Hooks
 
-__all__ = [
-    "ExtendedStructure", "Effect", "accepts_hooks", "dims",
-    # re-exported from rigd.effects.context
-    "Finding", "CannotReveal", "replace_inputs", "get_phi", "Context",
-    # re-exported from rigd.effects.signature
-    "SignatureFit", "effective_n", "signature_fit",
-]
+__all__ = ["ExtendedStructure", "Effect", "accepts_hooks", "dims"]
 
 
 # --------------------------------------------------------------------------------------
@@ -89,14 +85,10 @@ class ExtendedStructure:
         mechanical base simulator; a base that takes no hooks gets the effect by fixed-point
         iteration on its batch simulation instead.
         """
-        from rigd.effects.state_level import fixed_point
-
         theta = np.asarray(theta, dtype=float)
         tb, te = theta[:self.nb], theta[self.nb:]
         takes = accepts_hooks(self.base)
         if self.effect.level == "state" and takes:
-            from rigd.ident.simulate import Hooks
-
             hooks = hooks if hooks is not None else Hooks()
             self.effect.apply_hooks(te, hooks, data)
             return np.asarray(self.base.simulate(tb, data, hooks), dtype=float)
@@ -219,8 +211,6 @@ class Effect:
 def accepts_hooks(structure: Any) -> bool:
     """True if ``structure.simulate`` takes a third ``hooks`` argument (rigd.ident bases and
     wrappers around them)."""
-    import inspect
-
     if isinstance(structure, ExtendedStructure):
         return accepts_hooks(structure.base)
     try:

@@ -1,19 +1,20 @@
 """Diagnosis context and results of one effect on one record.
 
 :class:`Finding` (what the diagnosis concluded), :class:`CannotReveal` (why a record cannot
-show an effect), the data helpers :func:`replace_inputs` / :func:`get_phi` and
-:class:`Context` (everything an effect's signature needs about one fitted sub-model).
-Re-exported by :mod:`rigd.effects.base`.
+show an effect) and :class:`Context` (everything an effect's signature needs about one fitted
+sub-model). The data helpers it uses (:func:`rigd.ident.iddata.replace_inputs`,
+:func:`rigd.ident.iddata.get_phi`) live with the identification data.
 """
 
 from __future__ import annotations
 
-import copy
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from rigd.effects.state_level import simulate_state
+from rigd.ident.iddata import get_phi, replace_inputs
 
 
 # --------------------------------------------------------------------------------------
@@ -82,30 +83,6 @@ class CannotReveal:
         if with_submodel:
             d["submodel"] = self.submodel
         return d
-
-
-# --------------------------------------------------------------------------------------
-# data helpers (work with rigd.ident.IdData or any object with inputs/outputs/fs)
-# --------------------------------------------------------------------------------------
-def replace_inputs(data: Any, u: np.ndarray) -> Any:
-    """A shallow copy of ``data`` whose ``inputs`` are ``u`` (n, nu)."""
-    u = np.asarray(u, dtype=float)
-    if hasattr(data, "with_inputs"):
-        return data.with_inputs(u)
-    if dataclasses.is_dataclass(data):
-        return dataclasses.replace(data, inputs=u)
-    new = copy.copy(data)
-    new.inputs = u
-    return new
-
-
-def get_phi(data: Any) -> np.ndarray | None:
-    """The shaft angle (rad) carried by ``data``, or None."""
-    phi = getattr(data, "phi", None)
-    if phi is None:
-        aux = getattr(data, "aux", None) or {}
-        phi = aux.get("phi") if isinstance(aux, dict) else None
-    return None if phi is None else np.asarray(phi, dtype=float)
 
 
 # --------------------------------------------------------------------------------------
@@ -206,8 +183,6 @@ class Context:
         Falls back to :meth:`through_model` on input ``axis`` for structures without a
         continuous state-space form.
         """
-        from rigd.effects.state_level import simulate_state
-
         cont = getattr(self.structure, "continuous", None)
         if not callable(cont):
             return self.through_model(v, min(axis, self.nu - 1))

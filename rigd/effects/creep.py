@@ -28,8 +28,9 @@ import numpy as np
 from rigd.effects._drive import drive_note, valve_pairs
 from rigd.effects._signals import lag1
 from rigd.effects.base import Effect, dims
-from rigd.effects.context import CannotReveal, Context, replace_inputs
+from rigd.effects.context import CannotReveal, Context
 from rigd.effects.signature import SignatureFit, signature_fit
+from rigd.ident.iddata import replace_inputs
 
 #: (τ_1, τ_2) pairs tried by the signature, s
 GRID = ((0.005, 0.05), (0.01, 0.1), (0.02, 0.2), (0.05, 0.5), (0.1, 1.0), (0.01, 0.5))

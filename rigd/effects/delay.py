@@ -13,6 +13,8 @@ import numpy as np
 from rigd.effects._signals import band_power_share, shift
 from rigd.effects.base import Effect
 from rigd.effects.context import CannotReveal, Context
+from rigd.effects.signature import signature_fit
+from rigd.ident.iddata import replace_inputs
 
 MAX_DELAY_S = 0.004   # scan range of the signature, s
 MAX_SCAN = 40         # at most this many trial delays
@@ -43,8 +45,6 @@ class Delay(Effect):
         return None
 
     def scan(self, ctx: Context) -> tuple[float, np.ndarray, list]:
-        from rigd.effects.signature import signature_fit
-
         lin = ctx.through_model(ctx.u)
         best = (-1.0, 0.0, None, None)
         for d in self._grid(ctx):
@@ -94,8 +94,6 @@ class Delay(Effect):
         return np.array([max(0.0, d)])
 
     def simulate_with(self, sim, theta_e, data, base):
-        from rigd.effects.context import replace_inputs
-
         d = max(0.0, float(theta_e[0]))
         u = np.asarray(data.inputs, float)
         return sim(replace_inputs(data, np.column_stack([shift(u[:, j], d)

@@ -16,7 +16,7 @@ from scipy import signal
 from rigd.effects._signals import resonator
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import Context
-from rigd.effects.signature import SignatureFit
+from rigd.effects.signature import SignatureFit, signature_fit
 
 MIN_SEPARATION = 0.15   # relative distance from a model resonance
 PEAK_RATIO = 4.0        # peak over the local median of the explained power
@@ -90,8 +90,6 @@ class ExtraMode(Effect):
             sig = SignatureFit(0.0, np.zeros(0), 1.0, 0)
             sig.extra["peak"] = None
             return sig
-        from rigd.effects.signature import signature_fit
-
         sig = signature_fit(ctx, self._regs(ctx, *pk))
         sig.extra["peak"] = pk
         return sig

@@ -30,8 +30,9 @@ import numpy as np
 from rigd.effects._drive import drive_note, valve_pairs
 from rigd.effects._signals import n_levels
 from rigd.effects.base import Effect, dims
-from rigd.effects.context import CannotReveal, Context, replace_inputs
+from rigd.effects.context import CannotReveal, Context
 from rigd.effects.signature import SignatureFit, signature_fit
+from rigd.ident.iddata import replace_inputs
 
 #: Bouc–Wen rates c (1/V) tried by the signature; the refit starts from the best
 GRID = (0.25, 0.5, 1.0, 2.0, 4.0)

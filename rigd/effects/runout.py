@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from rigd.effects.base import Effect, dims
-from rigd.effects.context import CannotReveal, Context, get_phi
+from rigd.effects.context import CannotReveal, Context
+from rigd.ident.iddata import get_phi
 
 HARMONICS = (1, 2)
 

@@ -21,19 +21,9 @@ from typing import Any
 
 import numba
 import numpy as np
-from scipy.linalg import expm
 
-from rigd.effects.context import replace_inputs
-
-
-def zoh(A: np.ndarray, B: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
-    """Zero-order-hold discretisation (Φ, Γ) of (A, B) at sample rate fs."""
-    n, m = B.shape
-    M = np.zeros((n + m, n + m))
-    M[:n, :n] = A
-    M[:n, n:] = B
-    E = expm(M / fs)
-    return E[:n, :n], E[:n, n:]
+from rigd.ident.iddata import replace_inputs
+from rigd.lti import zoh
 
 
 @numba.njit(cache=True)
@@ -61,7 +51,7 @@ def _sim_cubic(Phi, Gam, C, D, K3, x0, u):
 
 def simulate_state(A, B, C, D, x0, K3, fs: float, u: np.ndarray) -> np.ndarray:
     """Simulate x' = A x + B (u − K3 (C x)³), y = C x + D u with ZOH at fs."""
-    Phi, Gam = zoh(np.asarray(A, float), np.asarray(B, float), fs)
+    Phi, Gam = zoh(A, B, 1.0 / fs)
     C = np.ascontiguousarray(C, dtype=float)
     D = np.ascontiguousarray(D if D is not None else np.zeros((C.shape[0], B.shape[1])), float)
     K3 = np.ascontiguousarray(np.zeros((B.shape[1], C.shape[0])) if K3 is None else K3, float)

@@ -10,7 +10,10 @@
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -174,3 +177,27 @@ def from_record(record: Record, submodel: str, min_samples: int = MIN_SAMPLES) -
     meta = {"source": record.source, "submodel": submodel,
             "omega_rpm": record.omega_rpm, "p_inj_bar": record.p_inj_bar}
     return IdData(record.matrix(ins), record.matrix(outs), record.fs, ins, outs, aux, meta)
+
+
+# --------------------------------------------------------------------------------------
+# helpers for any data object with inputs/outputs/fs (IdData or a look-alike)
+# --------------------------------------------------------------------------------------
+def replace_inputs(data: Any, u: np.ndarray) -> Any:
+    """A shallow copy of ``data`` whose ``inputs`` are ``u`` (n, nu)."""
+    u = np.asarray(u, dtype=float)
+    if hasattr(data, "with_inputs"):
+        return data.with_inputs(u)
+    if dataclasses.is_dataclass(data):
+        return dataclasses.replace(data, inputs=u)
+    new = copy.copy(data)
+    new.inputs = u
+    return new
+
+
+def get_phi(data: Any) -> np.ndarray | None:
+    """The shaft angle (rad) carried by ``data``, or None."""
+    phi = getattr(data, "phi", None)
+    if phi is None:
+        aux = getattr(data, "aux", None) or {}
+        phi = aux.get("phi") if isinstance(aux, dict) else None
+    return None if phi is None else np.asarray(phi, dtype=float)

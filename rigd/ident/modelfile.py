@@ -18,15 +18,18 @@ Layout (``rigd_model: 1``)::
         readouts: {modes: [{f_n_hz: 110.5, zeta: 0.05}, ...], static_gain: [[...]]}
       actuator: {...}
 
-:func:`load_model` rebuilds each sub-model's structure (re-applying effects through
-``rigd.effects.REGISTRY``) and theta; :meth:`ModelFile.ss` gives python-control StateSpace
-objects and :meth:`ModelFile.plant` the cascade G_p = G_bear·G_act.
+:func:`load_model` rebuilds each sub-model's structure and theta, re-applying the effects a
+sub-model names through the resolver it is given (``rigd.effects.resolve``: identification
+does not import the effect catalogue, the catalogue builds on identification);
+:meth:`ModelFile.ss` gives python-control StateSpace objects and :meth:`ModelFile.plant` the
+cascade G_p = G_bear·G_act.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import hashlib
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,6 +40,7 @@ from pydantic import Field
 from rigd.configio import StrictModel, dump_yaml, read_yaml, validate
 from rigd.errors import InputError
 from rigd.ident.mechanical import structure_for
+from rigd.plain import plain
 
 FORMAT = 1
 
@@ -152,16 +156,16 @@ class ModelFile:
                 "method": sm.method,
                 "parameters": {n: {"value": float(v), "std": float(s)}
                                for n, v, s in zip(sm.structure.names, sm.theta, sm.std)},
-                "fit_percent": _plain(sm.fit_percent),
-                "readouts": _plain(sm.readouts),
-                "residual": _plain(sm.residual),
+                "fit_percent": plain(sm.fit_percent),
+                "readouts": plain(sm.readouts),
+                "residual": plain(sm.residual),
             }
         return {"rigd_model": FORMAT,
                 "created": self.created or _dt.datetime.now(_dt.timezone.utc).strftime(
                     "%Y-%m-%dT%H:%M:%SZ"),
-                "fs_hz": float(self.fs), "data": _plain(self.data),
-                "operating_point": _plain(self.operating_point),
-                "prefilters": _plain(self.prefilters), "split": _plain(self.split),
+                "fs_hz": float(self.fs), "data": plain(self.data),
+                "operating_point": plain(self.operating_point),
+                "prefilters": plain(self.prefilters), "split": plain(self.split),
                 "submodels": subs}
 
     def save(self, path: str | Path) -> Path:
@@ -170,25 +174,17 @@ class ModelFile:
         return Path(path)
 
 
-def _plain(x):
-    """numpy -> plain Python for YAML."""
-    if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _plain(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        return float(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, complex):
-        return str(x)
-    return x
+EffectResolver = Callable[[Sequence[str], "str | None"], Sequence[Any]]
 
 
-def rebuild_structure(spec: StructureSpec | dict, where: str = "<model>"):
-    """The structure a spec describes, with its effects re-applied from the registry."""
+def rebuild_structure(spec: StructureSpec | dict, where: str = "<model>",
+                      resolve_effects: EffectResolver | None = None):
+    """The structure a spec describes, with its effects re-applied.
+
+    ``resolve_effects(names, where)`` turns the spec's effect names into effects (objects with
+    ``extend(structure)``), e.g. ``rigd.effects.resolve``; it is needed only when the spec
+    names effects.
+    """
     if isinstance(spec, dict):
         spec = StructureSpec.model_validate(spec)
     if spec.kind not in ("actuator", "bearing", "generic"):
@@ -201,27 +197,32 @@ def rebuild_structure(spec: StructureSpec | dict, where: str = "<model>"):
 
         st = ModalStructure(st, spec.extra_modes)
     if spec.effects:
-        st = apply_effects(st, spec.effects, where)
+        if resolve_effects is None:
+            raise InputError(f"the structure names effects ({', '.join(spec.effects)}) but no "
+                             "effect catalogue was given to rebuild them "
+                             "(load_model(path, resolve_effects=rigd.effects.resolve))", where)
+        st = apply_effects(st, resolve_effects(spec.effects, where))
     return st
 
 
-def apply_effects(structure, names: list[str], where: str | None = None):
-    """``structure`` extended by the named effects of ``rigd.effects.REGISTRY``."""
-    try:
-        from rigd.effects import REGISTRY
-    except ImportError:  # pragma: no cover - effects package not built
-        REGISTRY = {}
-    unknown = [n for n in names if n not in REGISTRY]
-    if unknown:
-        raise InputError(f"unknown effect(s) {', '.join(unknown)} (known: "
-                         f"{', '.join(sorted(REGISTRY)) or 'none'})", where)
-    for n in names:
-        structure = REGISTRY[n].extend(structure)
+def apply_effects(structure, effects: Sequence[Any]):
+    """``structure`` extended by ``effects`` (objects with ``extend(structure)``), in order."""
+    for e in effects:
+        structure = e.extend(structure)
     return structure
 
 
-def load_model(path: str | Path) -> ModelFile:
-    """Read a model file; any problem -> InputError naming the file, line and key."""
+def load_model(path: str | Path, resolve_effects: EffectResolver | None = None) -> ModelFile:
+    """Read a model file; any problem -> InputError naming the file, line and key.
+
+    Parameters
+    ----------
+    path : str or Path
+        The model file (YAML, ``rigd_model: 1``).
+    resolve_effects : callable, optional
+        ``(names, where) -> effects``, normally ``rigd.effects.resolve``: rebuilds the effects
+        a sub-model names (a file naming effects is refused without it).
+    """
     loaded = read_yaml(path)
     doc = validate(loaded, ModelFileSchema)
     if doc.rigd_model != FORMAT:
@@ -230,7 +231,7 @@ def load_model(path: str | Path) -> ModelFile:
     subs = {}
     for name, e in doc.submodels.items():
         where = f"{path}:{loaded.line_of(('submodels', name)) or ''}: submodels.{name}"
-        st = rebuild_structure(e.structure, where)
+        st = rebuild_structure(e.structure, where, resolve_effects)
         missing = [n for n in st.names if n not in e.parameters]
         if missing:
             raise InputError(f"parameter(s) {', '.join(missing)} missing", where)

@@ -2,8 +2,8 @@
 
 All loops run in numba (``cache=True``); nothing here allocates per sample.
 
-Linear models are discretised exactly (zero-order hold on the input, :func:`zoh`) and run by
-:func:`lsim_kernel` (simulation, output error) or :func:`predict_kernel` (one-step-ahead
+Linear models are discretised exactly (zero-order hold on the input, :func:`rigd.lti.zoh`) and
+run by :func:`lsim_kernel` (simulation, output error) or :func:`predict_kernel` (one-step-ahead
 predictor in innovation form). Models with a cubic stiffness (nonlinear) are integrated by a
 fixed-step Runge-Kutta 4 with ``nsub`` sub-steps per sample (:func:`cubic_kernel`, input held
 or linear between samples like the linear path), which can
@@ -25,50 +25,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rigd.ident.sim_kernels import cubic_kernel, expm_kernel, lsim_kernel, predict_kernel
+from rigd.lti import foh, zoh
 
 
 # --------------------------------------------------------------------------------------
 # Python helpers
 # --------------------------------------------------------------------------------------
-def zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretisation (Ad, Bd) of ẋ = A x + B u with period ``dt`` (s)."""
-    nx, nb = A.shape[0], B.shape[1]
-    M = np.zeros((nx + nb, nx + nb))
-    M[:nx, :nx] = A * dt
-    M[:nx, nx:] = B * dt
-    if not np.all(np.isfinite(M)):
-        E = np.full_like(M, np.nan)
-    else:
-        E = expm_kernel(M)
-    return np.ascontiguousarray(E[:nx, :nx]), np.ascontiguousarray(E[:nx, nx:])
-
-
-def foh(A: np.ndarray, B: np.ndarray, dt: float):
-    """First-order-hold (triangle) discretisation: input linear between samples.
-
-    x[k+1] = Ad x[k] + B0 u[k] + B1 u[k+1]; returns (Ad, B0, B1).
-    """
-    nx, nb = A.shape[0], B.shape[1]
-    M = np.zeros((nx + 2 * nb, nx + 2 * nb))
-    M[:nx, :nx] = A * dt
-    M[:nx, nx:nx + nb] = B * dt
-    M[nx:nx + nb, nx + nb:] = np.eye(nb)
-    E = expm_kernel(M) if np.all(np.isfinite(M)) else np.full_like(M, np.nan)
-    G1, G2 = E[:nx, nx:nx + nb], E[:nx, nx + nb:]
-    return (np.ascontiguousarray(E[:nx, :nx]), np.ascontiguousarray(G1 - G2),
-            np.ascontiguousarray(G2))
-
-
 def _discrete(A, Bc, dt, hold, u):
     """(Ad, Bd, u_eff): ZOH, or FOH written as a ZOH system on inputs [u[k], u[k+1]]."""
     if hold == "foh":
-        Ad, B0, B1 = foh(A, Bc, dt)
+        Ad, B0, B1 = foh(A, Bc, dt, expm=expm_kernel)
         un = np.empty_like(u)
         un[:-1] = u[1:]
         un[-1:] = u[-1:]
         return Ad, np.ascontiguousarray(np.hstack([B0, B1])), np.ascontiguousarray(
             np.hstack([u, un]))
-    Ad, Bd = zoh(A, Bc, dt)
+    Ad, Bd = zoh(A, Bc, dt, expm=expm_kernel)
     return Ad, Bd, u
 
 
@@ -231,9 +203,9 @@ def predictor_gain(K, D, B, Bdist, fs, hold="zoh", u=None):
     m = K.shape[0]
     Bdc = np.zeros((2 * m, m))
     Bdc[m:, :] = Bdist
-    Ad, Kd = zoh(A, Bdc, 1.0 / fs)
+    Ad, Kd = zoh(A, Bdc, 1.0 / fs, expm=expm_kernel)
     if u is None:
-        _, Bd = zoh(A, Bc, 1.0 / fs)
+        _, Bd = zoh(A, Bc, 1.0 / fs, expm=expm_kernel)
         return Ad, Bd, Kd, C, None
     _, Bd, ue = _discrete(A, Bc, 1.0 / fs, hold, u)
     return Ad, Bd, Kd, C, ue

@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -122,7 +123,7 @@ def _start_values(structure, init: ModelFile | None, name: str, data: IdData):
 def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                     runout: Record | None = None, options: PrefilterOptions | None = None,
                     method: str = "pem", init: ModelFile | None = None,
-                    effects: list[str] | None = None, split: float = DEFAULT_SPLIT,
+                    effects: Sequence[Any] = (), split: float = DEFAULT_SPLIT,
                     data_hash: str | None = None, hold: str | None = None,
                     order: str | int = "auto") -> ModelFile:
     """Identify the asked sub-models of ``record``; returns a :class:`ModelFile`.
@@ -138,8 +139,9 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     method : {"pem", "oe"}
     init : ModelFile, optional
         Previous model: its parameters are the start values.
-    effects : list of str, optional
-        Effects from ``rigd.effects.REGISTRY`` to add to every sub-model they concern.
+    effects : sequence of Effect, optional
+        Effects to add to every sub-model they concern (objects with ``extend(structure)``
+        and ``submodels``; from names: ``rigd.effects.resolve(names)``), applied in order.
     split : float
         Fraction of samples used for estimation (rest: validation).
     data_hash : str, optional
@@ -184,7 +186,7 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         structure, theta, std, used = base, res.theta, res.std, res.method
         applied = _effects_for(effects, sm)
         if applied:
-            structure = apply_effects(base, applied, record.source)
+            structure = apply_effects(base, applied)
             th_ext = _start_values(structure, init, sm, est)
             if th_ext is None:
                 th_ext = np.asarray(structure.theta0(est), float)
@@ -210,18 +212,11 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                                          "n_samples": record.n}, split_info)
 
 
-def _effects_for(effects: list[str], submodel: str) -> list[str]:
-    """Those of ``effects`` that concern ``submodel`` (all of them if unknown)."""
-    if not effects:
-        return []
-    try:
-        from rigd.effects import REGISTRY
-    except ImportError:  # pragma: no cover
-        return effects
+def _effects_for(effects: Sequence[Any], submodel: str) -> list[Any]:
+    """Those of ``effects`` that concern ``submodel`` (all of them if they do not say)."""
     out = []
-    for n in effects:
-        eff = REGISTRY.get(n)
-        subs = getattr(eff, "submodels", None) if eff is not None else None
-        if eff is None or subs is None or submodel in subs:
-            out.append(n)
+    for eff in effects:
+        subs = getattr(eff, "submodels", None)
+        if subs is None or submodel in subs:
+            out.append(eff)
     return out

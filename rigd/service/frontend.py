@@ -35,6 +35,7 @@ import time
 from concurrent.futures import Future
 from typing import Any
 
+from rigd.plain import plain
 from rigd.service import protocol
 from rigd.service.protocol import RequestError, check_paths, error, parse_request
 from rigd.service.server import ControlServer
@@ -132,7 +133,7 @@ class SnapshotHandler:
             raise RequestError(f"{cmd}: experiments are not available in this daemon")
         value = {"faults": snap.get("faults", [])} if cmd == "faults" else snap.get(
             "experiment" if cmd == "experiment.status" else cmd, {})
-        enc = json.dumps(protocol._plain(value), separators=(",", ":"),
+        enc = json.dumps(plain(value), separators=(",", ":"),
                          allow_nan=False).encode()
         with self._lock:
             if self._snap is snap:
@@ -163,7 +164,7 @@ class SnapshotHandler:
                                             "socket_pid": os.getpid(),
                                             "commands_waiting": self.in_flight})
             body = self._result_json(cmd)
-            head = json.dumps({"id": protocol._plain(req_id)}, separators=(",", ":"))[:-1]
+            head = json.dumps({"id": plain(req_id)}, separators=(",", ":"))[:-1]
             return head.encode() + b',"ok":true,"result":' + body + b"}\n"
         except RequestError as exc:
             return error(exc.req_id if exc.req_id is not None else req_id, str(exc))

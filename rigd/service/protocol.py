@@ -16,16 +16,15 @@ and the argument.
 from __future__ import annotations
 
 import json
-import math
 import time
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
 from rigd.configio import StrictModel
 from rigd.errors import FaultError, InputError
+from rigd.plain import plain
 
 #: Longest accepted request line, bytes (a longer one is refused and the client dropped).
 MAX_LINE = 64 * 1024
@@ -81,26 +80,9 @@ class RequestError(Exception):
         self.req_id = req_id
 
 
-def _plain(obj: Any) -> Any:
-    """JSON-safe copy: numpy scalars/arrays to Python, non-finite floats to None."""
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _plain(obj.tolist())
-    if isinstance(obj, np.generic):
-        return _plain(obj.item())
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if obj is None or isinstance(obj, (str, int, float, bool)):
-        return obj
-    return str(obj)
-
-
 def encode(obj: dict[str, Any]) -> bytes:
     """One JSON line (``\\n`` terminated), strict JSON (no NaN)."""
-    return (json.dumps(_plain(obj), separators=(",", ":"), allow_nan=False) + "\n").encode()
+    return (json.dumps(plain(obj), separators=(",", ":"), allow_nan=False) + "\n").encode()
 
 
 def ok(req_id: Any, result: Any) -> bytes:
