@@ -25,6 +25,7 @@ demo: $(STAMP)
 # style/correctness rules and the layering contracts (pyproject.toml: tool.ruff, tool.importlinter)
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/lint-imports
 
 test: lint
 	$(BIN)/python -m pytest -q

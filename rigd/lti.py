@@ -1,5 +1,7 @@
 """Exact discretisation of continuous linear systems ẋ = A x + B u (a leaf: numpy, scipy).
 
+Also :func:`resonator`, one lightly damped mode as a discrete filter (Tustin, pre-warped).
+
 The one place the zero-order hold (input held between samples) and the first-order hold
 (input linear between samples, "triangle hold") are written. Used by the identification
 simulators (:mod:`rigd.ident.simulate`), the state-level effects
@@ -17,6 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.linalg
+from scipy import signal
 
 Expm = Callable[[np.ndarray], np.ndarray]
 
@@ -75,3 +78,22 @@ def foh(A: np.ndarray, B: np.ndarray, dt: float, *,
     G1, G2 = E[:nx, nx:nx + nu], E[:nx, nx + nu:]
     return (np.ascontiguousarray(E[:nx, :nx]), np.ascontiguousarray(G1 - G2),
             np.ascontiguousarray(G2))
+
+
+def resonator(x: np.ndarray, f_hz: float, zeta: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Responses of a unit-DC-gain mode w^2/(s^2 + 2 zeta w s + w^2) and of s/w times it
+    (its velocity, same units), discretised by Tustin pre-warped at f_hz."""
+    w = 2 * np.pi * f_hz
+    num_d = [0, 0, w * w]
+    num_v = [0, w, 0]
+    den = [1, 2 * zeta * w, w * w]
+    fw = min(f_hz, 0.45 * fs)
+    bd, ad = signal.bilinear(num_d, den, fs=fs) if fw <= 0 else _prewarped(num_d, den, fs, fw)
+    bv, av = _prewarped(num_v, den, fs, fw)
+    return signal.lfilter(bd, ad, x), signal.lfilter(bv, av, x)
+
+
+def _prewarped(num, den, fs: float, f_hz: float):
+    w = 2 * np.pi * f_hz
+    k = w / np.tan(w / (2 * fs))  # s -> k (z-1)/(z+1)
+    return signal.bilinear(num, den, fs=k / 2)

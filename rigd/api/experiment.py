@@ -55,7 +55,7 @@ class ExperimentResult:
 
     def read_manifest(self) -> dict[str, Any]:
         """The run's manifest (records, points, ``source`` and driver names)."""
-        from rigd.experiments.manifest import read_manifest
+        from rigd.data.manifest import read_manifest
 
         return read_manifest(self.manifest)
 

@@ -221,7 +221,7 @@ def identify_sweep(run_dir: str | Path, *, out: str | Path | None = None,
         ``.points`` (per point fits and modes), ``.gbear`` (``.at(Ω_rpm, P_I_bar)`` ->
         StateSpace), ``.summary()`` (with ``source`` from the manifest), ``.text()``.
     """
-    from rigd.experiments.manifest import read_manifest
+    from rigd.data.manifest import read_manifest
     from rigd.ident.oprange import identify_sweep as _sweep
     from rigd.ident.prefilter import PrefilterOptions
 

@@ -52,25 +52,6 @@ def play(x: np.ndarray, w: float) -> np.ndarray:
     return y
 
 
-def resonator(x: np.ndarray, f_hz: float, zeta: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
-    """Responses of a unit-DC-gain mode w^2/(s^2 + 2 zeta w s + w^2) and of s/w times it
-    (its velocity, same units), discretised by Tustin pre-warped at f_hz."""
-    w = 2 * np.pi * f_hz
-    num_d = [0, 0, w * w]
-    num_v = [0, w, 0]
-    den = [1, 2 * zeta * w, w * w]
-    fw = min(f_hz, 0.45 * fs)
-    bd, ad = signal.bilinear(num_d, den, fs=fs) if fw <= 0 else _prewarped(num_d, den, fs, fw)
-    bv, av = _prewarped(num_v, den, fs, fw)
-    return signal.lfilter(bd, ad, x), signal.lfilter(bv, av, x)
-
-
-def _prewarped(num, den, fs: float, f_hz: float):
-    w = 2 * np.pi * f_hz
-    k = w / np.tan(w / (2 * fs))  # s -> k (z-1)/(z+1)
-    return signal.bilinear(num, den, fs=k / 2)
-
-
 def band_power_share(x: np.ndarray, fs: float, f_lo: float, f_hi: float) -> float:
     """Share of the (mean-removed) signal power between f_lo and f_hi, Hz."""
     x = np.asarray(x, float) - np.mean(x)

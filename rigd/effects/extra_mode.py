@@ -13,10 +13,10 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from rigd.effects._signals import resonator
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import Context
 from rigd.effects.signature import SignatureFit, signature_fit
+from rigd.lti import resonator
 
 MIN_SEPARATION = 0.15   # relative distance from a model resonance
 PEAK_RATIO = 4.0        # peak over the local median of the explained power

@@ -36,10 +36,9 @@ from pathlib import Path
 from typing import Any
 
 from rigd import __version__
+from rigd.data.manifest import MANIFEST
 from rigd.errors import InputError
 from rigd.fileio import atomic_write_text
-
-MANIFEST = "manifest.json"
 
 
 def now_iso() -> str:
@@ -160,19 +159,3 @@ class Manifest:
     def write(self) -> None:
         """Write ``manifest.json`` atomically (never a half-written manifest)."""
         atomic_write_text(self.path, json.dumps(self.to_dict(), indent=2, default=str) + "\n")
-
-
-def read_manifest(run_dir: str | Path) -> dict[str, Any]:
-    """Load a run directory's manifest (InputError if missing or not a manifest)."""
-    p = Path(run_dir)
-    if p.is_dir():
-        p = p / MANIFEST
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError("no manifest.json (not a run directory)", str(p)) from None
-    except (OSError, ValueError) as exc:
-        raise InputError(f"unreadable manifest: {exc}", str(p)) from None
-    if not isinstance(data, dict) or data.get("rigd_manifest") != 1:
-        raise InputError("not a rigd manifest (rigd_manifest: 1 missing)", str(p))
-    return data

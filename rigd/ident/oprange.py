@@ -38,7 +38,7 @@ def _same(a, b) -> bool:
 
 def sweep_jobs(run_dir: str | Path) -> tuple[list[dict], list[str]]:
     """(jobs, notes): one job per identification record with its run-out record if any."""
-    from rigd.experiments.manifest import read_manifest
+    from rigd.data.manifest import read_manifest
 
     run_dir = Path(run_dir)
     man = read_manifest(run_dir)

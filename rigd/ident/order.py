@@ -238,8 +238,8 @@ def candidate_mode(u, r, fs, exclude_hz, hold="foh"):
     """(f_hz, zeta, g (nu, ny)) of the mode that explains most of the residual ``r`` (n, ny)
     given the inputs ``u`` (n, nu): subspace estimates of orders 2..6 of u → r, modes away
     from ``exclude_hz``, gains by least squares; None when none is found."""
-    from rigd.effects._signals import resonator
     from rigd.ident.subspace import continuous_modes, n4sid_a
+    from rigd.lti import resonator
 
     cands = []
     for order in (2, 4, 6):

@@ -7,8 +7,8 @@ import pytest
 
 from rigd.controller import save_controller
 from rigd.data import load_record
+from rigd.data.manifest import read_manifest
 from rigd.errors import InputError
-from rigd.experiments.manifest import read_manifest
 from rigd.experiments.runner import run_experiment
 from rigd.loop.app import build_loop
 from rigd.rigconfig import default_config
