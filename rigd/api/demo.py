@@ -43,7 +43,7 @@ def _experiment(spec: dict, config: str, run_dir: Path, controller=None) -> None
 
 def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
              weights: str = "config/design.yaml", quick: bool = False,
-             jobs: int = 2) -> dict[str, Any]:
+             jobs: int = 2, add: list[str] | None = None) -> dict[str, Any]:
     """The whole story in lock-step on the simulated plant; returns ``summary.json``'s dict.
 
     Parameters
@@ -58,6 +58,10 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
         Shorter records and no sweep: robustness on the simulated plant's truth (for tests).
     jobs : int
         Processes for the sweep fits.
+    add : list of str, optional
+        Catalogue effects (``rigd.effects``) added to the design-point models — the workflow's
+        "add effect" step after ``diagnose``, e.g. ``["actuator_dynamics"]`` on the
+        physics-grade plant (docs/plant.md).
 
     Returns
     -------
@@ -69,6 +73,13 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     from rigd.data import load_record
     from rigd.ident.workflow import identify_record
 
+    if add:
+        from rigd.effects import REGISTRY
+
+        bad = [e for e in add if e not in REGISTRY]
+        if bad:
+            raise InputError(f"unknown effect(s) {', '.join(bad)} (known: "
+                             f"{', '.join(REGISTRY)})", "--add")
     t_start = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -93,7 +104,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     # 2. identification
     t0 = time.perf_counter()
     _say("[2/5] identify actuator and bearing models (PEM)")
-    model = identify_record(prbs, "both", runout=runout)
+    model = identify_record(prbs, "both", runout=runout, effects=list(add) if add else None)
     model_path = out / "G_p.yaml"
     model.save(model_path)
     fits = {name: sm.fit_percent for name, sm in model.submodels.items()}
@@ -186,6 +197,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
         "controller_hankel_singular_values": design["hankel_singular_values"],
         "fits_percent": fits,
         "fit_percent": {name: f["validation_mean"] for name, f in fits.items()},
+        "model_effects": list(add) if add else [],
         "design_point": {"omega_rpm": om, "p_inj_bar": p},
         "timings_s": timings,
     }

@@ -30,17 +30,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="shorter records, no sweep (robustness on the simulated plant's "
                         "truth); for tests")
     p.add_argument("--jobs", type=int, default=2, help="processes for the sweep fits")
+    p.add_argument("--add", default="", metavar="NAME[,NAME...]",
+                   help="catalogue effects added to the design-point models (after diagnose), "
+                        "e.g. actuator_dynamics on config/sim_reynolds.yaml")
 
 
 def run(args: argparse.Namespace) -> int:
     from rigd.api.demo import run_demo
 
+    add = [e.strip() for e in args.add.split(",") if e.strip()]
     s = run_demo(args.out, config=args.config, weights=args.weights, quick=args.quick,
-                 jobs=args.jobs)
+                 jobs=args.jobs, add=add)
     print(json.dumps({k: s[k] for k in ("sensitivity_reduction_min",
                                         "sensitivity_reduction_at_resonance_min",
                                         "sensitivity_lowfreq_max", "sensitivity_peak_max",
                                         "damping_ratio_open", "damping_ratio_closed",
                                         "damping_increase", "gamma", "controller_order",
-                                        "run_time_s")}, indent=2, default=float))
+                                        "fit_percent", "run_time_s")}, indent=2, default=float))
     return 0
