@@ -79,7 +79,7 @@ class EmulatorProcess:
             raise RuntimeError("the emulator process did not start")
         self._answer()
 
-    def start(self) -> "EmulatorProcess":
+    def start(self) -> EmulatorProcess:
         return self          # started by the constructor (FrontendEmulator(...).start() idiom)
 
     def _answer(self):

@@ -130,10 +130,10 @@ def test_fault_serial_disconnect_then_reconnect(tmp_path):
     * the device's host timeout (2 ms on the rig) was 50 ms: a test-host pause latched a
       device host-timeout fault. 0.5 s here (the behaviour has its own test in
       test_serial.py)."""
-    from rigd_drivers.serial_frame import DRV_DISCONNECT
-
     from emuproc import EmulatorProcess
     from faultkit import wait_for
+
+    from rigd_drivers.serial_frame import DRV_DISCONNECT
 
     emu = EmulatorProcess(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.5,
                           tx_buffer_s=0.5)

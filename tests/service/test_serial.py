@@ -9,12 +9,12 @@ import time
 
 import numpy as np
 import pytest
+from emuproc import EmulatorProcess
+from faultkit import wait_for
 
 from rigd.errors import FaultError
 from rigd.frame import IN_E_X, IN_PHI, IN_SEQ, IN_STATUS, IN_YP2, N_IN
 from rigd_drivers import serial_protocol as sp
-from emuproc import EmulatorProcess
-from faultkit import wait_for
 from rigd_drivers.serial_frame import (
     DRV_CRC,
     DRV_DISCONNECT,
