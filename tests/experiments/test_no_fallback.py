@@ -8,6 +8,7 @@ import shutil
 import socket
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from testpaths import ROOT
@@ -85,18 +86,35 @@ def test_listener_that_never_answers(work):
     _refused(proc, work, sock, "no reply within 0.5 s")
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root connects to a mode-000 socket anyway")
-def test_socket_without_permission(work):
-    sock = str(work / "locked.sock")
-    srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    srv.bind(sock)
-    srv.listen(4)
-    os.chmod(sock, 0)
+@pytest.mark.skipif(os.geteuid() == 0 and not shutil.which("setpriv"),
+                    reason="root connects to a mode-000 socket; no setpriv to drop to nobody")
+def test_socket_without_permission():
+    """A socket the user may not open (mode 000; as root the client runs as nobody)."""
+    import tempfile
+
+    d = Path(tempfile.mkdtemp(prefix="rigd-perm-"))
     try:
-        proc = _rigd(work, "experiment", "e.yaml", "--socket", sock, "--out", "run")
+        d.chmod(0o755)
+        (d / "e.yaml").write_text(EXP)
+        (d / "e.yaml").chmod(0o644)
+        sock = str(d / "locked.sock")
+        srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        srv.bind(sock)
+        srv.listen(4)
+        os.chmod(sock, 0)
+        cmd = [*RIGD, "experiment", "e.yaml", "--socket", sock, "--out", "run"]
+        if os.geteuid() == 0:
+            cmd = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", *cmd]
+        env = {k: v for k, v in os.environ.items() if k != "RIGD_SOCKET"}
+        env["HOME"] = str(d)
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, cwd=d, env=env,
+                                  timeout=60)
+        finally:
+            srv.close()
+        _refused(proc, d, sock, "permission denied")
     finally:
-        srv.close()
-    _refused(proc, work, sock, "permission denied")
+        shutil.rmtree(d)
 
 
 def test_socket_and_in_process_together_refused(work):
