@@ -35,6 +35,9 @@ def parse_effects(names: str | list[str] | None, what: str = "--add") -> list[st
     from rigd.effects import resolve
 
     resolve(names, what)
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:  # an effect's parameters would appear twice under the same names
+        raise InputError(f"effect(s) {', '.join(dup)} given more than once", what)
     return list(names)
 
 

@@ -62,6 +62,11 @@ def run(args: argparse.Namespace) -> int:
 def summary(out: dict) -> str:
     """Human-readable summary of the JSON result."""
     lines = [source_text(out.get("source") or {}), f"base model fit: {out['fit_percent']} %"]
+    for sub, o in (out.get("order") or {}).items():
+        fits = ", ".join(f"{k}: {v} %" for k, v in o["validation_fit_by_modes"].items())
+        lines.append(f"base model order [{sub}]: {o['modes']} mode(s) (validation fit by "
+                     f"number of modes: {fits}; {o['reason']})")
+    lines += [f"   WARNING {n}" for n in out.get("notes", []) if "WARNING" in n]
     steps = out.get("steps", [])
     for sub, seq in (steps.items() if isinstance(steps, dict) else [("", steps)]):
         if len(seq) > 1:
@@ -70,7 +75,9 @@ def summary(out: dict) -> str:
                 for s in seq))
     for f in out["findings"]:
         mark = "*" if f["significant"] else " "
-        lines.append(f" {mark} {f['effect']:<18} [{f.get('submodel', '')}] score {f['score']:.2f}"
+        site = f" ({f['site']})" if f.get("site") else ""
+        lines.append(f" {mark} {f['effect'] + site:<18} [{f.get('submodel', '')}] score "
+                     f"{f['score']:.2f}"
                      f"  fit with it {f['fit_percent_with']} %")
         if f["significant"]:
             lines.append(f"     {f['explanation']}")

@@ -74,6 +74,8 @@ def _print_human(model, out) -> None:
         for n, v, s in zip(sm.structure.names, sm.theta, sm.std):
             print(f"  {n:>16s} = {v: .6g} ± {s:.2g}", file=out)
         ro = sm.readouts
+        for w in ro.get("warnings", []):
+            print(f"  WARNING: {w}", file=out)
         for m in ro.get("modes", []):
             if "f_n_hz" in m:
                 print(f"  mode: f_n = {m['f_n_hz']:.2f} Hz, zeta = {m['zeta']:.4f}", file=out)

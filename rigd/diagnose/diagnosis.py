@@ -143,6 +143,13 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                            refit=refit, max_steps=max_steps, theta0=theta0)
         if chosen is not None:
             sd.order = chosen.to_json()
+        from rigd.ident.sanity import model_warnings
+
+        for st, what in ((sd.steps[0], "base model"), (sd.final, "final model")):
+            if what == "final model" and len(sd.steps) == 1:
+                break
+            notes += [f"{sub}: {what}: WARNING: {w}" for w in model_warnings(st.structure,
+                                                                            st.theta)]
         sd.window = window
         parts.append(sd)
     return Diagnosis(parts, record.source, notes)

@@ -268,7 +268,8 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     err_base = _val_err(ctx0, yhat)
     steps = [Step(None, fp_base, structure, theta, yhat)]
     cannot: list[CannotReveal] = []
-    names = effects or [nm for nm, e in REGISTRY.items() if submodel in e.submodels]
+    names = effects or [nm for nm, e in REGISTRY.items()
+                        if submodel in e.submodels and getattr(e, "screened", True)]
     added: list[Finding] = []
     refits: dict[str, Refit] = {}
     ctx = ctx0

@@ -22,13 +22,14 @@ from rigd.effects.cubic_stiffness import CubicStiffness
 from rigd.effects.delay import Delay
 from rigd.effects.extra_mode import ExtraMode
 from rigd.effects.hysteresis import Hysteresis
+from rigd.effects.restoring_hysteresis import RestoringHysteresis
 from rigd.effects.runout import Runout
 from rigd.errors import InputError
 
 #: canonical name -> effect (the one place a new effect is registered)
 REGISTRY: dict[str, Effect] = {e.name: e for e in (
     Runout(), Delay(), ActuatorDynamics(), Hysteresis(), Creep(), CubicStiffness(),
-    ExtraMode(), CrossCoupling(),
+    ExtraMode(), CrossCoupling(), RestoringHysteresis(),
 )}
 
 _ORDER = {"state": 0, "input": 1, "output": 2}

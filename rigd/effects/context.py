@@ -55,8 +55,11 @@ class Finding:
     evidence: dict[str, Any] = field(default_factory=dict)
 
     def to_json(self, with_submodel: bool = True) -> dict[str, Any]:
+        # an effect registered under a site-specific name (``hysteresis_restoring``) is
+        # reported under its canonical catalogue name with the site and the --add name
+        reported = self.evidence.get("reported_as")
         d: dict[str, Any] = {
-            "effect": self.effect,
+            "effect": reported or self.effect,
             "significant": bool(self.significant),
             "score": round(float(self.score), 4),
             "explanation": self.explanation,
@@ -64,6 +67,10 @@ class Finding:
                                  else round(float(self.fit_percent_with), 3)),
             "signature_score": round(float(self.signature_score), 4),
         }
+        if "site" in self.evidence:
+            d["site"] = self.evidence["site"]
+        if reported:
+            d["add"] = self.effect
         if with_submodel:
             d["submodel"] = self.submodel
         return d

@@ -131,6 +131,7 @@ class Hysteresis(Effect):
         ev = {"last_up_minus_last_down": {ctx.label(i, "in"): d for i, d in enumerate(diffs)},
               "rising_samples": int(up.sum()), "falling_samples": int(dn.sum())}
         ev.update(sig.extra)
+        ev["site"] = "input"  # the restoring-force site: rigd.effects.restoring_hysteresis
         return (f"the residual on {ctx.label(j if j < ctx.ny else 0)} is {diffs[j]:+.3g} "
                 f"higher after {ctx.label(j, 'in')} last rose than after it last fell, and "
                 f"stays so while the input holds still: hysteresis (loops in the r–u plane, "

@@ -83,14 +83,29 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData) -> np.ndarray:
     th = np.array(theta, float)
     th[idx] = 0.0
     y0 = np.asarray(structure.simulate(th, data))
+    # perturb each initial state by a step at the data's scale (not 1.0: a cubic model on a
+    # record in metres diverged from x0 = 1 m): output std for positions, its rate for
+    # velocities; the free response is linear in x0 (nonlinear models: for small steps)
+    ys = float(np.max(np.std(data.y, axis=0))) or 1.0
+    vs = float(np.max(np.std(np.diff(data.y, axis=0), axis=0))) * float(data.fs) or ys
+    mech = getattr(base, "base", base)  # a ModalStructure's mechanical part
+    half = len(getattr(mech, "x0_index", [])) // 2
+    vel = set(list(getattr(mech, "x0_index", []))[half:])
+    steps = np.array([vs if i in vel else ys for i in idx]) * 1e-2
     cols = []
-    for i in idx:
+    for i, d in zip(idx, steps):
         t1 = th.copy()
-        t1[i] = 1.0
-        cols.append((np.asarray(structure.simulate(t1, data)) - y0).ravel())
+        t1[i] = d
+        cols.append(((np.asarray(structure.simulate(t1, data)) - y0) / d).ravel())
     A = np.column_stack(cols)
-    sol = np.linalg.lstsq(A, (data.y - y0).ravel(), rcond=None)[0]
-    th[idx] = sol
+    b = (data.y - y0).ravel()
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(b))):
+        th[idx] = np.asarray(theta, float)[idx]  # keep the model's own initial state
+        return th
+    try:
+        th[idx] = np.linalg.lstsq(A, b, rcond=None)[0]
+    except np.linalg.LinAlgError:
+        th[idx] = np.asarray(theta, float)[idx]
     return th
 
 
@@ -197,6 +212,11 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         fe = fit_percent(data.y[:k], ysim[:k])
         fv = fit_percent(data.y[k:], ysim[k:])
         readouts = structure.readouts(theta) if hasattr(structure, "readouts") else {}
+        from rigd.ident.sanity import model_warnings
+
+        warn = model_warnings(structure, theta)
+        if warn:  # flagged in the output and the model file, never used silently
+            readouts = dict(readouts, warnings=warn)
         subs[sm] = Submodel(sm, structure, theta, std, used,
                             {"estimation": fe.tolist(), "validation": fv.tolist(),
                              "validation_mean": float(np.mean(fv)),
