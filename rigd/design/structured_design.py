@@ -88,7 +88,7 @@ def tune_structured(G, cfg: DesignConfig, K_full, order: int,
     starts += [structured.random_start(fo, rng) for _ in range(sc.n_random_starts)]
     res = structured.tune(prob, starts, screen_iters=sc.screen_iters,
                           polish=((30.0, sc.polish_iters), (100.0, sc.polish_iters),
-                                  (300.0, sc.polish_iters)))
+                                  (300.0, sc.polish_iters)), keep=sc.n_polished)
     t_tune = time.perf_counter() - t0
     K = fo.ss(res.x)
     Kz = discretize.tustin(K, cfg.fs_hz, cfg.discretization.prewarp_hz)

@@ -86,7 +86,7 @@ class Reduction(StrictModel):
 class Structured(StrictModel):
     """Fixed-order multi-model tuning (:mod:`rigd.design.structured`)."""
 
-    n_random_starts: int = Field(4, ge=0, le=64)
+    n_random_starts: int = Field(6, ge=0, le=64)
     n_samples: int = Field(8, ge=0, le=200, description="random operating points in the "
                            "design set, besides the design model and the range's corners")
     seed: int = Field(7, description="random starts and design-set samples (keep it apart "
@@ -96,6 +96,7 @@ class Structured(StrictModel):
                                      "γ, as systune's hard goals); null: only the weights bound "
                                      "it (by γ/|W_p|)")
     screen_iters: int = Field(25, ge=1, le=1000)
+    n_polished: int = Field(3, ge=1, le=64, description="best screened starts polished")
     polish_iters: int = Field(40, ge=1, le=1000)
 
 
