@@ -55,7 +55,8 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     weights : path
         Design YAML (W_p, W_u, reduction, robustness).
     quick : bool
-        Shorter records and no sweep: robustness on the simulated plant's truth (for tests).
+        Shorter records and no sweep: robustness on the ``sim`` plant's truth (for tests; only
+        with a config whose fast driver is ``sim``).
     jobs : int
         Processes for the sweep fits.
     add : list of str, optional
@@ -80,6 +81,13 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
         if bad:
             raise InputError(f"unknown effect(s) {', '.join(bad)} (known: "
                              f"{', '.join(REGISTRY)})", "--add")
+    if quick:
+        from rigd.rigconfig import load_config
+
+        fast = load_config(config).config.drivers.fast.name
+        if fast != "sim":
+            raise InputError(f"judges robustness on the 'sim' plant's truth, not on the "
+                             f"{fast!r} plant of {config}: run without it", "--quick")
     t_start = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -27,8 +27,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "config/sim.yaml)")
     p.add_argument("--weights", default="config/design.yaml", help="design weights")
     p.add_argument("--quick", action="store_true",
-                   help="shorter records, no sweep (robustness on the simulated plant's "
-                        "truth); for tests")
+                   help="shorter records, no sweep (robustness on the sim plant's "
+                        "truth: sim configs only); for tests")
     p.add_argument("--jobs", type=int, default=2, help="processes for the sweep fits")
     p.add_argument("--add", default="", metavar="NAME[,NAME...]",
                    help="catalogue effects added to the design-point models (after diagnose), "

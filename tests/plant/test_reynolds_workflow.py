@@ -55,17 +55,20 @@ def test_diagnose_names_the_film_lag_and_the_bending_mode_and_the_grey_box_with_
     assert np.all(_val(ident, "bearing") >= 90.0)
 
 
-def test_demo_add_refuses_an_unknown_effect_before_running(tmp_path):
-    """``rigd demo --add`` (the add-effect step for this plant): a bad name is one line, exit 2,
-    nothing written."""
+@pytest.mark.parametrize("extra, words", [
+    (["--add", "actuator_dynamics,film_magic"], ["--add", "film_magic"]),
+    (["--quick"], ["--quick", "'sim' plant's truth", "sim_reynolds"]),
+])
+def test_demo_refuses_bad_requests_on_this_plant_before_running(tmp_path, extra, words):
+    """``rigd demo`` on this plant: an unknown ``--add`` effect, or ``--quick`` (whose robustness
+    is the ``sim`` plant's truth), is one line, exit 2, nothing written."""
     import subprocess
     import sys
 
     out = tmp_path / "demo"
     r = subprocess.run([str(Path(sys.executable).parent / "rigd"), "demo", "--config", str(CONFIG),
-                        "--add", "actuator_dynamics,film_magic", "--out", str(out)],
-                       capture_output=True, text=True, timeout=120)
+                        *extra, "--out", str(out)], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "film_magic" in lines[0] and "--add" in lines[0]
+    assert len(lines) == 1 and all(w in lines[0] for w in words)
     assert not out.exists()
