@@ -29,6 +29,7 @@ import numpy as np
 
 from rigd.diagnose import residual as R
 from rigd.effects import REGISTRY
+from rigd.effects import numbers as N
 from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
 
@@ -344,9 +345,9 @@ def _tests_and_unexplained(sd: SubDiagnosis) -> None:
                                     for k in (1, 2)) and "runout" in sig:
             continue
         unexplained.append({
-            "where": {"frequency_hz": round(fpk, 2)},
+            "where": {"frequency_hz": float(f"{fpk:.4g}")},
             "share_of_residual": round(pk["share"], 3),
-            "text": (f"structure left in the residual at {fpk:.1f} Hz "
+            "text": (f"structure left in the residual at {N.freq(fpk, ctx.fs)} "
                      f"({100 * pk['share']:.0f} % of the residual power"
                      f"{', near a model resonance' if near_res else ''}), "
                      "not explained by any known effect")})

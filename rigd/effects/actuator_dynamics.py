@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigd.effects import numbers as N
 from rigd.effects._signals import derivative, lag1
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import Context
@@ -38,12 +39,16 @@ class ActuatorDynamics(Effect):
         j = int(np.argmax(taus)) if taus.size else 0
         tau = taus[j] if taus.size else 0.0
         fc = 1 / (2 * np.pi * tau) if tau > 0 else float("inf")
-        ev["corner_hz"] = float(fc)
-        return (f"the response lags the input like a low-pass of about {1000 * tau:.2f} ms "
-                f"(corner ≈ {fc:.0f} Hz) on {ctx.label(j, 'in')}: the valve dynamics are "
-                f"missing (is the model fed with references r instead of measured valve "
-                f"positions u?); the residual follows the model response to the input "
-                f"derivative and explains {100 * sig.score:.0f} % of it", ev)
+        ev["corner_hz"] = float(fc) if np.isfinite(fc) else None
+        corner = (f"corner {N.freq(fc, ctx.fs)}" if tau > 0 else "no lag found")
+        what = ("the valve dynamics are missing (is the model fed with references r instead "
+                "of measured valve positions u?)" if N.is_rotor(ctx) else
+                "dynamics between the recorded input and the force are missing (an actuator "
+                "or sensor lag)")
+        return (f"the response lags the input like a low-pass of about "
+                f"{N.freqs([1000 * tau])[0]} ms ({corner}) on {ctx.label(j, 'in')}: {what}; "
+                f"the residual follows the model response to the input derivative and "
+                f"explains {N.share(sig.score)} of it", ev)
 
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigd.effects import numbers as N
 from rigd.effects._drive import drive_note, valve_pairs
 from rigd.effects._signals import lag1
 from rigd.effects.base import Effect, dims
@@ -117,11 +118,13 @@ class Creep(Effect):
         ev = {"weights": {ctx.label(i, "in"): c[i].tolist() for i in range(ctx.nu)},
               "time_constants_ms": [1000 * t for t in taus],
               "dominant_time_constant_ms": 1000 * taus[m]}
+        size = (f"{N.share(abs(c[j, m]))} of the step" if abs(c[j, m]) <= 1.0 else
+                "larger than the step itself, implausible for creep")
         return (f"after each step of {ctx.label(j, 'in')} the response keeps drifting toward "
-                f"its final value for ~{1000 * taus[m]:.0f} ms while the input holds still "
-                f"(lags of {sig.extra.get('operator_input', 'the input')}, "
-                f"{100 * abs(c[j, m]):.1f} % of the step): piezo creep; they explain "
-                f"{100 * sig.score:.0f} % of the residual", ev)
+                f"its final value for ~{N.freqs([1000 * taus[m]])[0]} ms while the input "
+                f"holds still (lags of {sig.extra.get('operator_input', 'the input')}, "
+                f"{size}): {'piezo creep' if N.is_rotor(ctx) else 'creep (slow drift after steps)'}"
+                f"; they explain {N.share(sig.score)} of the residual", ev)
 
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigd.effects import numbers as N
 from rigd.effects.base import Effect, dims
 
 
@@ -51,8 +52,8 @@ class CubicStiffness(Effect):
         return (f"the error grows with amplitude: residual RMS {ratio:.1f}× larger in the top "
                 f"amplitude quarter (|p| > {edges[-2]:.3g}) than in the bottom one, and the "
                 f"residual follows the model response to p³: a cubic {sign} stiffness "
-                f"(film stiffening at large eccentricity / Duffing); explains "
-                f"{100 * sig.score:.0f} % of the residual", ev)
+                f"({'film stiffening at large eccentricity / ' if N.is_rotor(ctx) else ''}"
+                f"Duffing); explains {N.share(sig.score)} of the residual", ev)
 
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigd.effects import numbers as N
 from rigd.effects._signals import band_power_share, shift
 from rigd.effects.base import Effect
 from rigd.effects.context import CannotReveal, Context
@@ -67,10 +68,15 @@ class Delay(Effect):
         d = sig.extra.get("delay_samples", 0.0) * float(sig.beta[0] if sig.beta.size else 1.0)
         ms = 1000 * d / ctx.fs
         ev = {"delay_samples": float(d), "delay_ms": float(ms)}
-        return (f"the response lags the model by about {ms:.2f} ms ({d:.1f} samples at "
-                f"{ctx.fs:g} Hz): a transport delay (valve to film force) or sensor/computation "
-                f"latency; residual–input cross-correlation peaks at a positive lag; it explains "
-                f"{100 * sig.score:.0f} % of the residual", ev)
+        where = ("valve to film force" if N.is_rotor(ctx) else "input to response")
+        if d < 0:
+            return (f"the response leads the model by about {N.freqs([-ms])[0]} ms "
+                    f"({N.freqs([-d])[0]} samples at {ctx.fs:g} Hz): not a delay (a negative "
+                    f"lag); it explains {N.share(sig.score)} of the residual", ev)
+        return (f"the response lags the model by about {N.freqs([ms])[0]} ms "
+                f"({N.freqs([d])[0]} samples at {ctx.fs:g} Hz): a transport delay ({where}) "
+                f"or sensor/computation latency; residual–input cross-correlation peaks at a "
+                f"positive lag; it explains {N.share(sig.score)} of the residual", ev)
 
     def implausible(self, ctx, theta_e):
         d = float(theta_e[0])

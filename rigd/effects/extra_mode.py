@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
+from rigd.effects import numbers as N
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import Context
 from rigd.effects.signature import SignatureFit, signature_fit
@@ -114,11 +115,12 @@ class ExtraMode(Effect):
         if pk is None:
             return "no narrow coherent peak in the residual away from the model's resonances", {}
         f0, zeta = pk
-        res = ", ".join(f"{r:.0f}" for r in ctx.resonances_hz) or "none"
+        txt = N.freqs([f0, *ctx.resonances_hz])
+        res = (", ".join(txt[1:]) + " Hz") if ctx.resonances_hz else "none"
         ev = {"frequency_hz": f0, "zeta": zeta, "model_resonances_hz": list(ctx.resonances_hz)}
-        return (f"a narrow residual peak at {f0:.1f} Hz (damping ≈ {zeta:.3f}), coherent with "
-                f"the input, where the model has no resonance (model: {res} Hz): an unmodelled "
-                f"structural mode; explains {100 * sig.score:.0f} % of the residual", ev)
+        return (f"a narrow residual peak at {txt[0]} Hz (damping ≈ {zeta:.3g}), coherent with "
+                f"the input, where the model has no resonance (model: {res}): an unmodelled "
+                f"structural mode; explains {N.share(sig.score)} of the residual", ev)
 
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):

@@ -27,6 +27,7 @@ import math
 import numba
 import numpy as np
 
+from rigd.effects import numbers as N
 from rigd.effects._drive import drive_note, valve_pairs
 from rigd.effects._signals import n_levels
 from rigd.effects.base import Effect, dims
@@ -134,8 +135,9 @@ class Hysteresis(Effect):
         ev["site"] = "input"  # the restoring-force site: rigd.effects.restoring_hysteresis
         return (f"the residual on {ctx.label(j if j < ctx.ny else 0)} is {diffs[j]:+.3g} "
                 f"higher after {ctx.label(j, 'in')} last rose than after it last fell, and "
-                f"stays so while the input holds still: hysteresis (loops in the r–u plane, "
-                f"piezo valves); a Bouc–Wen operator on "
+                f"stays so while the input holds still: hysteresis at the input ("
+                f"{'loops in the r–u plane, piezo valves' if N.is_rotor(ctx) else 'actuator'}"
+                f"); a Bouc–Wen operator on "
                 f"{sig.extra.get('operator_input', 'the input')} explains "
                 f"{100 * sig.score:.0f} % of the residual", ev)
 
