@@ -23,7 +23,7 @@ def fig_weights(rep: Report, cfg) -> None:
                   label=f"|H_hp| ({cfg.highpass.order}x zero at DC, {wh:g} Hz)")
     ax.axvspan(*cfg.robustness.band_hz, color="0.9")
     ax.set_xlabel("frequency (Hz)")
-    ax.legend()
+    ax.legend(loc="upper right")
     ax.grid(True, which="both", alpha=0.3)
 
 
@@ -55,7 +55,7 @@ def fig_sensitivity(rep: Report, rob) -> None:
     ax.axhline(20 * np.log10(2), color="r", ls=":", lw=0.8, label="2")
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("max singular value of S_o (dB)")
-    ax.legend()
+    ax.legend(loc="lower right")
     ax.grid(True, which="both", alpha=0.3)
 
 
@@ -76,7 +76,7 @@ def fig_controller(rep: Report, res) -> None:
     ax[0].set_ylabel("|K| (V/µm)")
     ax[1].set_ylabel("phase (deg)")
     ax[1].set_xlabel("frequency (Hz)")
-    ax[0].legend(ncol=4)
+    ax[0].legend(ncol=4, loc="upper left")
     for a in ax:
         a.grid(True, which="both", alpha=0.3)
 
@@ -139,5 +139,5 @@ def fig_impact(rep: Report, name: str, caption: str, runs: list[tuple[str, objec
     ax[2].set_xlabel("time (s), impact at 0.01 s")
     ax[0].set_xlim(0, 0.1)
     for a in ax:
-        a.legend(fontsize=8)
+        a.legend(fontsize=8, loc="upper right")
         a.grid(True, alpha=0.3)

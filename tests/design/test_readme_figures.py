@@ -5,6 +5,7 @@ contract (the issue's must-show figures) is checked on the same run."""
 
 import json
 import sys
+import warnings
 
 import pytest
 from testpaths import ROOT
@@ -16,10 +17,30 @@ import readme_demo_table as tool  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def summary(tmp_path_factory):
+def demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "demo-out"
-    assert main(["demo", "--out", str(out)]) == 0
-    return json.loads((out / "summary.json").read_text())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["demo", "--out", str(out)]) == 0
+    return json.loads((out / "summary.json").read_text()), caught
+
+
+@pytest.fixture(scope="module")
+def summary(demo):
+    return demo[0]
+
+
+def test_demo_path_has_no_numerical_warnings(demo):
+    """No LinAlgWarning (the Tustin of the 32-state K warned rcond = 1.9e-19), no
+    RuntimeWarning (overflow, division), no ComplexWarning, no matplotlib slow-legend warning
+    on the whole `make demo` path."""
+    from numpy.exceptions import ComplexWarning
+    from scipy.linalg import LinAlgWarning
+
+    bad = [f"{w.category.__name__}: {w.message} ({w.filename}:{w.lineno})" for w in demo[1]
+           if issubclass(w.category, (LinAlgWarning, RuntimeWarning, ComplexWarning,
+                                      UserWarning))]
+    assert not bad, bad
 
 
 def test_tool_detects_a_drifted_figure(tmp_path):
