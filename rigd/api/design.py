@@ -98,10 +98,23 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
         (without an operating range) a discrete closed loop unstable on the design model.
     """
     from rigd.design.workflow import design_from_model
+    from rigd.ident.modelfile import sha256_file
 
     mf, model_path = _model_and_path(model)
-    res, summary = design_from_model(mf, weights, out, model_path=model_path,
-                                     range_model=range_model, report=report, plant_at=plant_at,
+    shown = str(model_path) if model_path is not None else mf.source
+    if range_model:
+        from rigd.ident.oprange import ReassembledBearing
+
+        gb = ReassembledBearing.load(range_model)
+        Gact = mf.ss("actuator")
+
+        def plant_at(om, p):
+            return gb.at(om, p) * Gact
+
+        plant_at_label = f"reassembled {range_model} x actuator of {shown}"
+    res, summary = design_from_model(mf, weights, out, shown=shown,
+                                     model_hash=sha256_file(model_path) if model_path else None,
+                                     report=report, plant_at=plant_at,
                                      plant_at_label=plant_at_label, method=method, order=order)
     return Design(res.K_z, res.K_red, res.K_full, res, summary)
 

@@ -1,7 +1,7 @@
 """``rigd design`` as a function: model file + weights → controller file, summary, report.
 
-:func:`design_from_model` is what :func:`rigd.api.design` (``rigd design``, the demo) calls; it
-loads the reassembled operating-range model, runs :func:`rigd.design.pipeline.design`,
+:func:`design_from_model` is what :func:`rigd.api.design` (``rigd design``, the demo) calls on
+a loaded model and operating-range model; it runs :func:`rigd.design.pipeline.design`,
 writes the controller file, assesses robustness over the operating range for the chosen
 design and — for the structured design — for the truncated full-order design beside it
 (``comparison`` in the summary), and writes the figures.
@@ -33,52 +33,40 @@ def _side(res, rob, set_gamma) -> dict:
     return d
 
 
-def design_from_model(mf, weights_path, out, *, model_path=None, range_model=None,
-                      report=None, plant_at=None, plant_at_label: str = "",
-                      method: str | None = None, order: int | None = None):
+def design_from_model(mf, weights_path, out, *, shown: str = "model",
+                      model_hash: str | None = None, report=None, plant_at=None,
+                      plant_at_label: str = "", method: str | None = None,
+                      order: int | None = None):
     """Design, check and write; returns (DesignResult, summary dict).
 
     Parameters
     ----------
-    mf : rigd.ident.modelfile.ModelFile
-        Identified model with the actuator and bearing sub-models (G_p = G_bear·G_act).
+    mf : object with ``plant()`` and ``operating_point``
+        The identified model (a ``ModelFile``, loaded by the caller: ``rigd.design`` reads no
+        model files) with G_p = G_bear·G_act.
     weights_path : path
         Design YAML (:class:`rigd.design.weights.DesignConfig`).
     out : path
         Controller YAML to write (atomically, after the checks).
-    model_path : path, optional
-        Where ``mf`` came from (its hash goes into the controller file).
-    range_model : path, optional
-        Reassembled G_bear(Ω, P_I) (``g_bear.yaml``): operating-range models for the
-        structured design set and the robustness check (× the model's actuator).
+    shown, model_hash : str
+        How the model is named in the summary and the controller note; its file's hash.
     plant_at : callable, optional
-        ``plant_at(Ω rpm, P_I bar) -> G_p`` used instead of ``range_model`` (``demo --quick``
-        passes the simulated plant's truth); ``plant_at_label`` names it in the summary.
+        ``plant_at(Ω rpm, P_I bar) -> G_p(s)`` over the operating range (the reassembled
+        G_bear × the actuator, or the simulated plant's truth in ``demo --quick``): the
+        structured design set and the robustness check; ``plant_at_label`` names it.
     method, order : optional
         Override ``method`` and ``reduction.order`` of the design YAML.
     """
     from rigd.design import pipeline, robustness
     from rigd.design.weights import load_design_config
     from rigd.errors import InputError
-    from rigd.ident.modelfile import sha256_file
 
     cfg = load_design_config(weights_path)
-    shown = str(model_path) if model_path is not None else str(getattr(mf, "source", "model"))
     G = mf.plant()
     label = plant_at_label
-    if range_model:
-        from rigd.ident.oprange import ReassembledBearing
-
-        gb = ReassembledBearing.load(range_model)
-        Gact = mf.ss("actuator")
-
-        def plant_at(om, p):
-            return gb.at(om, p) * Gact
-
-        label = f"reassembled {range_model} x actuator of {shown}"
     res, cmp = pipeline.design(G, cfg, method=method, order=order, plant_at=plant_at)
     pipeline.save_design(out, res, cfg,
-                         model_hash=sha256_file(model_path) if model_path else None,
+                         model_hash=model_hash,
                          design_model=G,
                          note=f"{res.method} design of order {res.order} on "
                               f"{Path(shown).name} at "
