@@ -234,6 +234,12 @@ class SerialFrameDriver(FastDriver):
 
     # --- per cycle ---------------------------------------------------------------------
     def read(self, frame_in: np.ndarray) -> None:
+        """Newest sensor frame into ``frame_in`` (status bits for timeout/CRC/gap/disconnect).
+
+        Runs in: loop thread — non-blocking reads (VMIN=VTIME=0) into preallocated buffers; a
+        lost port is handed to a reconnect thread. Only in the first second after
+        (re)connecting may it drain a start-up backlog (at most 50 ms, ``_resync``).
+        """
         fd = self._fd
         status = 0
         if fd < 0:
@@ -312,6 +318,10 @@ class SerialFrameDriver(FastDriver):
         self.n_resyncs += 1
 
     def write(self, drive: np.ndarray) -> None:
+        """Send one drive frame (outputs enabled) unless deactivated or disconnected.
+
+        Runs in: loop thread — O(1), one non-blocking write from a preallocated buffer.
+        """
         fd = self._fd
         if fd < 0 or self._hold:
             return

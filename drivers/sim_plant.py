@@ -86,11 +86,17 @@ class SimPlantDriver(FastDriver):
 
     # --- FastDriver --------------------------------------------------------------------
     def read(self, frame_in: np.ndarray) -> None:
-        """Copy the current sensor frame (e_x … drv_status) into ``frame_in``."""
+        """Copy the current sensor frame (e_x … drv_status) into ``frame_in``.
+
+        Runs in: loop thread — O(1), allocation-free, non-blocking.
+        """
         np.copyto(frame_in, self._frame_view)
 
     def write(self, drive: np.ndarray) -> None:
-        """Apply the four drive voltages for one period (runs the kernel once)."""
+        """Apply the four drive voltages for one period (runs the kernel once).
+
+        Runs in: loop thread — O(1), allocation-free, non-blocking.
+        """
         self.kernel(self.state, self.params, drive, self._out)
 
     # --- plant control ------------------------------------------------------------------

@@ -38,15 +38,21 @@ class CommandQueue:
 
     # --- producers (any thread) ------------------------------------------------------
     def enable(self, on: bool) -> None:
-        """Post: blend K∞ in (on) or out."""
+        """Post: blend K∞ in (on) or out.
+
+        Runs in: any thread, the loop thread too (segments) — O(1), non-blocking.
+        """
         self.queue.append((ENABLE, bool(on)))
 
     def controller(self, packed) -> None:
-        """Post: switch to an already validated and packed controller (bumplessly)."""
+        """Post: switch to an already validated and packed controller (bumplessly).
+
+        Runs in: any thread — O(1), non-blocking (the validation and packing are done).
+        """
         self.queue.append((CONTROLLER, packed))
 
     def reset(self) -> None:
-        """Post: clear the latched fault."""
+        """Post: clear the latched fault. Runs in: any thread — O(1), non-blocking."""
         self.queue.append((RESET, None))
 
     def call(self, fn) -> None:
