@@ -90,10 +90,11 @@ def _counts(sock_path: str) -> tuple[int, int]:
 
 
 class _Client(threading.Thread):
-    def __init__(self, sock_path, rate, until, seed, commands=0.0):
+    def __init__(self, sock_path, rate, until, seed, commands=0.0, min_requests=0):
         super().__init__(daemon=True)
         self.sock_path, self.rate, self.until = sock_path, rate, until
         self.commands = commands
+        self.min_requests = min_requests
         self.rng = random.Random(seed)
         self.served = self.refused = self.errors = 0
         self.latency: list[float] = []
@@ -113,7 +114,8 @@ class _Client(threading.Thread):
         s = None
         buf = b""
         rid = 0
-        while time.monotonic() < self.until:
+        while (time.monotonic() < self.until
+               or self.served + self.refused + self.errors < self.min_requests):
             try:
                 if s is None:
                     s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -167,17 +169,19 @@ class _Client(threading.Thread):
 
 
 def hammer(sock_path: str, *, clients: int = 20, rate: float = 1000.0,
-           seconds: float = 10.0, seed: int = 0, commands: float = 0.0) -> dict:
-    """``clients`` connections sending ``rate`` requests/s in total for ``seconds``; a fraction
+           seconds: float = 10.0, seed: int = 0, commands: float = 0.0,
+           min_requests: int = 0) -> dict:
+    """``clients`` connections sending ``rate`` requests/s in total for ``seconds``, and each at
+    least ``min_requests`` (however long that takes on a busy machine); a fraction
     ``commands`` of the requests are valid commands (``operating_point.set``)."""
     until = time.monotonic() + seconds
-    ts = [_Client(sock_path, rate / clients, until, seed + i, commands)
+    ts = [_Client(sock_path, rate / clients, until, seed + i, commands, min_requests)
           for i in range(clients)]
     t0 = time.monotonic()
     for t in ts:
         t.start()
     for t in ts:
-        t.join(seconds + 30)
+        t.join(seconds + 30 + min_requests)
     wall = time.monotonic() - t0
     lat = np.concatenate([np.asarray(t.latency) for t in ts]) if ts else np.zeros(1)
     served = sum(t.served for t in ts)

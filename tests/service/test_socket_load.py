@@ -12,7 +12,9 @@ def test_socket_load_short(tmp_path):
     try:
         seq0 = _call(sock, "status")["seq"]
         ran0 = _call(sock, "ping")["commands_run"]
-        res = hammer(sock, clients=12, rate=300.0, seconds=2.0, seed=7)
+        # at least 25 requests per client however slow the machine (a fixed 2 s window gave
+        # 22 requests on a loaded one); each client's mix is drawn from its own seed
+        res = hammer(sock, clients=12, rate=300.0, seconds=2.0, seed=7, min_requests=25)
         assert res["errors"] == 0, res
         assert res["served"] > 100 and res["refused"] > 20
         # queries and bad requests were all answered by the socket process: not one of them
