@@ -19,7 +19,7 @@ def sock(tmp_path):
         yield srv.path, loop
 
 
-def test_ctl_commands(sock, capsys, tmp_path):
+def test_ctl_commands(sock, capsys, tmp_path, monkeypatch):
     path, loop = sock
     assert main(["ctl", "--socket", path, "ping"]) == 0
     assert "rigd alive" in capsys.readouterr().out
@@ -32,7 +32,7 @@ def test_ctl_commands(sock, capsys, tmp_path):
     assert "compute_us:" in out and "p99: 2" in out
     assert main(["ctl", "--socket", path, "enable"]) == 0 and loop.enabled
     assert main(["ctl", "--socket", path, "disable"]) == 0 and not loop.enabled
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)  # restored after the test: later tests use relative config/ paths
     assert main(["ctl", "--socket", path, "load", "k.yaml"]) == 0
     assert ("load_controller", str(tmp_path / "k.yaml")) in loop.calls
 
