@@ -105,9 +105,12 @@ def test_full_rate_stream_and_drive(link):
     emu, drv, frame = link
     _past_startup(drv, frame)  # the backlog queued while the port was opening is drained
     c0 = drv.counters()
-    seqs, statuses = _run(drv, frame, 2.0)
+    # 2 s of device frames, however long the host takes to read them (a fixed 2 s window of
+    # a starved host received 8279 on a loaded machine)
+    seqs, statuses = _run_until(drv, frame,
+                                lambda st: drv.counters()["frames"] - c0["frames"] >= 10000)
     c = drv.counters()
-    assert len(seqs) > 0.9 * 2.0 * 5000
+    assert len(seqs) >= 10000 - 1024      # popped; at most the FIFO's backlog still queued
     assert np.all(np.diff(seqs) == 1), "every frame, in order"
     for k in ("crc_errors", "gaps", "overflow_dropped", "timeouts"):
         assert c[k] == c0[k], k
