@@ -148,7 +148,8 @@ def test_client_limit(served):
         s.connect(srv.path)
         socks.append(s)
     with ControlClient(srv.path, timeout=5) as c:
-        c._sock.sendall(b'{"cmd":"ping"}\n')
+        # the refusal comes on accept, unasked; the connection is closed right after it (a
+        # request sent first raced that close: EPIPE on a loaded machine)
         r = c.read_reply()
     assert r["ok"] is False and "too many clients" in r["error"]
     for s in socks:
