@@ -150,6 +150,21 @@ class PointRunner:
         self._part = None
         return res
 
+    @staticmethod
+    def _check_faults(res: Any, path: Path) -> None:
+        """Fail the point when a fault latched while ``path`` was recorded.
+
+        The loop went to the safe state during that recording: the file is kept and listed
+        (nothing recorded is lost), but the point is not what was asked for and must never
+        read as ``done``.
+        """
+        faults = getattr(res, "faults", None) or []
+        if faults:
+            names = ", ".join(sorted({str(f.get("name", f.get("code"))) for f in faults}))
+            raise PointFailed(f"fault {names} latched during {path.name} (file kept; the "
+                              "valves went to the safe state: reset the fault, lower the "
+                              "excitation and re-run)")
+
     def discard_partial(self) -> None:
         """Remove the half-recorded file of an interrupted segment."""
         if self._part is not None:
@@ -205,6 +220,7 @@ class PointRunner:
         self.manifest.add_file(point, path, kind=spec.kind, omega_rpm=point["omega_rpm"],
                                p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
                                n_frames=self._n_frames(res, len(exc)))
+        self._check_faults(res, path)
         self.tick(f"{spec.kind} point {point['index']}")
 
     # -- impacts ---------------------------------------------------------------------------
@@ -235,11 +251,13 @@ class PointRunner:
                                        controller_on=None, events=[(n_pre, hit)])
                     n = self._n_frames(res, n_pre + n_post)
                 else:
+                    res = None
                     n = self._operator_hit(spec, path, meta, ctrl, n_pre, n_post)
                 self.manifest.add_file(point, path, kind="impact", omega_rpm=point["omega_rpm"],
                                        p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
                                        repeat=r, axis=spec.axis, n_frames=n,
                                        trigger_index=n_pre)
+                self._check_faults(res, path)
                 self.tick(f"impact k={'on' if ctrl else 'off'} #{r + 1}")
 
     def _operator_hit(self, spec: ImpactSpec, path: Path, meta: dict[str, Any], ctrl: bool,

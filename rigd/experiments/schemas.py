@@ -155,7 +155,7 @@ class ImpactSpec(_Base):
     post_s: float = Field(0.5, gt=0.0, le=60.0, allow_inf_nan=False)
     spacing_s: float = Field(0.2, ge=0.0, le=60.0, allow_inf_nan=False)
     trigger: Literal["sim", "operator"] = "sim"
-    peak_n: float = Field(50.0, gt=0.0, le=10000.0)       #: simulated hammer peak force, N
+    peak_n: float = Field(20.0, gt=0.0, le=10000.0)       #: simulated hammer peak force, N
     pulse_s: float = Field(0.001, gt=0.0, le=0.1)          #: simulated hammer pulse length, s
     trigger_n: float = Field(5.0, gt=0.0)                   #: operator mode: force threshold, N
     timeout_s: float = Field(60.0, gt=0.0, le=3600.0)      #: operator mode: wait per hit, s

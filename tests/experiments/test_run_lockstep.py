@@ -205,3 +205,21 @@ def test_shipped_impact_runs(loop, tmp_path):
 
     man, data = _run(loop, tmp_path, ROOT / "config" / "experiments" / "impact.yaml")
     assert man.status == "complete" and len(data["files"]) == 3
+
+
+def test_fault_during_a_recording_fails_the_point_and_keeps_the_file(tmp_path):
+    # a 300 N hit drives the shaft beyond the allowed fraction of the film gap: the supervisor
+    # latches shaft_displacement and the valves go safe. The point must not read as done (it
+    # did before: status complete with a record of the safe state), and the file is kept.
+    spec = {"kind": "impact", "operating_point": {"omega_rpm": 0, "p_inj_bar": 4.0},
+            "axis": "x", "controller": [False], "repeats": 1, "pre_s": 0.01,
+            "post_s": 0.05, "spacing_s": 0.0, "peak_n": 300.0, "pulse_s": 0.001}
+    with build_loop(default_config(), clock="lockstep") as lp:
+        man, data = _run(lp, tmp_path, spec)
+        assert any(f["name"] == "shaft_displacement" for f in lp.faults())
+    assert man.status == "failed"
+    (pt,) = data["points"]
+    assert pt["status"] == "failed" and "shaft_displacement" in pt["error"]
+    assert len(data["files"]) == 1                       # listed, and readable
+    rec = load_record(tmp_path / "run" / data["files"][0]["path"])
+    assert rec.n == data["files"][0]["n_frames"] > 0
