@@ -19,6 +19,12 @@ from typing import IO
 
 #: permission bits asked of the kernel for a new file, before the umask (as ``open()`` does)
 NEW_FILE_MODE = 0o666
+_FLAGS = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+
+
+def _temp_name(path: Path) -> Path:
+    """A hidden, unique-enough temporary name beside ``path`` (48 random bits)."""
+    return path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp"
 
 
 def create_temp_beside(path: str | Path) -> tuple[int, Path]:
@@ -31,11 +37,10 @@ def create_temp_beside(path: str | Path) -> tuple[int, Path]:
         ``0o666 & ~umask``.
     """
     path = Path(path)
-    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
     for _ in range(100):
-        tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp"
+        tmp = _temp_name(path)
         try:
-            return os.open(tmp, flags, NEW_FILE_MODE), tmp
+            return os.open(tmp, _FLAGS, NEW_FILE_MODE), tmp
         except FileExistsError:
             continue
     raise FileExistsError(f"no free temporary name beside {path}")  # pragma: no cover
@@ -51,8 +56,21 @@ def atomic_open(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = create_temp_beside(path)
+    tmp: Path | None = None
     try:
+        # the temporary name is known before the file exists: a KeyboardInterrupt (SIGINT
+        # during a manifest write) that lands between os.open and the assignment still finds
+        # it and removes it — no stray '.name.XXXX.tmp' beside a run's records
+        for _ in range(100):
+            tmp = _temp_name(path)
+            try:
+                fd = os.open(tmp, _FLAGS, NEW_FILE_MODE)
+                break
+            except FileExistsError:
+                tmp = None
+                continue
+        else:  # pragma: no cover
+            raise FileExistsError(f"no free temporary name beside {path}")
         try:
             fh = open(fd, mode, **kwargs)  # noqa: SIM115 - the `with fh:` below closes it
         except BaseException:
@@ -64,10 +82,11 @@ def atomic_open(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
         raise
 
 
