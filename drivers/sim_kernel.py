@@ -39,7 +39,8 @@ from rigd.frame import (
     IN_YP1,
     N_IN,
 )
-from rigd_drivers.sim_noise import normal_pair as _normal_pair
+from rigd_drivers.sim_amplifier import amplifier_output as _amplifier_output
+from rigd_drivers.sim_noise import sensor_noise as _sensor_noise
 
 NX = 6          # bearing states: e_x, e_y, de_x, de_y, q, dq (q: extra mode)
 NW = 4          # FOH inputs: u_x, u_y (V), f_x, f_y (N)
@@ -200,17 +201,7 @@ def _sense(state, params, frame_in):
     state[S_RNG] = ctr + 6.0
     ne = params[P + A_NOISE_E]
     ny = params[P + A_NOISE_Y]
-    n0 = 0.0
-    n1 = 0.0
-    n2 = 0.0
-    n3 = 0.0
-    n4 = 0.0
-    n5 = 0.0
-    if ne != 0.0:
-        n0, n1 = _normal_pair(seed, ctr)
-    if ny != 0.0:
-        n2, n3 = _normal_pair(seed, ctr + 2.0)
-        n4, n5 = _normal_pair(seed, ctr + 4.0)
+    n0, n1, n2, n3, n4, n5 = _sensor_noise(seed, ctr, ne, ny)
     frame_in[IN_E_X] = ex + ne * n0
     frame_in[IN_E_Y] = ey + ne * n1
     frame_in[IN_YP1] = state[S_XV] + params[P + A_VOFF] + ny * n2
@@ -266,13 +257,7 @@ def plant_step(state, params, drive, frame_in):
     hyst_on = params[P + A_HYST_ON] != 0.0
     creep_on = params[P + A_CREEP_ON] != 0.0
     for i in range(4):
-        v = drive[i]
-        if v < 0.0:
-            v = 0.0
-        elif v > 10.0:
-            v = 10.0
-        if v != v:                             # NaN drive: amplifier holds 0 V
-            v = 0.0
+        v = _amplifier_output(drive[i])    # [0, 10] V, NaN → 0 V
         vprev = state[S_VPREV + i]
         state[S_VPREV + i] = v                 # the amplifier output (clamped)
         if hyst_on:

@@ -40,3 +40,25 @@ def normal_pair(seed, ctr):
     u2 = uniform(seed, ctr + 1.0)
     r = math.sqrt(-2.0 * math.log(u1))
     return r * math.cos(TWO_PI * u2), r * math.sin(TWO_PI * u2)
+
+
+@numba.njit(cache=True, nogil=True)
+def sensor_noise(seed, ctr, ne, ny):
+    """The six standard normals of one sensor sample (draws ctr … ctr + 5).
+
+    ``(n0, n1)`` for the two displacement sensors (zeros when ``ne`` = 0), ``(n2 … n5)`` for
+    the four valve-position sensors (zeros when ``ny`` = 0); the caller scales them by ``ne``
+    and ``ny`` and advances its draw counter by 6 either way.
+    """
+    n0 = 0.0
+    n1 = 0.0
+    n2 = 0.0
+    n3 = 0.0
+    n4 = 0.0
+    n5 = 0.0
+    if ne != 0.0:
+        n0, n1 = normal_pair(seed, ctr)
+    if ny != 0.0:
+        n2, n3 = normal_pair(seed, ctr + 2.0)
+        n4, n5 = normal_pair(seed, ctr + 4.0)
+    return n0, n1, n2, n3, n4, n5

@@ -30,7 +30,8 @@ from rigd.frame import (
     IN_YP1,
     N_IN,
 )
-from rigd_drivers.sim_noise import normal_pair as _normal_pair
+from rigd_drivers.sim_amplifier import amplifier_output as _amplifier_output
+from rigd_drivers.sim_noise import sensor_noise as _sensor_noise
 from rigd_drivers.sim_reynolds_film import NV
 from rigd_drivers.sim_reynolds_layout import (
     H_ACT,
@@ -124,17 +125,7 @@ def _sense(state, params, frame_in):
     state[ssc + ST_RNG] = ctr + 6.0
     ne = params[sc + SC_NOISE_E]
     ny = params[sc + SC_NOISE_Y]
-    n0 = 0.0
-    n1 = 0.0
-    n2 = 0.0
-    n3 = 0.0
-    n4 = 0.0
-    n5 = 0.0
-    if ne != 0.0:
-        n0, n1 = _normal_pair(seed, ctr)
-    if ny != 0.0:
-        n2, n3 = _normal_pair(seed, ctr + 2.0)
-        n4, n5 = _normal_pair(seed, ctr + 4.0)
+    n0, n1, n2, n3, n4, n5 = _sensor_noise(seed, ctr, ne, ny)
     oxv = int(params[T_XV])
     ovo = blk + int(params[O_VOFF])
     frame_in[IN_E_X] = ex + ne * n0
@@ -200,13 +191,7 @@ def plant_step(state, params, drive, frame_in):
     ogam = blk + int(params[O_VGAM])
     ovo = blk + int(params[O_VOFF])
     for i in range(NV):
-        v = drive[i]
-        if v < 0.0:
-            v = 0.0
-        elif v > 10.0:
-            v = 10.0
-        if v != v:                              # NaN drive: amplifier holds 0 V
-            v = 0.0
+        v = _amplifier_output(drive[i])    # [0, 10] V, NaN → 0 V
         state[ovp + i] = v
         p0 = state[oxv + 2 * i]
         p1 = state[oxv + 2 * i + 1]
