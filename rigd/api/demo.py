@@ -74,13 +74,11 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     from rigd.data import load_record
     from rigd.ident.workflow import identify_record
 
+    effects = None
     if add:
-        from rigd.effects import REGISTRY
+        from rigd.effects import resolve
 
-        bad = [e for e in add if e not in REGISTRY]
-        if bad:
-            raise InputError(f"unknown effect(s) {', '.join(bad)} (known: "
-                             f"{', '.join(REGISTRY)})", "--add")
+        effects = resolve(add, "--add")   # one line naming the unknown ones, before any work
     if quick:
         from rigd.rigconfig import load_config
 
@@ -112,7 +110,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     # 2. identification
     t0 = time.perf_counter()
     _say("[2/5] identify actuator and bearing models (PEM)")
-    model = identify_record(prbs, "both", runout=runout, effects=list(add) if add else None)
+    model = identify_record(prbs, "both", runout=runout, effects=effects)
     model_path = out / "G_p.yaml"
     model.save(model_path)
     fits = {name: sm.fit_percent for name, sm in model.submodels.items()}

@@ -79,3 +79,19 @@ def test_analyze_impact_cli_json(demo, capsys):
 def test_analyze_impact_bad_input_exit_2(tmp_path, capsys):
     assert main(["analyze-impact", str(tmp_path)]) == 2
     assert "manifest.json" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_demo_add_effect_step_identifies_with_it(tmp_path):
+    """``rigd demo --add NAME``: the add-effect step after diagnose is fitted into the models
+    the design uses (it crashed with the names handed on as strings)."""
+    from rigd.effects import resolve
+    from rigd.ident.modelfile import load_model
+
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--quick", "--add", "actuator_dynamics"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["model_effects"] == ["actuator_dynamics"]
+    model = load_model(out / "G_p.yaml", resolve)
+    assert "actuator_dynamics" in (out / "G_p.yaml").read_text()
+    assert s["controller_order"] <= 6 and model is not None
