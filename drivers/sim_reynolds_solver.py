@@ -12,7 +12,7 @@ import numba
 
 
 @numba.njit(cache=True, nogil=True)
-def _inv_small(a, out, m):
+def inv_small(a, out, m):
     """out = a⁻¹ (m × m, Gauss–Jordan with partial pivoting; a is overwritten)."""
     for r in range(m):
         for s in range(m):
@@ -87,7 +87,7 @@ def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
         for a in range(m):
             for b in range(m):
                 T2[a, b] = jB[i, a, b]
-        _inv_small(T2, Dinv[i], m)
+        inv_small(T2, Dinv[i], m)
     # bottom row: Fb x_j + G x_{n−1} = g
     for a in range(m):
         for b in range(m):
@@ -121,7 +121,7 @@ def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
             for a in range(m):
                 for b in range(m):
                     Fb[a, b] = -T1[a, b] * jC[j, b]
-    _inv_small(G, T2, m)
+    inv_small(G, T2, m)
     for a in range(m):
         for r in range(nrhs):
             s = 0.0

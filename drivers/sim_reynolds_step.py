@@ -79,7 +79,7 @@ from rigd_drivers.sim_reynolds_layout import (
     W_TMP,
     W_VR,
 )
-from rigd_drivers.sim_reynolds_solver import block_cyclic_solve
+from rigd_drivers.sim_reynolds_solver import block_cyclic_solve, inv_small
 
 
 @numba.njit(cache=True, nogil=True)
@@ -233,36 +233,8 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, tol):
 
 @numba.njit(cache=True, nogil=True)
 def _solve_dense(a, inv, v, m):
-    """v[m:2m] = a⁻¹ v[:m] (Gauss–Jordan; a overwritten, inv is work)."""
-    for r in range(m):
-        for s in range(m):
-            inv[r, s] = 1.0 if r == s else 0.0
-    for col in range(m):
-        piv = col
-        big = abs(a[col, col])
-        for r in range(col + 1, m):
-            if abs(a[r, col]) > big:
-                big = abs(a[r, col])
-                piv = r
-        if piv != col:
-            for s in range(m):
-                t = a[col, s]
-                a[col, s] = a[piv, s]
-                a[piv, s] = t
-                t = inv[col, s]
-                inv[col, s] = inv[piv, s]
-                inv[piv, s] = t
-        dd = 1.0 / a[col, col]
-        for s in range(m):
-            a[col, s] *= dd
-            inv[col, s] *= dd
-        for r in range(m):
-            if r != col:
-                f = a[r, col]
-                if f != 0.0:
-                    for s in range(m):
-                        a[r, s] -= f * a[col, s]
-                        inv[r, s] -= f * inv[col, s]
+    """v[m:2m] = a⁻¹ v[:m] (Gauss–Jordan inverse of the solver module; a overwritten)."""
+    inv_small(a, inv, m)
     for r in range(m):
         s = 0.0
         for q in range(m):
