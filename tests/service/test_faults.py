@@ -182,14 +182,25 @@ def test_fault_modbus_server_down(tmp_path):
             tmp_path, {"fast": {"name": "sim"}, "slow": [{"name": "modbus", "poll_hz": 50.0,
                        "options": {"host": "127.0.0.1", "port": plc.port, "timeout_s": 0.05,
                                    "reconnect_s": 0.05}}]},
-            supervisor={"slow_stale_s": 0.3})
+            # the outage is detected by the failing polls (timeout 50 ms); the staleness timer
+            # only backs them up. 0.3 s latched slow_driver at cycle 0 when the first poll of a
+            # fresh Modbus client (connect included) took longer than that on a busy machine
+            supervisor={"slow_stale_s": 2.0})
         with loop:
-            timer = threading.Timer(0.6, plc.stop)  # not in the loop thread: it never waits
-            timer.start()
-            fr = _play(loop, tmp_path, 7500)
-            timer.join()
+            # the PLC stops 3000 cycles into the excitation, whatever the machine's load (a
+            # 0.6 s timer from the start fired before the excitation on a fresh clone, where the
+            # first segment waits for numba's compilation): the loop-thread event only sets a
+            # flag; the blocking server stop runs in its own thread, never in the loop thread
+            armed = threading.Event()
+            stopper = threading.Thread(target=lambda: (armed.wait(60.0), plc.stop()))
+            stopper.start()
+            try:
+                fr = _play(loop, tmp_path, 7500, events=[(3000, armed.set)])
+            finally:
+                armed.set()
+                stopper.join()
             faults = loop.faults()
-            assert_safe_after_fault(fr, FC.SLOW_DRIVER)
+            assert_safe_after_fault(fr, FC.SLOW_DRIVER, armed_at=3000)
             assert faults[-1]["name"] == "slow_driver"
             from rigd.frame import REC
             assert np.all(fr[:100, REC["p_inj_bar"]] == 4.5)  # P_I came from the PLC
