@@ -209,18 +209,8 @@ def for_loop(controller, fs_hz: float) -> Controller:
     if not isinstance(controller, Controller):
         return load_controller(controller, expected_fs_hz=fs_hz)
     where = str(controller.source)
-    mats = []
-    for name in "ABCD":
-        try:
-            m = np.asarray(getattr(controller, name), dtype=float)
-        except (TypeError, ValueError):
-            raise InputError(f"controller {name} is not a numeric matrix", where) from None
-        if m.ndim != 2:
-            raise InputError(f"controller {name} must be a matrix, got {m.ndim} dimension(s)",
-                             where)
-        if not np.all(np.isfinite(m)):
-            raise InputError(f"controller {name} contains NaN or Inf", where)
-        mats.append(m)
+    mats = [_as_matrix(f"controller {name}", getattr(controller, name), where)
+            for name in "ABCD"]
     check_controller(*mats, fs_hz=float(controller.fs_hz), expected_fs_hz=fs_hz, where=where)
     return controller
 
