@@ -1,0 +1,103 @@
+"""Browser-test fixtures: a headless Chromium driven by selenium 4 (Debian's ``chromium`` +
+``chromium-driver``; no browser download), its console errors, and screenshots.
+
+Use::
+
+    def test_page(browser, screenshot):
+        browser.get(url)
+        ...
+        screenshot("console")          # -> test-artifacts/screenshots/console.png
+        assert browser.console_errors() == []
+
+Every test using ``browser`` fails at teardown when the page logged a console error
+(``SEVERE``) that the test did not take with ``browser.take_console_errors()``; a test that
+expects errors takes them. Without chromium/chromedriver the tests are skipped with the
+reason (also printed in pytest's header).
+``RIGD_CHROMIUM=`` (empty) shows the skip on a machine that has them.
+"""
+
+from __future__ import annotations
+
+import pytest
+from browserkit import find_chromium, screenshot_path, skip_reason
+
+# pytest's header line ("browser tests: run with chromium X" / "... SKIPPED (...)") comes
+# from tests/conftest.py: a hook here would only run when pytest starts in tests/browser.
+
+
+class Browser:
+    """A selenium ``WebDriver`` (attribute access passes through) plus its console log."""
+
+    def __init__(self, driver):
+        self.driver = driver
+        self._log: list[dict] = []
+
+    def __getattr__(self, name):
+        return getattr(self.driver, name)
+
+    def _drain(self) -> None:
+        self._log.extend(self.driver.get_log("browser"))
+
+    def console_log(self) -> list[dict]:
+        """Every console entry so far (``level``, ``message``, ``timestamp``)."""
+        self._drain()
+        return list(self._log)
+
+    def console_errors(self) -> list[str]:
+        """Messages of the ``SEVERE`` entries (console.error, uncaught exceptions, failed
+        loads) so far."""
+        return [e["message"] for e in self.console_log() if e.get("level") == "SEVERE"]
+
+    def take_console_errors(self) -> list[str]:
+        """Like ``console_errors`` and forget them (for tests that expect errors)."""
+        errors = self.console_errors()
+        self._log = [e for e in self._log if e.get("level") != "SEVERE"]
+        return errors
+
+
+def _make_driver():
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+
+    chromium, chromedriver, _ = find_chromium()
+    options = Options()
+    options.binary_location = chromium
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--window-size=1400,1000", "--no-first-run", "--disable-extensions",
+                "--disable-background-networking"):
+        options.add_argument(arg)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    driver = webdriver.Chrome(options=options, service=Service(chromedriver))
+    driver.set_page_load_timeout(60)
+    driver.set_script_timeout(60)
+    return driver
+
+
+@pytest.fixture
+def browser():
+    """A fresh headless Chromium per test; fails the test on untaken console errors."""
+    reason = skip_reason()
+    if reason:
+        pytest.skip(reason)
+    b = Browser(_make_driver())
+    try:
+        yield b
+        errors = b.console_errors()
+    finally:
+        b.driver.quit()
+    assert not errors, f"browser console errors: {errors}"
+
+
+@pytest.fixture
+def screenshot(browser):
+    """``screenshot(name)`` saves the browser's viewport to
+    ``test-artifacts/screenshots/<name>.png`` and returns the path."""
+
+    def take(name: str):
+        path = screenshot_path(name)
+        if not browser.driver.save_screenshot(str(path)):
+            raise AssertionError(f"screenshot {name}: chromium wrote nothing")
+        return path
+
+    return take
