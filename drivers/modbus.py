@@ -240,8 +240,15 @@ class ModbusDriver(SlowDriver):
 
     # --- the polling thread -----------------------------------------------------------
     def open(self) -> None:
-        """Nothing to acquire up front: the first poll connects (a device that is down is a
-        fault then, not a start-up failure)."""
+        """Make the client and connect once, before the loop starts (blocks up to
+        ``timeout_s``): the first poll is then a plain read, not pymodbus's import and a
+        connect. A device that is down is not a start-up failure: the first poll fails and the
+        loop latches ``slow_driver`` then (the connect is retried every ``reconnect_s``)."""
+        self._client = self._make_client()
+        try:
+            self._client.connect()   # False when down: the first poll tries again, then faults
+        except Exception:  # noqa: BLE001 - reported by the first poll, as any outage
+            pass
 
     def start_polling(self) -> None:
         """Poll in this driver's own thread at ``poll_hz`` (stand-alone use; the loop has its

@@ -71,6 +71,9 @@ class SupervisorConfig(StrictModel):
     overrun_storm_count: int = Field(50, ge=1)          #: overruns within the window -> fault
     overrun_storm_window_s: float = Field(1.0, gt=0)
     slow_stale_s: float = Field(2.0, gt=0)              #: slow-driver data older -> fault
+    #: bound for a slow driver's *first* good poll, counted from the loop's start (connect and
+    #: first answer of a fresh device); the ``slow_stale_s`` clock starts at that poll
+    slow_first_poll_s: float = Field(10.0, gt=0)
 
     @model_validator(mode="after")
     def _ranges(self):

@@ -98,7 +98,8 @@ class ControlLoop:
         self.supervisor = Supervisor(self.state, self.requests, self.recorder, self.log,
                                      cfg.supervisor.slow_stale_s)
         self.slow_pollers = SlowPollers(self.slow, slow_poll_hz, self.state.st, self.requests,
-                                        self.log)
+                                        self.log,
+                                        first_poll_s=cfg.supervisor.slow_first_poll_s)
         self.supervisor.slow = self.slow_pollers
         self.rt = RealTimeClock(cfg, self)
         self.lockstep = LockstepClock(cfg, self)

@@ -4,6 +4,13 @@ Each thread polls its driver at ``poll_hz`` and writes Ω and P_I into ``st[S_SL
 ``st[S_SLOW_PINJ]`` (one writer per slot: the thread of the driver that provides it); a
 failing poll requests ``slow_driver`` once per outage. Setpoints are sent from short-lived
 threads so no caller waits on a device.
+
+Staleness (:meth:`SlowPollers.stale`, checked by the supervisor's monitor thread): a driver's
+clock starts at its first good poll. Until then the bound is ``first_poll_s``
+(``supervisor.slow_first_poll_s``, counted from :meth:`SlowPollers.start`): the first poll of a
+fresh device includes its connect and may take a few device timeouts, and a clock started
+before it latched ``slow_driver`` at cycle 0 on a slow connect. A device that refuses or does
+not answer is not waited for: its failing poll requests the fault at once.
 """
 
 from __future__ import annotations
@@ -19,19 +26,25 @@ from rigd.loop import requests as RQ
 class SlowPollers:
     """Owner of the slow drivers' threads (see module docstring)."""
 
-    def __init__(self, drivers, poll_hz, st, requests, log) -> None:
+    def __init__(self, drivers, poll_hz, st, requests, log, first_poll_s: float = 10.0) -> None:
         self.drivers = list(drivers)
         self._hz = list(poll_hz) or [getattr(d, "poll_hz", 20.0) for d in self.drivers]
         self._st = st
         self._requests = requests
         self._log = log
-        self._last_ok: list[float] = []
+        self._first_poll_s = float(first_poll_s)
+        # per driver: start of its staleness clock (monotonic s; set by the driver's thread at
+        # each good poll, restarted by the monitor on a report) and whether it has had a good
+        # poll (before that the bound is first_poll_s)
+        self._since: list[float] = []
+        self._polled: list[bool] = []
         self._threads: list[threading.Thread] = []
 
     def start(self, stop: threading.Event) -> None:
         now = time.monotonic()
         for i, d in enumerate(self.drivers):
-            self._last_ok.append(now)
+            self._since.append(now)
+            self._polled.append(False)
             t = threading.Thread(target=self._run, args=(i, d, stop), name=f"rigd-slow-{i}",
                                  daemon=True)
             t.start()
@@ -42,12 +55,14 @@ class SlowPollers:
         return [t.native_id for t in self._threads]
 
     def stale(self, stale_s: float) -> bool:
-        """True if a driver had no good poll for ``stale_s`` (its timer restarts: one report)."""
+        """True if a driver had no good poll for ``stale_s`` s, or no first good poll within
+        ``first_poll_s`` s of :meth:`start` (its clock restarts: one report per period)."""
         now = time.monotonic()
         hit = False
-        for i, t in enumerate(self._last_ok):
-            if now - t > stale_s:
-                self._last_ok[i] = now
+        for i, t in enumerate(self._since):
+            bound = stale_s if self._polled[i] else self._first_poll_s
+            if now - t > bound:
+                self._since[i] = now
                 hit = True
         return hit
 
@@ -79,7 +94,8 @@ class SlowPollers:
                 failed = True
                 continue
             failed = False
-            self._last_ok[i] = time.monotonic()
+            self._since[i] = time.monotonic()
+            self._polled[i] = True
             if "omega_rpm" in vals:
                 st[L.S_SLOW_OMEGA] = float(vals["omega_rpm"])
             if "p_inj_bar" in vals:

@@ -76,9 +76,13 @@ class NullModem:
 
 
 class PlcServer:
+    """The PLC. ``first_delay_s``: the first read is answered that late (a device slow to
+    answer after a connect)."""
+
     def __init__(self, port=None, p_inj_bar=4.0, omega_rpm=3000.0, status=0, device=None,
-                 baudrate=19200, parity="E"):
+                 baudrate=19200, parity="E", first_delay_s=0.0):
         self.device = device            # RTU on this serial device; TCP on loopback if None
+        self.first_delay_s = first_delay_s
         self.serial = {"baudrate": baudrate, "parity": parity}
         self.port = None if device else (port or free_port())
         self.values = {"p_inj_bar": p_inj_bar, "omega_rpm": omega_rpm, "status": status}
@@ -93,6 +97,8 @@ class PlcServer:
         regs[2 - start:4 - start] = float_to_regs(self.values["omega_rpm"])
         regs[4 - start] = self.values["status"]
         if fc == 4:
+            if self.first_delay_s and not self.reads:
+                await asyncio.sleep(self.first_delay_s)
             self.reads += 1
         if set_values is not None:
             for name, addr in (("p_inj_bar", 100), ("omega_rpm", 102)):

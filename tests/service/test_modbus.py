@@ -136,3 +136,61 @@ def test_shipped_rig_config_validates_with_these_drivers():
     scls, sopts = lc.driver_options("slow", 0)
     assert scls is ModbusDriver and isinstance(sopts, ModbusOptions)
     assert sopts.registers.omega == 2
+
+
+def _loop_with_plc(tmp_path, plc, timeout_s, **supervisor):
+    """A lock-step loop (simulated plant) whose slow driver is the Modbus driver on ``plc``."""
+    from daemon_helpers import make_config
+
+    from rigd.loop.app import build_drivers
+    from rigd.loop.loop import ControlLoop
+    from rigd.rigconfig import load_config
+
+    lc = load_config(make_config(
+        tmp_path, drivers={"fast": {"name": "sim"}, "slow": [{"name": "modbus", "poll_hz": 50.0,
+                           "options": {"host": "127.0.0.1", "port": plc.port,
+                                       "timeout_s": timeout_s, "reconnect_s": 0.05}}]},
+        supervisor=supervisor))
+    fast, slow, hz = build_drivers(lc)
+    return ControlLoop(lc, fast, slow_drivers=slow, slow_poll_hz=hz, clock="lockstep")
+
+
+def test_slow_first_answer_does_not_latch_stale(tmp_path):
+    """The PLC answers its first read after 2 s (within the driver's 4 s timeout), then at
+    once. The staleness clock (``slow_stale_s`` 1 s) starts at the first good poll: no
+    ``slow_driver`` at start. (It started before the first poll and latched the fault at
+    cycle 0 of a loop whose first poll — connect included — was slow.)"""
+    from faultkit import wait_for
+
+    plc = PlcServer(p_inj_bar=4.5, omega_rpm=0.0, first_delay_s=2.0).start()
+    try:
+        loop = _loop_with_plc(tmp_path, plc, timeout_s=4.0, slow_stale_s=1.0)
+        with loop:
+            # the slow first answer and nine more; the loop runs cycles meanwhile, so a
+            # staleness request would be latched as it is posted
+            assert wait_for(lambda: (loop.run_cycles(50), plc.reads >= 10)[1], 30.0)
+            loop.run_cycles(100)
+            assert [f["name"] for f in loop.faults()] == []
+            assert loop.status()["fault"]["code"] == 0
+            assert loop.slow[0].latest().ok and loop.slow[0].latest().p_inj_bar == 4.5
+    finally:
+        plc.stop()
+
+
+def test_first_poll_bound_latches_slow_driver(tmp_path):
+    """The first poll has its own bound (``slow_first_poll_s``): a first answer later than
+    that latches ``slow_driver`` while the poll is still waiting (not only when it fails)."""
+    from faultkit import wait_for
+
+    from rigd.loop import faults as FC
+
+    plc = PlcServer(p_inj_bar=4.5, omega_rpm=0.0, first_delay_s=4.5).start()
+    try:
+        loop = _loop_with_plc(tmp_path, plc, timeout_s=5.0, slow_first_poll_s=0.5)
+        with loop:
+            assert wait_for(lambda: (loop.run_cycles(50),
+                                     loop.status()["fault"]["code"] == FC.SLOW_DRIVER)[1], 30.0)
+            assert plc.reads == 0, "latched by the first-poll bound, not by an answer"
+            assert loop.faults()[-1]["name"] == "slow_driver"
+    finally:
+        plc.stop()
