@@ -7,6 +7,7 @@ Examples::
     rigd ctl load controllers/k_4bar.yaml && rigd ctl enable
     rigd ctl op 3000 4.5
     rigd ctl start config/experiments/prbs.yaml
+    rigd ctl safe
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ _SIMPLE = {
     "disable": ("controller.disable", "disable K∞ (bumpless)"),
     "stop": ("experiment.stop", "stop the running experiment"),
     "experiment": ("experiment.status", "state of the current/last experiment"),
+    "safe": ("safe", "safe state now: latch fault operator_safe (K∞ off, excitation off, "
+                     "r_p,i = r0; `reset` to leave it)"),
 }
 
 
@@ -144,6 +147,10 @@ def run(args: argparse.Namespace) -> int:
     elif args.ctl_command == "status":
         print(status_summary(result))
         print(format_human(result))
+    elif args.ctl_command == "safe":
+        f = result.get("fault") or {}
+        print(f"safe state: FAULT {f.get('name')} latched at cycle {f.get('seq')} (K∞ off, "
+              f"excitation off, r_p,i = r0; `rigd ctl reset` to leave it)")
     elif args.ctl_command == "ping":
         print(f"rigd alive (pid {result.get('pid', '?')}, version {result.get('version', '?')})")
     else:

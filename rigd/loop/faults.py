@@ -25,6 +25,7 @@ RECORDER_OVERFLOW = 10  # the recorder ring buffer was full: frames could not be
 SLOW_DRIVER = 11        # a slow driver failed (device unreachable) or its data went stale
 OPERATOR_STOP = 12      # safe state requested by the operator / service
 LOOP_DIED = 13          # the loop thread died or a cycle raised: outputs set safe, loop stopped
+OPERATOR_SAFE = 14      # the operator's safe-state button (`rigd ctl safe`, the console)
 
 #: code -> (name, one-line explanation)
 FAULTS: dict[int, tuple[str, str]] = {
@@ -46,6 +47,8 @@ FAULTS: dict[int, tuple[str, str]] = {
     OPERATOR_STOP: ("operator_stop", "safe state requested by the operator"),
     LOOP_DIED: ("loop_died",
                 "the loop thread died or a cycle raised; outputs set safe, loop stopped"),
+    OPERATOR_SAFE: ("operator_safe",
+                    "safe state requested by the operator (safe command); reset to leave it"),
 }
 
 #: fast-driver status bits (``drv_status`` input channel)

@@ -94,7 +94,9 @@ class ControlLoop:
         self.player = SegmentPlayer()
         self.recorder = Recorder(cfg.recorder.ring_frames, self.state.st,
                                  flush_interval_s=cfg.recorder.flush_interval_s,
-                                 on_error=self._recorder_failed)
+                                 on_error=self._recorder_failed, fs=self.fs)
+        if self.clock == "lockstep":     # frames written beyond the published count, at most
+            self.recorder.shared.set_ahead(cfg.clock.batch_cycles)
         self.supervisor = Supervisor(self.state, self.requests, self.recorder, self.log,
                                      cfg.supervisor.slow_stale_s)
         self.slow_pollers = SlowPollers(self.slow, slow_poll_hz, self.state.st, self.requests,

@@ -29,6 +29,7 @@ import numpy as np
 
 from rigd.frame import N_REC, REC
 from rigd.loop.layout import S_RD
+from rigd.loop.shared_ring import SharedRing
 from rigd.loop.sinks import Sink
 
 _SEQ = REC["seq"]
@@ -59,11 +60,17 @@ class Recorder:
         HDF5 flush period.
     on_error : callable, optional
         ``on_error(exc)`` when a sink fails (the loop latches a fault).
+    fs : float
+        Loop rate, Hz (told to the ring's readers).
     """
 
     def __init__(self, ring_frames: int, st: np.ndarray, *, flush_interval_s: float = 0.5,
-                 on_error=None) -> None:
-        self.ring = np.zeros((ring_frames, N_REC))
+                 on_error=None, fs: float = 0.0) -> None:
+        #: the ring lives in shared memory so that the daemon's socket process can read recent
+        #: frames for the live stream (read-only, never through the loop thread)
+        self.shared = SharedRing(ring_frames, N_REC, fs)
+        self.ring = self.shared.ring
+        self._share = self.shared.publish
         self.n = ring_frames
         self._st = st
         self.published = 0                 # frames the loop has published (total)
@@ -107,9 +114,11 @@ class Recorder:
     def publish(self, w: int) -> None:
         """The loop has written frames up to total count ``w`` (called after a kernel call).
 
-        Runs in: loop thread — O(1), allocation-free, non-blocking (sets an event at most).
+        Runs in: loop thread — O(1), allocation-free, non-blocking (sets an event at most;
+        :meth:`SharedRing.publish` stores ``w`` and the wall time for the stream readers).
         """
         self.published = w
+        self._share(w)
         if w - self.read >= self.n // 4:
             self._wake.set()
 

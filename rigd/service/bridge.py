@@ -27,7 +27,7 @@ from collections.abc import Callable
 from typing import Any
 
 from rigd.service import frontend
-from rigd.service.server import listen
+from rigd.service.listen import listen
 
 #: snapshot publication rate, Hz (queries are at most this stale)
 SNAPSHOT_HZ = 25.0
@@ -58,12 +58,15 @@ class SocketFrontend:
         the loop thread's, like the loop's other helper threads. They share the interpreter
         lock with the loop thread; preempted by ordinary processes while holding it, they
         would stall the loop (priority inversion).
+    ring : rigd.loop.shared_ring.RingHandle, optional
+        The recorder's ring in shared memory; the socket process maps it read-only and serves
+        ``stream.subscribe`` from it (without it the stream is refused).
     """
 
     def __init__(self, path: str, mode: int, handle_command: Callable[[bytes], bytes],
                  snapshot: Callable[[], dict[str, Any]], *, rate_hz: float = SNAPSHOT_HZ,
                  log=None, nice: int = 10, max_clients: int = 64,
-                 helper_priority: int | None = None):
+                 helper_priority: int | None = None, ring=None):
         self.path = str(path)
         self.mode = mode
         self.handle_command = handle_command
@@ -71,7 +74,8 @@ class SocketFrontend:
         self.period = 1.0 / rate_hz
         self.log = log
         self.helper_priority = helper_priority
-        self.opts = {"path": self.path, "nice": nice, "max_clients": max_clients}
+        self.opts = {"path": self.path, "nice": nice, "max_clients": max_clients,
+                     "ring": ring}
         self.ready = threading.Event()
         self.restarts = 0
         self.pid: int | None = None

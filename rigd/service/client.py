@@ -1,10 +1,12 @@
-"""A small blocking client for the control socket (used by ``rigd ctl`` and the load test)."""
+"""A small blocking client for the control socket (used by ``rigd ctl``, ``rigd web``, the
+benches and the tests)."""
 
 from __future__ import annotations
 
 import itertools
 import json
 import socket
+from collections.abc import Iterator
 from typing import Any
 
 from rigd.errors import InputError
@@ -33,6 +35,7 @@ class ControlClient:
         self._sock: socket.socket | None = None
         self._buf = b""
         self._ids = itertools.count(1)
+        self.subscribed: dict[str, Any] | None = None
 
     def connect(self) -> ControlClient:
         s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -98,3 +101,42 @@ class ControlClient:
         if not reply.get("ok"):
             raise ControlError(reply.get("error", "error"))
         return reply.get("result")
+
+    def stream(self, rate_hz: float = 50.0, points: int = 200,
+               channels: list[str] | None = None) -> Iterator[dict[str, Any]]:
+        """Subscribe to the live stream and yield its updates (docs/service.md "Live stream").
+
+        Parameters
+        ----------
+        rate_hz : float
+            Updates per second (10–100).
+        points : int
+            Most min/max points per channel per update.
+        channels : list of str, optional
+            Record channels (default: all).
+
+        Yields
+        ------
+        dict
+            The ``stream`` object of each update (``seq``, ``t_s``, ``wall_ns``, ``n``,
+            ``dropped``, ``t``, ``min``, ``max``, ``status``). The subscription's ``result``
+            (``fs_hz``, ``channels``...) is in :attr:`subscribed` (the subscription is sent
+            when this method is called, not at the first update).
+
+        Raises
+        ------
+        ControlError
+            The daemon refused the subscription (its one line).
+        rigd.errors.InputError
+            The connection closed or no update came within ``timeout``. Use the client on a
+            connection of its own (replies to other requests on it are skipped).
+        """
+        self.subscribed = self.call("stream.subscribe", rate_hz=rate_hz, points=points,
+                                    channels=channels)
+        return self._updates()
+
+    def _updates(self) -> Iterator[dict[str, Any]]:
+        while True:
+            msg = self.read_reply()
+            if "stream" in msg:
+                yield msg["stream"]

@@ -110,7 +110,8 @@ class Daemon:
                                  "--socket-mode") from None
             self.server = SocketFrontend(sock, mode, self.dispatcher.handle_line,
                                          self._snapshot, log=self.log,
-                                         helper_priority=self._helper_priority()).start()
+                                         helper_priority=self._helper_priority(),
+                                         ring=self._ring()).start()
         self._faults = self.loop.subscribe()
         if threading.current_thread() is threading.main_thread():
             for s, h in ((signal.SIGTERM, self._on_stop_signal),
@@ -159,6 +160,11 @@ class Daemon:
                 "commands_run": (self.dispatcher.served + self.dispatcher.refused
                                  if self.dispatcher else 0),
                 "last_reload": dict(self.last_reload)}
+
+    def _ring(self):
+        """The recorder's shared ring for the live stream (None for a loop without one)."""
+        shared = getattr(getattr(self.loop, "recorder", None), "shared", None)
+        return shared.handle() if shared is not None else None
 
     def _helper_priority(self) -> int | None:
         """SCHED_FIFO priority for the service's threads on a real-time loop: just below it."""

@@ -11,14 +11,18 @@ connections. Here, in a process of its own — its own interpreter lock, a lower
 * ``status``, ``timing``, ``faults``, ``experiment.status`` and ``ping`` are answered from the
   latest *snapshot* the daemon publishes (``snapshot_hz``, default 25 Hz, and after every
   command) — a flood of queries costs the loop's process nothing;
-* valid commands (``fault.reset``, ``controller.*``, ``operating_point.set``,
+* ``stream.subscribe`` is served here too, from the recorder's ring buffer in shared memory
+  (mapped read-only) and the snapshot: :mod:`rigd.service.stream` — the live stream costs the
+  loop's process nothing;
+* valid commands (``fault.reset``, ``safe``, ``controller.*``, ``operating_point.set``,
   ``experiment.start``/``stop``), at most :data:`MAX_COMMANDS_PER_S` per second and
   :data:`MAX_IN_FLIGHT` at once, are forwarded to the daemon's command thread, which runs
   them in order through :class:`~rigd.service.protocol.Dispatcher` and replies with the
   result and a fresh snapshot. Forwarding never holds the server's thread: the handler
   returns a future of the reply (the server serves every other client meanwhile, queries
   included), a sender thread writes to the daemon and a receiver thread completes the futures
-  as the replies come back (or with an error after :data:`COMMAND_TIMEOUT_S`).
+  as the replies come back (or with an error after :data:`COMMAND_TIMEOUT_S`). ``safe`` is
+  never refused by the rate limit (the safety button must always get through).
 
 The process ignores SIGINT, SIGTERM and SIGHUP (the daemon handles them and stops this process
 itself) and exits when its connection to the daemon closes (the daemon died or stopped).
@@ -35,10 +39,12 @@ import time
 from concurrent.futures import Future
 from typing import Any
 
+from rigd.loop.shared_ring import RingReader
 from rigd.plain import plain
 from rigd.service import protocol
 from rigd.service.protocol import RequestError, check_paths, error, parse_request
 from rigd.service.server import ControlServer
+from rigd.service.stream import StreamHub
 
 #: requests answered from the snapshot (no round trip to the loop's process)
 QUERIES = ("status", "timing", "faults", "experiment.status", "ping")
@@ -71,12 +77,17 @@ class SnapshotHandler:
         Commands forwarded and not yet answered, at most; beyond, refused with an error reply.
     timeout_s : float
         A forwarded command not answered by the daemon within this time gets an error reply.
+    ring : rigd.loop.shared_ring.RingHandle, optional
+        The recorder's ring (``stream.subscribe``); None: the stream is refused.
     """
 
     def __init__(self, cmd_conn, clients=lambda: 0,
                  max_commands_per_s: float = MAX_COMMANDS_PER_S,
-                 max_in_flight: int = MAX_IN_FLIGHT, timeout_s: float = COMMAND_TIMEOUT_S):
+                 max_in_flight: int = MAX_IN_FLIGHT, timeout_s: float = COMMAND_TIMEOUT_S,
+                 ring=None):
         self.cmd_conn = cmd_conn
+        self.streams = StreamHub(RingReader(ring) if ring is not None else None,
+                                 lambda: self._snap)
         self.clients = clients
         self.rate = float(max_commands_per_s)
         self.max_in_flight = int(max_in_flight)
@@ -141,15 +152,23 @@ class SnapshotHandler:
         return enc
 
     # --- requests ----------------------------------------------------------------------
-    def handle_line(self, line: bytes) -> bytes | Future:
-        """One request line to one reply line, or to a future of it for a forwarded command;
-        never raises (the ``ControlServer`` contract)."""
+    def handle_line(self, line: bytes) -> bytes | Future | tuple:
+        """One request line to one reply line, to a future of it for a forwarded command, or
+        to ``(reply line, subscription)`` for ``stream.subscribe``; never raises (the
+        ``ControlServer`` contract)."""
         req_id = None
         try:
             req_id, cmd, args = parse_request(line)
+            if cmd == "stream.subscribe":
+                try:
+                    result, sub = self.streams.subscribe(args.rate_hz, args.points,
+                                                         args.channels)
+                except LookupError as exc:
+                    raise RequestError(str(exc), req_id) from None
+                return protocol.ok(req_id, result), sub
             if cmd not in QUERIES:
                 check_paths(cmd, args)       # the last refusal that needs no loop state
-                if not self._take_token():
+                if cmd != "safe" and not self._take_token():
                     self.throttled += 1
                     raise RequestError(f"{cmd}: too many commands (more than {self.rate:g} "
                                        f"per second from all clients); not run, try again",
@@ -187,7 +206,7 @@ class SnapshotHandler:
         with self._plock:
             if self._channel_closed:
                 return error(req_id, "the daemon's command channel is closed (stopping?)")
-            if len(self._pending) >= self.max_in_flight:
+            if len(self._pending) >= self.max_in_flight and cmd != "safe":
                 return error(req_id, f"{cmd}: {len(self._pending)} commands are already "
                                      f"waiting for the daemon; not run, try again")
             self._tag += 1
@@ -258,7 +277,8 @@ def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
         pass
     server = ControlServer(opts["path"], lambda line: b"",
                            max_clients=opts.get("max_clients", 64))
-    handler = SnapshotHandler(cmd_conn, clients=lambda: server.n_clients)
+    handler = SnapshotHandler(cmd_conn, clients=lambda: server.n_clients,
+                              ring=opts.get("ring"))
     server.handle = handler.handle_line
     # the first snapshot before serving, then tell the daemon we are up
     try:

@@ -20,10 +20,11 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from rigd.configio import StrictModel
 from rigd.errors import FaultError, InputError
+from rigd.frame import REC, RECORD_NAMES
 from rigd.plain import plain
 
 #: Longest accepted request line, bytes (a longer one is refused and the client dropped).
@@ -55,6 +56,27 @@ class ExperimentArgs(StrictModel):
         return self
 
 
+class StreamArgs(StrictModel):
+    rate_hz: float = Field(50.0, ge=10.0, le=100.0, allow_inf_nan=False,
+                           description="updates per second")
+    points: int = Field(200, ge=1, le=2000, description="most min/max points per channel "
+                                                         "per update")
+    channels: list[str] | None = Field(None, min_length=1, max_length=len(RECORD_NAMES),
+                                       description="record channels (default: all)")
+
+    @field_validator("channels")
+    @classmethod
+    def _known(cls, channels):
+        if channels is not None:
+            bad = [c for c in channels if c not in REC]
+            if bad:
+                raise ValueError(f"unknown channel {bad[0][:40]!r} (known: "
+                                 f"{', '.join(RECORD_NAMES)})")
+            if len(set(channels)) != len(channels):
+                raise ValueError("a channel is named twice")
+        return channels
+
+
 #: command name -> (argument model, one-line help)
 COMMANDS: dict[str, tuple[type[StrictModel], str]] = {
     "ping": (NoArgs, "liveness check; returns pid and version"),
@@ -69,6 +91,10 @@ COMMANDS: dict[str, tuple[type[StrictModel], str]] = {
     "experiment.start": (ExperimentArgs, "start an experiment in the background"),
     "experiment.status": (NoArgs, "state of the current/last experiment"),
     "experiment.stop": (NoArgs, "stop the running experiment"),
+    "safe": (NoArgs, "safe state now: latch fault operator_safe (K∞ off, excitation off, "
+                     "r_p,i = r0), stop the experiment"),
+    "stream.subscribe": (StreamArgs, "push min/max-decimated recent frames on this "
+                                     "connection (served by the socket process)"),
 }
 
 
@@ -134,6 +160,7 @@ def parse_request(line: bytes | str) -> tuple[Any, str, StrictModel]:
         e = exc.errors()[0]
         loc = ".".join(str(p) for p in e["loc"]) or "arguments"
         msg = "unknown argument" if e["type"] == "extra_forbidden" else e["msg"]
+        msg = msg.removeprefix("Value error, ")
         raise RequestError(f"{cmd}: {loc}: {msg}", req_id) from None
     return req_id, cmd, args
 
@@ -194,7 +221,11 @@ class Dispatcher:
             return self._cached(cmd, loop.timing)
         if cmd == "faults":
             return self._cached(cmd, lambda: {"faults": loop.faults()})
+        if cmd == "stream.subscribe":
+            raise RequestError(f"{cmd}: served by the socket process only")
         self._cache.clear()  # a command changes the state: the next query is fresh
+        if cmd == "safe":
+            return self._safe()
         if cmd == "fault.reset":
             loop.reset_fault()
             return {"reset": True}
@@ -219,6 +250,26 @@ class Dispatcher:
             return self.experiments.stop()
         raise RequestError(f"unknown command {cmd!r}")  # pragma: no cover - table-driven
 
+
+    def _safe(self, confirm_s: float = 2.0) -> dict[str, Any]:
+        """Latch ``operator_safe`` (the loop's safe state from its next cycle), stop the
+        experiment, and wait until the loop shows a latched fault (any: the first one wins).
+        """
+        from rigd.loop import faults as FC
+
+        self.loop.trip(FC.OPERATOR_SAFE)
+        if self.experiments is not None:
+            self.experiments.stop()
+        end = time.monotonic() + confirm_s
+        while True:
+            f = self.loop.status().get("fault", {})
+            if f.get("code"):
+                return {"safe": True, "fault": {k: f.get(k) for k in ("code", "name", "text",
+                                                                       "seq")}}
+            if time.monotonic() > end:
+                raise RequestError(f"safe: requested, but the loop did not confirm a latched "
+                                   f"fault within {confirm_s:g} s (is it running?)")
+            time.sleep(0.002)
 
     def _cached(self, key: str, fn: Callable[[], Any]) -> Any:
         if self.cache_s <= 0:

@@ -14,11 +14,14 @@ silent or hostile client can never block another one or the loop:
   reply line instead of the line, the server goes on serving every other client, and appends
   the reply when the future is done. That client's later (pipelined) lines wait behind it, so
   its replies stay in request order; while it waits, at most ``max_pending`` bytes of further
-  requests are buffered (beyond: dropped).
+  requests are buffered (beyond: dropped);
+* a request may start a *push* (``stream.subscribe``): ``handle`` returns ``(reply, pusher)``;
+  from then on the thread calls ``pusher.update(now)`` whenever ``pusher.next_due``
+  (``time.monotonic``) has passed and appends the line it returns to that client — the same
+  ``max_pending`` rule drops a subscriber that stops reading.
 
-The socket file is created with mode ``0660`` (owner and group only; see docs/service.md for
-the ``rigd`` group). A stale socket file left by a crashed daemon is replaced; a live one
-(another daemon answering) is refused.
+The listening socket itself is bound by :func:`rigd.service.listen.listen` (mode ``0660``,
+stale files replaced, live daemons refused).
 """
 
 from __future__ import annotations
@@ -27,7 +30,6 @@ import errno
 import os
 import selectors
 import socket
-import stat
 import threading
 import time
 from collections import deque
@@ -35,12 +37,12 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from pathlib import Path
 
-from rigd.errors import InputError
 from rigd.service import protocol
+from rigd.service.listen import listen
 
 
 class _Client:
-    __slots__ = ("sock", "rbuf", "wbuf", "closing", "closed", "waiting")
+    __slots__ = ("sock", "rbuf", "wbuf", "closing", "closed", "waiting", "push")
 
     def __init__(self, sock: socket.socket):
         self.sock = sock
@@ -49,6 +51,7 @@ class _Client:
         self.closing = False
         self.closed = False
         self.waiting: Future | None = None   # the reply still being worked on
+        self.push = None                     # a subscription pushing lines (the live stream)
 
 
 class ControlServer:
@@ -84,9 +87,10 @@ class ControlServer:
         self._wake_r, self._wake_w = -1, -1
         self._done: deque[_Client] = deque()   # clients whose future is done (any thread)
         self._clients: dict[int, _Client] = {}
+        self._pushing: dict[int, _Client] = {}  # clients with a push subscription
         self._owns_path = False
         self.stats = {"connections": 0, "requests": 0, "dropped_clients": 0,
-                      "too_long": 0, "refused_clients": 0, "deferred": 0}
+                      "too_long": 0, "refused_clients": 0, "deferred": 0, "pushed": 0}
 
     # --- life cycle ---------------------------------------------------------------------
     def start(self, lsock: socket.socket | None = None) -> ControlServer:
@@ -153,7 +157,7 @@ class ControlServer:
     # --- the serving thread -------------------------------------------------------------
     def _serve(self) -> None:
         while True:
-            for key, events in self._sel.select():
+            for key, events in self._sel.select(self._push_timeout()):
                 if key.data == "stop":
                     return
                 if key.data == "wake":
@@ -170,6 +174,42 @@ class ControlServer:
                         self._flush(client)
                 except OSError:
                     self._close(client)
+            if self._pushing:
+                self._push()
+
+    # --- pushed lines (the live stream) ---------------------------------------------------
+    def _push_timeout(self) -> float | None:
+        if not self._pushing:
+            return None
+        due = min(c.push.next_due for c in self._pushing.values())
+        return max(0.0, due - time.monotonic())
+
+    def _push(self) -> None:
+        now = time.monotonic()
+        for c in list(self._pushing.values()):
+            if c.closed or c.push is None:
+                continue
+            if c.push.next_due > now:
+                continue
+            try:
+                line = c.push.update(now)
+            except Exception as exc:  # noqa: BLE001 - a bug ends this push, not the server
+                c.push = None
+                self._pushing.pop(c.sock.fileno(), None)
+                line = protocol.error(None, f"push stopped: internal error: "
+                                            f"{type(exc).__name__}: {exc}")
+            if not line:
+                continue
+            self.stats["pushed"] += 1
+            c.wbuf += line
+            if len(c.wbuf) > self.max_pending:
+                self.stats["dropped_clients"] += 1
+                self._close(c)
+                continue
+            try:
+                self._flush(c)
+            except OSError:
+                self._close(c)
 
     def _accept(self) -> None:
         try:
@@ -231,6 +271,9 @@ class ControlServer:
                 continue
             self.stats["requests"] += 1
             reply = self.handle(line)
+            if isinstance(reply, tuple):          # (reply line, pusher): a subscription
+                reply, c.push = reply
+                self._pushing[c.sock.fileno()] = c
             if isinstance(reply, Future):
                 self.stats["deferred"] += 1
                 c.waiting = reply
@@ -333,51 +376,6 @@ class ControlServer:
             except (KeyError, ValueError):
                 pass
             self._clients.pop(fd, None)
+            self._pushing.pop(fd, None)
         c.sock.close()
 
-
-def listen(path: str | Path, mode: int = 0o660, backlog: int = 64) -> socket.socket:
-    """Bind a listening Unix stream socket at ``path`` with permissions ``mode``.
-
-    The file never exists with wider permissions (umask set around ``bind``). A stale socket
-    file (nobody answering) is replaced; a live one, or a path that is not a socket, is refused
-    with :class:`~rigd.errors.InputError`.
-    """
-    path = str(path)
-    _prepare_path(path)
-    ls = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM | socket.SOCK_CLOEXEC)
-    old = os.umask(0o777 & ~mode)  # never world-accessible, not even for an instant
-    try:
-        ls.bind(path)
-    except OSError as exc:
-        ls.close()
-        raise InputError(f"cannot bind control socket: {exc.strerror}", path) from None
-    finally:
-        os.umask(old)
-    os.chmod(path, mode)
-    ls.listen(backlog)
-    return ls
-
-
-def _prepare_path(path: str) -> None:
-    p = Path(path)
-    if len(os.fsencode(path)) > 107:
-        raise InputError("socket path too long (Unix sockets allow 107 bytes)", path)
-    if not p.parent.is_dir():
-        raise InputError("socket directory does not exist", str(p.parent))
-    try:
-        st = os.lstat(path)
-    except FileNotFoundError:
-        return
-    if not stat.S_ISSOCK(st.st_mode):
-        raise InputError("exists and is not a socket; refusing to replace it", path)
-    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    try:
-        probe.settimeout(0.5)
-        probe.connect(path)
-    except OSError:
-        os.unlink(path)  # stale socket of a dead daemon
-        return
-    finally:
-        probe.close()
-    raise InputError("another daemon is listening on this socket", path)

@@ -1,0 +1,206 @@
+"""The recorder's ring buffer in shared memory, and a read-only reader for other processes.
+
+The cycle kernel writes one record frame per cycle into the ring (float64 ``(n, N_REC)``, row
+``w % n``); the recorder *publishes* the total written count ``w`` after each kernel call
+(:meth:`rigd.loop.recorder.Recorder.publish`). Here the ring and a small header live in one
+anonymous shared-memory file (``memfd_create``: no name in ``/dev/shm``, nothing left behind
+when the daemon dies, whatever the signal), so that the daemon's **socket process** can map
+it **read-only** (``PROT_READ``, reopened ``O_RDONLY``) and read recent frames for the live
+stream (``stream.subscribe``) without the loop thread doing anything for it.
+
+Header (int64 slots before the ring, :data:`HDR_SLOTS` of them):
+
+=========  ===========================================================================
+``H_W``      frames published (total; the newest is frame ``w - 1``)
+``H_WALL``   ``time.time_ns()`` when ``w`` was published (stored before ``H_W``, see
+             :meth:`SharedRing.publish`)
+``H_N``      ring capacity, frames
+``H_COLS``   columns per frame
+``H_AHEAD``  how many frames the kernel may write beyond the published count (lock-step
+             batch; 1 on the real-time clock)
+``H_MAGIC``  :data:`MAGIC` (layout version)
+``H_FS``     loop rate, mHz
+=========  ===========================================================================
+
+Torn reads: the reader copies frames ``[w1 - k, w1)`` after reading ``H_W = w1``, then reads
+``H_W = w2`` again. While it copied, the kernel may have written up to frame
+``w2 + ahead - 1``, which overwrote the rows of frames ``< w2 + ahead - n``; those frames of
+the copy are discarded (:meth:`RingReader.recent`). The stream reads at most a few hundred
+milliseconds behind a ring of many seconds, so in practice nothing is discarded; the check
+makes it *correct* when the reader is starved (a busy machine) rather than *probably right*.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import mmap
+import os
+import time
+from multiprocessing import reduction
+
+import numpy as np
+
+MAGIC = 0x72696764_0001      # "rigd", layout 1
+H_W, H_WALL, H_N, H_COLS, H_AHEAD, H_MAGIC, H_FS = 0, 1, 2, 3, 4, 5, 6
+HDR_SLOTS = 16               # 128 bytes: the ring starts 64-byte aligned
+
+
+def _size(n: int, cols: int) -> int:
+    return 8 * (HDR_SLOTS + n * cols)
+
+
+class SharedRing:
+    """Owner of the ring's shared memory (loop side).
+
+    Parameters
+    ----------
+    n : int
+        Ring capacity, frames.
+    cols : int
+        Columns per frame (``N_REC``).
+    fs : float
+        Loop rate, Hz (for readers; ``t`` of a frame is ``seq / fs``).
+
+    Attributes
+    ----------
+    ring : numpy.ndarray
+        float64 ``(n, cols)``, the kernel's ring (zeros at start).
+    hdr : numpy.ndarray
+        int64 header (see module docstring).
+    """
+
+    def __init__(self, n: int, cols: int, fs: float = 0.0) -> None:
+        self.n, self.cols = int(n), int(cols)
+        self.fd = os.memfd_create("rigd-ring", os.MFD_CLOEXEC | os.MFD_ALLOW_SEALING)
+        size = _size(self.n, self.cols)
+        os.ftruncate(self.fd, size)
+        # the size is final: a reader can never truncate it under the loop (SIGBUS)
+        seals = getattr(fcntl, "F_SEAL_SHRINK", 2) | getattr(fcntl, "F_SEAL_GROW", 4)
+        try:
+            fcntl.fcntl(self.fd, getattr(fcntl, "F_ADD_SEALS", 1033), seals)
+        except OSError:
+            pass
+        self._mm = mmap.mmap(self.fd, size, flags=mmap.MAP_SHARED,
+                             prot=mmap.PROT_READ | mmap.PROT_WRITE)
+        self.hdr = np.ndarray((HDR_SLOTS,), dtype=np.int64, buffer=self._mm)
+        self.ring = np.ndarray((self.n, self.cols), dtype=np.float64, buffer=self._mm,
+                               offset=8 * HDR_SLOTS)
+        self.hdr[H_N] = self.n
+        self.hdr[H_COLS] = self.cols
+        self.hdr[H_AHEAD] = 1
+        self.hdr[H_FS] = int(round(fs * 1000))      # mHz, integer slot
+        self.hdr[H_MAGIC] = MAGIC
+        self._time_ns = time.time_ns
+
+    def set_ahead(self, frames: int) -> None:
+        """The kernel may write up to ``frames`` beyond the published count (lock-step batch)."""
+        self.hdr[H_AHEAD] = max(1, int(frames))
+
+    def publish(self, w: int) -> None:
+        """Frames up to total count ``w`` are written (loop thread).
+
+        Runs in: loop thread — two stores into preallocated memory, no allocation beyond the
+        integer ``time_ns`` returns, no lock, no system call besides the vDSO clock read. The
+        wall time is stored first: a reader that reads ``H_WALL`` then ``H_W`` gets a time
+        no later than the publication of the frames it reads (a latency figure is then an
+        upper bound, never flattered).
+        """
+        hdr = self.hdr
+        hdr[H_WALL] = self._time_ns()
+        hdr[H_W] = w
+
+    def handle(self) -> RingHandle:
+        """A picklable handle for a spawned process (the file descriptor travels with it)."""
+        return RingHandle(self.fd, self.n, self.cols)
+
+
+class RingHandle:
+    """What the socket process receives to map the ring (pickled through ``spawn``).
+
+    The file descriptor is duplicated into the child by :mod:`multiprocessing` while the
+    process is started (:func:`multiprocessing.reduction.DupFd`), like the listening socket.
+    """
+
+    def __init__(self, fd: int, n: int, cols: int) -> None:
+        self.fd, self.n, self.cols = fd, n, cols
+
+    def __reduce__(self):
+        return (_rebuild, (reduction.DupFd(self.fd), self.n, self.cols))
+
+
+def _rebuild(dupfd, n: int, cols: int) -> RingHandle:
+    return RingHandle(dupfd.detach(), n, cols)
+
+
+class RingReader:
+    """Read-only view of a :class:`SharedRing` in another process (the socket process).
+
+    Parameters
+    ----------
+    handle : RingHandle
+        As received through ``spawn`` (or :meth:`SharedRing.handle` in the same process,
+        e.g. tests); the descriptor is reopened ``O_RDONLY`` and mapped ``PROT_READ``: this
+        process cannot write the loop's memory.
+    """
+
+    def __init__(self, handle: RingHandle) -> None:
+        fd = os.open(f"/proc/self/fd/{handle.fd}", os.O_RDONLY | os.O_CLOEXEC)
+        try:
+            self._mm = mmap.mmap(fd, _size(handle.n, handle.cols), flags=mmap.MAP_SHARED,
+                                 prot=mmap.PROT_READ)
+        finally:
+            os.close(fd)
+        self.hdr = np.ndarray((HDR_SLOTS,), dtype=np.int64, buffer=self._mm)
+        if int(self.hdr[H_MAGIC]) != MAGIC:
+            raise ValueError("not a rigd ring (bad magic)")
+        self.n, self.cols = int(self.hdr[H_N]), int(self.hdr[H_COLS])
+        self.ring = np.ndarray((self.n, self.cols), dtype=np.float64, buffer=self._mm,
+                               offset=8 * HDR_SLOTS)
+        self.fs = float(self.hdr[H_FS]) / 1000.0
+        self.torn = 0          # frames discarded by the torn-read check (total)
+
+    @property
+    def published(self) -> int:
+        """Frames published so far (total)."""
+        return int(self.hdr[H_W])
+
+    def recent(self, since: int, max_frames: int) -> tuple[int, np.ndarray, int]:
+        """Copy the frames published after total count ``since`` (at most ``max_frames``).
+
+        Parameters
+        ----------
+        since : int
+            Total count already seen (frames ``< since`` are not wanted).
+        max_frames : int
+            At most this many frames, the newest ones.
+
+        Returns
+        -------
+        first : int
+            Total index of the first frame returned.
+        frames : numpy.ndarray
+            Copy, ``(k, cols)``, oldest first; possibly empty. Frames the writer may have
+            overwritten while they were copied are not in it (counted in :attr:`torn`).
+        wall_ns : int
+            Wall time (``time.time_ns``) at or before the publication of the newest frame.
+        """
+        hdr = self.hdr
+        wall = int(hdr[H_WALL])           # first: see SharedRing.publish
+        w1 = int(hdr[H_W])
+        ahead = int(hdr[H_AHEAD])
+        lo = max(since, w1 - max_frames, w1 + ahead - self.n + 1, 0)
+        if lo >= w1:
+            return w1, np.empty((0, self.cols)), wall
+        a, b = lo % self.n, (w1 - 1) % self.n + 1
+        if a < b:
+            out = self.ring[a:b].copy()
+        else:                              # wraps around the end of the ring
+            out = np.concatenate((self.ring[a:], self.ring[:b]))
+        w2 = int(hdr[H_W])
+        safe = w2 + ahead - self.n + 1     # frames below were possibly overwritten meanwhile
+        if safe > lo:
+            cut = min(safe - lo, len(out))
+            self.torn += cut
+            out = out[cut:]
+            lo += cut
+        return lo, out, wall
