@@ -33,6 +33,7 @@ COMMANDS: dict[str, str] = {
     "design": "rigd.cli.design",
     "analyze-impact": "rigd.cli.analyze_impact",
     "demo": "rigd.cli.demo",
+    "web": "rigd.cli.web",
 }
 
 

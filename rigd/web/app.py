@@ -1,0 +1,274 @@
+"""The Starlette application of ``rigd web`` (routes: docs/web.md)."""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
+from starlette.routing import Mount, Route
+from starlette.staticfiles import StaticFiles
+
+from rigd.configio import read_yaml
+from rigd.errors import InputError
+from rigd.experiments.schemas import load_experiment, validate_spec
+from rigd.fileio import atomic_write_text
+from rigd.web import runs as runs_mod
+from rigd.web import sse
+from rigd.web.auth import MAX_BODY, Guard
+from rigd.web.ctl import COMMANDS, Daemon, DaemonDown, DaemonRefused
+from rigd.web.paths import PathRefused, resolve_inside, split_rooted
+
+STATIC = Path(str(resources.files("rigd.web") / "static"))
+#: SSE clients at once (each holds one daemon socket connection)
+MAX_STREAMS = 16
+#: uploaded file names: plain words, dots, dashes
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
+
+
+@dataclass
+class Settings:
+    """What ``rigd web`` serves.
+
+    Attributes
+    ----------
+    socket : str
+        The daemon's control socket.
+    runs_dir, config_dir : Path
+        The only folders whose files are served or named in requests.
+    token : str
+        The Bearer token of state-changing requests.
+    timeout_s : float
+        Reply timeout of daemon requests, s.
+    """
+
+    socket: str
+    runs_dir: Path
+    config_dir: Path
+    token: str
+    timeout_s: float = 10.0
+    max_body: int = MAX_BODY
+
+
+def _err(status: int, message: str) -> JSONResponse:
+    return JSONResponse({"error": " ".join(str(message).split())}, status_code=status)
+
+
+def plotly_js() -> Path:
+    """``plotly.min.js`` of the installed plotly wheel (package data, no CDN)."""
+    return Path(str(resources.files("plotly") / "package_data" / "plotly.min.js"))
+
+
+async def _json_body(request: Request) -> dict[str, Any]:
+    raw = await request.body()
+    if not raw:
+        return {}
+    try:
+        body = json.loads(raw)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"request body is not JSON: {exc}") from None
+    if not isinstance(body, dict):
+        raise InputError("request body must be a JSON object")
+    return body
+
+
+def _upload(body: dict[str, Any]) -> tuple[str, str] | None:
+    """``(name, text)`` of an uploaded file in the body (``{"upload": {"name", "text"}}``)."""
+    up = body.get("upload")
+    if up is None:
+        return None
+    if not isinstance(up, dict) or not isinstance(up.get("text"), str):
+        raise InputError("upload must be {\"name\": ..., \"text\": ...}")
+    name = Path(str(up.get("name") or "upload.yaml")).name
+    if not _NAME.match(name):
+        raise InputError(f"upload name {name[:60]!r}: letters, digits, '.', '_', '-' only")
+    return name, up["text"]
+
+
+def _save_upload(settings: Settings, kind: str, name: str, text: str) -> Path:
+    """Keep an upload in ``<runs>/uploads/`` (the daemon reads it from there; a record of what
+    was run)."""
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    path = settings.runs_dir / "uploads" / f"{stamp}-{kind}-{name}"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(path, text)
+    return path.resolve()
+
+
+def _yaml_files(roots: dict[str, Path]) -> dict[str, list[str]]:
+    out: dict[str, list[str]] = {}
+    for key, root in roots.items():
+        out[key] = []
+        if not root.is_dir():
+            continue
+        base = root.resolve()
+        for p in sorted(root.rglob("*.yaml")):
+            rel = p.relative_to(root).as_posix()
+            if key == "runs" and "controller" not in rel:
+                continue
+            if not p.resolve().is_relative_to(base):
+                continue  # a symlink out of the folder is not offered
+            out[key].append(f"{key}/{rel}")
+            if len(out[key]) >= runs_mod.MAX_LIST:
+                break
+    return out
+
+
+def build_app(settings: Settings) -> Starlette:
+    """The ASGI app, wrapped in the token/size :class:`~rigd.web.auth.Guard`."""
+    daemon = Daemon(settings.socket, settings.timeout_s)
+    roots = {"config": settings.config_dir, "runs": settings.runs_dir}
+    streams = {"n": 0}
+
+    async def call(cmd: str, **args: Any) -> Response:
+        try:
+            result = await run_in_threadpool(daemon.call, cmd, **args)
+        except DaemonDown as exc:
+            return _err(503, str(exc))
+        except DaemonRefused as exc:
+            return _err(409, str(exc))
+        return JSONResponse(result)
+
+    async def index(request: Request) -> Response:
+        return FileResponse(STATIC / "index.html", headers={"cache-control": "no-store"})
+
+    async def plotly(request: Request) -> Response:
+        return FileResponse(plotly_js(), media_type="text/javascript")
+
+    def query_route(cmd: str):
+        async def handler(request: Request) -> Response:
+            return await call(cmd)
+        return handler
+
+    async def command(request: Request) -> Response:
+        name = request.path_params["name"]
+        if name not in COMMANDS:
+            return _err(404, f"no command {name!r} (known: {', '.join(COMMANDS)})")
+        try:
+            body = await _json_body(request)
+            args = await run_in_threadpool(_command_args, name, body)
+        except PathRefused as exc:
+            return _err(400, f"{name}: {exc}")
+        except InputError as exc:
+            return _err(400, f"{name}: {exc}")
+        return await call(COMMANDS[name], **args)
+
+    def _command_args(name: str, body: dict[str, Any]) -> dict[str, Any]:
+        """The daemon request of ``POST /api/<name>``, validated here first."""
+        allowed = {"load": {"path", "upload"}, "start": {"path", "upload"},
+                   "op": {"omega_rpm", "p_inj_bar"}}.get(name, set())
+        extra = sorted(set(body) - allowed)
+        if extra:
+            raise InputError(f"unknown field {extra[0]!r}"
+                             + (f" (allowed: {', '.join(sorted(allowed))})" if allowed else ""))
+        if name == "op":
+            return {k: body.get(k) for k in ("omega_rpm", "p_inj_bar")}
+        if name not in ("load", "start"):
+            return {}
+        up = _upload(body)
+        if (up is None) == (body.get("path") is None):
+            raise InputError("give exactly one of 'path' (config/... or runs/...) or 'upload'")
+        if name == "start":
+            if up is not None:
+                # the CLI's loader, on the uploaded text: same checks, same one-line errors
+                validate_spec(read_yaml(up[0], up[1]))
+                path = _save_upload(settings, "experiment", *up)
+            else:
+                path = split_rooted(body["path"], roots)
+                load_experiment(path)
+            return {"path": str(path)}
+        if up is not None:
+            path = _save_upload(settings, "controller", *up)
+        else:
+            path = split_rooted(body["path"], roots)
+            if not path.is_file():
+                raise InputError(f"no such file {body['path']!r}")
+        return {"path": str(path)}
+
+    async def files(request: Request) -> Response:
+        """YAML files to choose from: every one in the config folder (experiments,
+        controllers), and those of the runs folder with ``controller`` in their path (what
+        ``rigd design`` and uploads leave there), as ``config/...`` / ``runs/...``."""
+        return JSONResponse(await run_in_threadpool(_yaml_files, roots))
+
+    async def runs(request: Request) -> Response:
+        return JSONResponse(await run_in_threadpool(runs_mod.list_runs, settings.runs_dir))
+
+    async def record(request: Request) -> Response:
+        q = request.query_params
+        try:
+            path = resolve_inside(settings.runs_dir, request.path_params["path"])
+            if not path.is_file():
+                return _err(404, "no such record")
+            points = int(q.get("points", "2000"))
+            t0 = float(q["t0"]) if q.get("t0") else None
+            t1 = float(q["t1"]) if q.get("t1") else None
+            chans = [c for c in q.get("channels", "").split(",") if c] or None
+        except PathRefused as exc:
+            return _err(404, str(exc))
+        except ValueError as exc:
+            return _err(400, f"bad query: {exc}")
+        try:
+            view = await run_in_threadpool(runs_mod.record_view, path, points, t0, t1, chans)
+        except InputError as exc:
+            return _err(400, str(exc))
+        return JSONResponse(view)
+
+    async def run_file(request: Request) -> Response:
+        try:
+            path = resolve_inside(settings.runs_dir, request.path_params["path"])
+        except PathRefused as exc:
+            return _err(404, str(exc))
+        if not path.is_file():
+            return _err(404, "no such file")
+        return FileResponse(path)
+
+    async def stream(request: Request) -> Response:
+        q = request.query_params
+        try:
+            sub: dict[str, Any] = {"rate_hz": float(q.get("rate_hz", "50")),
+                                   "points": int(q.get("points", "200")),
+                                   "channels": ([c for c in q["channels"].split(",") if c]
+                                                if q.get("channels") else None)}
+        except ValueError as exc:
+            return _err(400, f"bad query: {exc}")
+        if streams["n"] >= MAX_STREAMS:
+            return _err(503, f"too many stream clients (at most {MAX_STREAMS})")
+
+        async def body():
+            streams["n"] += 1
+            try:
+                async for chunk in sse.relay(settings.socket, sub, settings.timeout_s):
+                    yield chunk
+            finally:
+                streams["n"] -= 1
+
+        return StreamingResponse(body(), media_type="text/event-stream",
+                                 headers={"cache-control": "no-store",
+                                          "x-accel-buffering": "no"})
+
+    routes = [
+        Route("/", index),
+        Route("/static/plotly.min.js", plotly),
+        Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        Route("/api/status", query_route("status")),
+        Route("/api/timing", query_route("timing")),
+        Route("/api/faults", query_route("faults")),
+        Route("/api/experiment", query_route("experiment.status")),
+        Route("/api/stream", stream),
+        Route("/api/files", files),
+        Route("/api/runs", runs),
+        Route("/api/runs/{path:path}", record),
+        Route("/runs/{path:path}", run_file),
+        Route("/api/{name}", command, methods=["POST"]),
+    ]
+    app = Starlette(routes=routes)
+    return Guard(app, settings.token, settings.max_body)

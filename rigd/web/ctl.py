@@ -1,0 +1,65 @@
+"""The bridge to the daemon: one control-socket connection per request
+(:class:`rigd.service.client.ControlClient`, the client ``rigd ctl`` uses)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rigd.errors import InputError
+from rigd.service.client import ControlClient
+
+#: ``POST /api/<name>`` -> daemon socket command (the ``rigd ctl`` sub-commands, plus ``safe``)
+COMMANDS = {
+    "enable": "controller.enable",
+    "disable": "controller.disable",
+    "reset": "fault.reset",
+    "load": "controller.load",
+    "op": "operating_point.set",
+    "start": "experiment.start",
+    "stop": "experiment.stop",
+    "safe": "safe",
+}
+
+
+class DaemonDown(Exception):
+    """The daemon socket is missing, refuses or does not answer (-> HTTP 503)."""
+
+
+class DaemonRefused(Exception):
+    """The daemon answered ``ok: false`` (its one line is the message; -> HTTP 409)."""
+
+
+class Daemon:
+    """Send requests to the daemon's control socket.
+
+    Parameters
+    ----------
+    socket_path : str
+    timeout : float
+        Seconds to wait for a reply.
+    """
+
+    def __init__(self, socket_path: str, timeout: float = 10.0):
+        self.socket_path = socket_path
+        self.timeout = timeout
+
+    def call(self, cmd: str, **args: Any) -> Any:
+        """The ``result`` of one request.
+
+        Raises
+        ------
+        DaemonDown
+            Not reachable or no reply (message: one line naming the socket).
+        DaemonRefused
+            The daemon refused the request (its error line).
+        """
+        try:
+            with ControlClient(self.socket_path, timeout=self.timeout) as client:
+                reply = client.request(cmd, **args)
+        except InputError as exc:
+            raise DaemonDown(f"daemon not reachable: {exc}") from None
+        except (OSError, ValueError) as exc:
+            raise DaemonDown(f"daemon not reachable: {self.socket_path}: {exc}") from None
+        if not reply.get("ok"):
+            raise DaemonRefused(" ".join(str(reply.get("error", "refused")).split()))
+        return reply.get("result")

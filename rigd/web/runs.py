@@ -1,0 +1,140 @@
+"""The runs folder for the console: run directories with their manifests, and records
+decimated server-side (min/max per bucket) so that a long record opens fast and zooms."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rigd.data.io import load_record
+from rigd.data.manifest import MANIFEST, read_manifest
+from rigd.errors import InputError
+
+#: record files the console opens (HDF5 recordings and interchange CSV)
+RECORD_SUFFIXES = (".h5", ".hdf5", ".csv")
+#: at most this many run directories and files per run are listed
+MAX_LIST = 2000
+
+
+def _duration_s(man: dict[str, Any]) -> float | None:
+    try:
+        t0 = datetime.fromisoformat(str(man["started"]).replace("Z", "+00:00"))
+        t1 = datetime.fromisoformat(str(man["finished"]).replace("Z", "+00:00"))
+    except (KeyError, TypeError, ValueError):
+        return None
+    return (t1 - t0).total_seconds()
+
+
+def _operating_point(man: dict[str, Any]) -> dict[str, Any] | None:
+    op = (man.get("experiment") or {}).get("operating_point")
+    if isinstance(op, dict):
+        return {"omega_rpm": op.get("omega_rpm"), "p_inj_bar": op.get("p_inj_bar")}
+    pts = man.get("points") or []
+    if pts and isinstance(pts[0], dict):
+        return {"omega_rpm": pts[0].get("omega_rpm"), "p_inj_bar": pts[0].get("p_inj_bar")}
+    return None
+
+
+def _files(run: Path, suffixes: tuple[str, ...]) -> list[str]:
+    out: list[str] = []
+    for p in sorted(run.rglob("*")):
+        if p.suffix.lower() in suffixes and p.is_file():
+            out.append(p.relative_to(run).as_posix())
+            if len(out) >= MAX_LIST:
+                break
+    return out
+
+
+def summarize(run: Path) -> dict[str, Any]:
+    """One run directory: name, kind, operating point, source, duration (s), status, its
+    record files and HTML pages (relative paths); ``error`` when the manifest is unreadable."""
+    entry: dict[str, Any] = {"name": run.name, "records": _files(run, RECORD_SUFFIXES),
+                             "pages": _files(run, (".html",))}
+    if not (run / MANIFEST).exists():
+        entry["error"] = "no manifest.json"
+        return entry
+    try:
+        man = read_manifest(run)
+    except InputError as exc:
+        entry["error"] = str(exc)
+        return entry
+    exp = man.get("experiment") or {}
+    entry.update(kind=exp.get("kind"), experiment=exp.get("name"),
+                 operating_point=_operating_point(man), source=man.get("source"),
+                 duration_s=_duration_s(man), status=man.get("status"),
+                 started=man.get("started"), points=len(man.get("points") or []),
+                 message=man.get("message") or "")
+    return entry
+
+
+def list_runs(runs_dir: str | Path) -> list[dict[str, Any]]:
+    """Every sub-folder of the runs folder (newest name first), summarised."""
+    root = Path(runs_dir)
+    if not root.is_dir():
+        return []
+    dirs = sorted((p for p in root.iterdir() if p.is_dir() and not p.name.startswith(".")),
+                  key=lambda p: p.name, reverse=True)
+    return [summarize(p) for p in dirs[:MAX_LIST]]
+
+
+def minmax(x: np.ndarray, buckets: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Min/max decimation: ``(first_index, min, max)`` of ``buckets`` equal slices of ``x``.
+
+    Every sample lies in exactly one bucket, so no peak is lost however long the record;
+    with ``len(x) <= buckets`` each sample is its own bucket (min = max = x).
+    """
+    n = len(x)
+    if n == 0:
+        return np.zeros(0, int), np.zeros(0), np.zeros(0)
+    buckets = max(1, min(int(buckets), n))
+    edges = (np.arange(buckets + 1) * n) // buckets
+    starts = edges[:-1]
+    return starts, np.minimum.reduceat(x, starts), np.maximum.reduceat(x, starts)
+
+
+def record_view(path: str | Path, points: int = 2000, t0: float | None = None,
+                t1: float | None = None, channels: list[str] | None = None) -> dict[str, Any]:
+    """A record (or its ``[t0, t1]`` s window) decimated to at most ``points`` min/max pairs
+    per channel, for zoomable traces.
+
+    Returns
+    -------
+    dict
+        ``fs_hz``, ``n`` (samples in the record), ``start``/``stop`` (sample window),
+        ``t_s`` (time of each bucket's first sample, s), ``channels``:
+        name -> ``{"min": [...], "max": [...]}``, ``units``, ``decimated`` (bool).
+
+    Raises
+    ------
+    InputError
+        Unreadable record, unknown channel, empty window.
+    """
+    rec = load_record(path)
+    n = rec.n
+    start = 0 if t0 is None else int(np.clip(np.floor(t0 * rec.fs), 0, n))
+    stop = n if t1 is None else int(np.clip(np.ceil(t1 * rec.fs) + 1, 0, n))
+    if stop - start < 1:
+        raise InputError(f"empty window t0={t0} t1={t1} (record {n / rec.fs:.6g} s)", str(path))
+    names = channels or list(rec.columns)
+    unknown = [c for c in names if c not in rec.columns]
+    if unknown:
+        raise InputError(f"no channel {unknown[0]!r} (has {', '.join(rec.columns)})", str(path))
+    points = int(np.clip(points, 10, 20000))
+    out: dict[str, Any] = {}
+    idx = None
+    for name in names:
+        if name == "t":
+            continue
+        idx, lo, hi = minmax(np.asarray(rec.columns[name][start:stop], float), points)
+        out[name] = {"min": _finite_list(lo), "max": _finite_list(hi)}
+    t = ((idx if idx is not None else np.zeros(0, int)) + start) / rec.fs
+    return {"fs_hz": rec.fs, "n": n, "start": start, "stop": stop,
+            "t_s": [float(v) for v in t], "channels": out,
+            "units": rec.meta.get("units") or {}, "decimated": stop - start > points}
+
+
+def _finite_list(a: np.ndarray) -> list[float | None]:
+    return [float(v) if np.isfinite(v) else None for v in a]

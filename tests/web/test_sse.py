@@ -1,0 +1,101 @@
+"""``GET /api/stream`` relays the daemon's ``stream.subscribe`` pushes as Server-Sent Events
+(payload unchanged) and ends with one error event when the daemon refuses or goes away.
+The daemon side here is a real Unix socket speaking the documented protocol."""
+
+import json
+import socket
+import threading
+
+import pytest
+from starlette.testclient import TestClient
+from webkit import TOKEN
+
+from rigd.web.app import Settings, build_app
+
+
+class PushServer:
+    """Answers ``stream.subscribe`` (or refuses it) and pushes ``frames``, then closes."""
+
+    def __init__(self, path, frames, refuse=None):
+        self.srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.srv.bind(str(path))
+        self.srv.listen(4)
+        self.path, self.frames, self.refuse = str(path), frames, refuse
+        self.requests = []
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self):
+        conn, _ = self.srv.accept()
+        with conn:
+            req = json.loads(conn.makefile("rb").readline())
+            self.requests.append(req)
+            if self.refuse:
+                conn.sendall((json.dumps({"id": req["id"], "ok": False, "error": self.refuse})
+                              + "\n").encode())
+                return
+            conn.sendall((json.dumps({"id": req["id"], "ok": True, "result": {
+                "fs_hz": 5000.0, "rate_hz": req["rate_hz"], "points": req["points"],
+                "channels": ["e_x", "e_y"]}}) + "\n").encode())
+            for f in self.frames:
+                conn.sendall((json.dumps({"stream": f}) + "\n").encode())
+
+    def close(self):
+        self.thread.join(10)
+        self.srv.close()
+
+
+def _events(client, url="/api/stream"):
+    events, name = [], None
+    with client.stream("GET", url) as r:
+        assert r.status_code == 200
+        assert r.headers["content-type"].startswith("text/event-stream")
+        for line in r.iter_lines():
+            if line.startswith("event: "):
+                name = line[7:]
+            elif line.startswith("data: "):
+                events.append((name, json.loads(line[6:])))
+                name = None
+    return events
+
+
+def _settings(tmp_path, sock):
+    return Settings(socket=str(sock), runs_dir=tmp_path, config_dir=tmp_path, token=TOKEN)
+
+
+def test_stream_payloads_are_relayed_unchanged(tmp_path):
+    frames = [{"seq": 100 * i, "t_s": i * 0.02, "wall_ns": 10**18 + i, "n": 100, "dropped": 0,
+               "min": {"e_x": [i - 1.0], "e_y": [0.5]}, "max": {"e_x": [i + 1.0], "e_y": [0.7]},
+               "status": {"seq": 100 * i, "k_on": i % 2 == 1}} for i in range(5)]
+    srv = PushServer(tmp_path / "d.sock", frames)
+    with TestClient(build_app(_settings(tmp_path, srv.path))) as client:
+        events = _events(client, "/api/stream?rate_hz=25&points=100&channels=e_x,e_y")
+    srv.close()
+    assert srv.requests == [{"id": 1, "cmd": "stream.subscribe", "rate_hz": 25.0,
+                             "points": 100, "channels": ["e_x", "e_y"]}]
+    assert events[0] == ("subscribed", {"fs_hz": 5000.0, "rate_hz": 25.0, "points": 100,
+                                        "channels": ["e_x", "e_y"]})
+    assert [e for _, e in events[1:6]] == frames and all(n is None for n, _ in events[1:6])
+    assert events[6][0] == "error" and "closed" in events[6][1]["error"]
+
+
+@pytest.mark.parametrize("refuse", ["unknown command 'stream.subscribe' (known: ping, ...)"])
+def test_refused_subscription_is_one_error_event(tmp_path, refuse):
+    srv = PushServer(tmp_path / "d.sock", [], refuse=refuse)
+    with TestClient(build_app(_settings(tmp_path, srv.path))) as client:
+        events = _events(client)
+    srv.close()
+    assert events == [("error", {"error": f"daemon stream unavailable: {refuse}"})]
+
+
+def test_no_daemon_is_one_error_event(tmp_path):
+    with TestClient(build_app(_settings(tmp_path, tmp_path / "none.sock"))) as client:
+        events = _events(client)
+    assert len(events) == 1 and events[0][0] == "error"
+    assert "daemon not reachable" in events[0][1]["error"] and "none.sock" in events[0][1]["error"]
+
+
+def test_bad_stream_query_is_400(tmp_path):
+    with TestClient(build_app(_settings(tmp_path, tmp_path / "none.sock"))) as client:
+        r = client.get("/api/stream?rate_hz=fast")
+    assert r.status_code == 400 and "bad query" in r.json()["error"]
