@@ -295,13 +295,16 @@ def compare(model: Any, data: Record | str | Path, *,
     part : {"all", "validation", "estimation"}
         Which part of the record (the model's split) to compare.
     report : path, optional
-        Write an HTML report (simulated vs measured, residual spectra) into this directory.
+        Write the report into this directory: ``index.html``, interactive (measured vs
+        simulated, residual spectrum, by amplitude and angle; :mod:`rigd.diagnose.compare_page`),
+        and ``figures.html`` with the PNG figures.
 
     Returns
     -------
     ComparisonResult
     """
-    from rigd.ident.compare import compare_model, write_report
+    from rigd.diagnose.compare_page import write_compare_page
+    from rigd.ident.compare import compare_model
 
     mf = _as_model(model)
     record = as_record(data, **load_kw)
@@ -309,8 +312,8 @@ def compare(model: Any, data: Record | str | Path, *,
     comps = compare_model(mf, record, ro, part)
     res = ComparisonResult(comps, describe_source(record.meta))
     if report:
-        res.report = str(write_report(comps, report, title or f"{mf.source} vs "
-                                      f"{record.source}"))
+        res.report = str(write_compare_page(comps, report, title or f"{mf.source} vs "
+                                            f"{record.source}"))
     return res
 
 

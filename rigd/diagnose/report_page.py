@@ -1,5 +1,7 @@
-"""The diagnosis report page: base fit, where the model fails, ranked findings with their
-evidence, and before/after comparisons for the top findings."""
+"""The diagnosis report: the interactive page (``index.html``,
+:mod:`rigd.diagnose.diagnose_page`) and, for papers, the PNG figures with their page
+(``figures.html``): base fit, where the model fails, ranked findings with their evidence, and
+before/after comparisons for the top findings."""
 
 from __future__ import annotations
 
@@ -12,13 +14,20 @@ from rigd.htmlreport import Report
 
 
 def write_report(diag, out: str | Path) -> Path:
-    """Write ``index.html`` and figures for a :class:`rigd.diagnose.diagnosis.Diagnosis`."""
+    """Write the report of a :class:`rigd.diagnose.diagnosis.Diagnosis` into ``out``.
+
+    ``index.html`` is the interactive page, ``figures.html`` the PNG figures; returns the
+    path of ``index.html``.
+    """
+    from rigd.diagnose.diagnose_page import write_diagnose_page
+
     rep = Report(out, f"Diagnosis of {Path(diag.source).name}")
     for note in diag.notes:
         rep.text(note)
     for sd in diag.parts:
         _part(rep, sd)
-    return rep.write()
+    rep.write("figures.html")
+    return write_diagnose_page(diag, out, [p.name for p in rep.figures])
 
 
 def _part(rep: Report, sd) -> None:

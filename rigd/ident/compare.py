@@ -125,6 +125,13 @@ def write_report(comps: dict[str, Comparison], out: str | Path, title: str = "Mo
     from rigd.htmlreport import Report
 
     rep = Report(out, title)
+    add_figures(rep, comps, zoom_s)
+    return rep.write()
+
+
+def add_figures(rep, comps: dict[str, Comparison], zoom_s: float | None = None) -> None:
+    """Add the fit tables and the PNG figures of :func:`write_report` to ``rep``
+    (a :class:`rigd.htmlreport.Report`)."""
     rep.text("Fit = 100·(1 − ‖y − ŷ‖/‖y − mean(y)‖) per output, ŷ simulated from the inputs "
              "only (initial state estimated on this record).")
     for name, c in comps.items():
@@ -176,4 +183,3 @@ def write_report(comps: dict[str, Comparison], out: str | Path, title: str = "Mo
         ax[0].legend(fontsize=7)
         ax[1].set_ylabel("phase (deg)")
         ax[1].set_xlabel("frequency (Hz)")
-    return rep.write()
