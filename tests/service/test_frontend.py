@@ -138,3 +138,31 @@ def test_waiting_commands_fail_when_the_daemon_goes_away():
     finally:
         h.close()
         conn.close()
+
+
+def test_safe_gets_through_when_the_rate_and_waiting_limits_refuse_commands():
+    """The safety button: neither the token bucket nor the waiting-commands bound refuse it."""
+    h, conn, seen, hangup = _mute_handler(max_in_flight=2, max_commands_per_s=2.0,
+                                          timeout_s=30.0)
+    try:
+        futures = [h.handle_line(b'{"id": 1, "cmd": "fault.reset"}'),
+                   h.handle_line(b'{"id": 2, "cmd": "controller.enable"}')]
+        assert all(isinstance(f, Future) for f in futures)
+        refused = json.loads(h.handle_line(b'{"id": 3, "cmd": "controller.disable"}'))
+        assert refused["ok"] is False                    # out of tokens and of room
+        for i in range(4, 8):
+            f = h.handle_line(b'{"id": %d, "cmd": "safe"}' % i)
+            assert isinstance(f, Future), f              # forwarded, not refused
+        _wait_for(lambda: len(seen) == 6)
+        assert [json.loads(x)["cmd"] for x in seen[2:]] == ["safe"] * 4
+    finally:
+        hangup.set()
+        h.close()
+        conn.close()
+
+
+def _wait_for(cond, timeout=30.0):
+    end = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.01)
