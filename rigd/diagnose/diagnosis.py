@@ -118,7 +118,8 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
         est, val = slice(0, k), slice(k, record.n)
     parts = []
     for sub in subs:
-        data, _ = prepare(record, sub, options, runout)
+        data, rep = prepare(record, sub, options, runout)
+        offsets = (rep.get("offsets") or {}).get("values", {})
         choice = choose_hold(sub, data.slice(est.start, est.stop), record.meta, hold,
                              where=record.source)
         notes.append(f"{sub}: inputs between samples: {choice.describe()}")
@@ -140,7 +141,8 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                              f"{chosen.fits[structure.base.n]:.2f} % with "
                              f"{structure.base.n})")
         sd = diagnose_data(data, sub, structure=structure, est=est, val=val, effects=effects,
-                           refit=refit, max_steps=max_steps, theta0=theta0)
+                           refit=refit, max_steps=max_steps, theta0=theta0,
+                           offsets=offsets, start=window[0])
         if chosen is not None:
             sd.order = chosen.to_json()
         from rigd.ident.sanity import model_warnings

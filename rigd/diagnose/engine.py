@@ -12,8 +12,10 @@ For one sub-model (``actuator`` r→u, ``bearing`` u→e, ``generic``):
    validation error energy the effect removes;
 4. an effect is *significant* when its signature is (share ≥ its ``min_score``, p < 1e-3)
    and its refit lowers the validation error energy by at least ``MIN_REFIT_GAIN``;
-5. what is left in the residual of the best model (narrow spectral peaks, amplitude
-   dependence) and matches no significant effect is reported as *unexplained*, with where.
+5. when the residual of the best model is still structured (whiteness or residual–input
+   correlation fails, or it is above the noise estimate), it is reported as *unexplained*
+   with where it lives (frequency bands, amplitude, time, direction of input motion), its
+   share of the error energy and what it suggests (:mod:`rigd.diagnose.unexplained`).
 
 This module is the per-data stepwise engine (:func:`diagnose_data`); whole records (sub-models,
 window, split, input hold) are diagnosed by :func:`rigd.diagnose.diagnosis.diagnose_record`.
@@ -28,8 +30,8 @@ from typing import Any
 import numpy as np
 
 from rigd.diagnose import residual as R
+from rigd.diagnose import unexplained as U
 from rigd.effects import REGISTRY
-from rigd.effects import numbers as N
 from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
 
@@ -208,7 +210,8 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                   val: slice | None = None, effects: list[str] | None = None,
                   refit: bool = True, max_nfev: int | None = None,
                   theta0: np.ndarray | None = None,
-                  max_steps: int = MAX_STEPS) -> SubDiagnosis:
+                  max_steps: int = MAX_STEPS, offsets: dict[str, float] | None = None,
+                  start: int = 0) -> SubDiagnosis:
     """Diagnose one sub-model on identification data by forward selection.
 
     Like a stepwise regression: fit the base model; test every effect on its residual
@@ -237,6 +240,10 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         Start values of the base fit.
     max_steps : int
         Most effects added.
+    offsets : dict, optional
+        Prefilter offsets per channel (levels under ``unexplained`` in the record's units).
+    start : int
+        Index of ``data``'s first sample in the record (samples under ``unexplained``).
 
     Returns
     -------
@@ -310,16 +317,15 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
     sd = SubDiagnosis(submodel, fp_base, added + findings, cannot, [], ctx0, {}, refits,
                       (0, data.n), steps)
-    _tests_and_unexplained(sd)
+    _tests_and_unexplained(sd, offsets, start)
     return sd
 
 
-def _tests_and_unexplained(sd: SubDiagnosis) -> None:
-    """Whiteness / cross-correlation tests and structure left unexplained."""
-    ctx = sd.ctx
+def _corr_tests(ctx: Context, r: np.ndarray) -> dict[str, Any]:
+    """Whiteness of each output's residual ``r`` (validation part) and its cross-correlation
+    with each input (99 % bounds)."""
     v = ctx.val
-    r = ctx.residual[v]
-    tests = {"whiteness": {}, "cross_correlation": {}}
+    tests: dict[str, Any] = {"whiteness": {}, "cross_correlation": {}}
     for i in range(ctx.ny):
         w = R.whiteness(r[:, i])
         tests["whiteness"][ctx.label(i)] = {"passed": w.passed, "outside": w.outside}
@@ -327,44 +333,47 @@ def _tests_and_unexplained(sd: SubDiagnosis) -> None:
             c = R.cross_correlation(r[:, i], ctx.u[v, j])
             tests["cross_correlation"][f"{ctx.label(i)}~{ctx.label(j, 'in')}"] = {
                 "passed": c.passed, "outside": c.outside}
+    return tests
+
+
+def _tests_and_unexplained(sd: SubDiagnosis, offsets: dict[str, float] | None = None,
+                           start: int = 0) -> None:
+    """Whiteness / cross-correlation tests of the base model (``tests``) and of the final
+    model (``tests["final_model"]``, with its residual level against the noise estimate),
+    and the structure the final model leaves unexplained (:mod:`rigd.diagnose.unexplained`;
+    ``offsets`` per channel and the record index ``start`` of the data put its levels and
+    samples in the record's terms)."""
+    ctx = sd.ctx
+    v = ctx.val
+    tests = _corr_tests(ctx, ctx.residual[v])
     sd.tests = tests
     # the best model found: the last forward-selection step
     yb = sd.final.yhat
     rb = (ctx.y - yb)[v]
     sig = {f.effect for f in sd.findings if f.significant}
-    unexplained = []
-    # report only structure that matters at the scale of the measured output (≥ 0.1 % of
-    # its power, i.e. worth ≳ 3 % of fit)
-    rel = float(np.sum(rb ** 2) / max(np.sum((ctx.y[v] - ctx.y[v].mean(axis=0)) ** 2), 1e-300))
-    for pk in R.spectral_peaks(rb, ctx.fs):
-        if pk["share"] * rel < 1e-3:
-            continue
-        fpk = pk["frequency_hz"]
-        near_res = any(abs(fpk - fr) < 0.1 * fr for fr in ctx.resonances_hz)
-        if ctx.omega_hz > 0 and any(abs(fpk - k * ctx.omega_hz) < 0.03 * ctx.omega_hz + 0.5
-                                    for k in (1, 2)) and "runout" in sig:
-            continue
-        unexplained.append({
-            "where": {"frequency_hz": float(f"{fpk:.4g}")},
-            "share_of_residual": round(pk["share"], 3),
-            "text": (f"structure left in the residual at {N.freq(fpk, ctx.fs)} "
-                     f"({100 * pk['share']:.0f} % of the residual power"
-                     f"{', near a model resonance' if near_res else ''}), "
-                     "not explained by any known effect")})
+    final_tests = _corr_tests(ctx, rb)
+    lev = U.level(rb / np.maximum(np.std(ctx.y[v], axis=0), 1e-300),
+                  ctx.y[v] / np.maximum(np.std(ctx.y[v], axis=0), 1e-300))
+    tests["final_model"] = dict(final_tests, level={
+        "rms_over_noise": round(min(lev["ratio"], 1e6), 3),
+        "structured_share": round(lev["structured_share"], 4),
+        "worth_fit_points": round(U.worth(lev, ctx.y[v], rb), 3)})
+    skip = ([k * ctx.omega_hz for k in (1, 2)]
+            if ctx.omega_hz > 0 and "runout" in sig else None)
+    unexplained = U.report(rb, ctx.y[v], yb[v], ctx.u[v], ctx.fs, final_tests,
+                           model_resonances(sd.final.structure, sd.final.theta),
+                           ctx.output_names or [ctx.label(i) for i in range(ctx.ny)],
+                           ctx.input_names or [ctx.label(j, "in") for j in range(ctx.nu)],
+                           skip_hz=skip, offsets=offsets, start=start + (v.start or 0))
+    err_final = max(100.0 - sd.final.fit_percent, 1e-12)
     for f in sd.findings:
         why_not = f.evidence.get("implausible")
         if why_not and f.fit_percent_with - sd.final.fit_percent >= MIN_FIT_GAIN:
+            # share of the final model's error energy the implausible refit removed
+            ratio = (100.0 - f.fit_percent_with) / err_final
             unexplained.append({
                 "where": {"effect_tried": f.effect},
                 "fit_gain_percent": round(f.fit_percent_with - sd.final.fit_percent, 3),
+                "share": round(min(max(1.0 - ratio ** 2, 0.0), 1.0), 4),
                 "text": f"{why_not} ({f.effect} refit: fit {f.fit_percent_with:.2f} %)"})
-    a = np.abs(yb[v] - yb[v].mean(axis=0)).max(axis=1)
-    edges, rms = R.by_amplitude(rb, a, 4)
-    if rms[0] > 0 and rms[-1] / rms[0] > 2.5 and "cubic_stiffness" not in sig and rel > 1e-3:
-        unexplained.append({
-            "where": {"amplitude_range": [round(float(edges[-2]), 6), round(float(edges[-1]), 6)]},
-            "ratio": round(float(rms[-1] / rms[0]), 2),
-            "text": (f"the error is {rms[-1] / rms[0]:.1f}× larger at large amplitude "
-                     f"(|y| in {edges[-2]:.3g}..{edges[-1]:.3g}) than at small; no catalogue "
-                     "effect explains it")})
     sd.unexplained = unexplained

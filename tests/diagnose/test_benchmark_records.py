@@ -3,9 +3,12 @@
 before these records were made)."""
 
 import benchmarks as B  # tests/diagnose/benchmarks.py
+import numpy as np
 import pytest
 
+from rigd.data.record import Record
 from rigd.diagnose.diagnosis import diagnose_record
+from rigd.effects import REGISTRY
 
 
 def significant(d):
@@ -27,6 +30,60 @@ def test_linear_oscillator_control_nothing_significant():
     d = diagnose_record(B.bouc_wen_linear(seed=2))
     assert significant(d) == [], d.to_json()["findings"][:3]
     assert d.parts[0].fit_percent >= 95.0
+    # residual at the noise level: nothing worth reporting as unexplained either
+    assert d.to_json()["unexplained"] == [], d.to_json()["unexplained"]
+
+
+def _shares_checked(out):
+    for u in out["unexplained"]:
+        assert 0.0 <= u["share"] <= 1.0, u
+        assert "text" in u and "where" in u, u
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_tank_overflow_nothing_forced_unexplained_at_the_top(seed):
+    """Cascaded tanks with overflow: no catalogue effect is named; the residual is reported
+    as unexplained, localised at the top of the measured level (where it overflows)."""
+    rec = B.tank_overflow(seed=seed)
+    d = diagnose_record(rec)
+    out = d.to_json()
+    assert significant(d) == [], out["findings"][:3]
+    un = out["unexplained"]
+    _shares_checked(out)
+    assert un and un[0]["where"]["residual"] == "structured", un
+    sat = [u for u in un if "amplitude_range" in u["where"]]
+    assert sat, [u["text"] for u in un]
+    lo, hi = sat[0]["where"]["amplitude_range"]
+    y = rec.col("level2")
+    # in the record's own units, in the top tenth of the measured range
+    top = y.min() + 0.9 * np.ptp(y)
+    assert top <= lo < hi <= y.max() + 1e-9, (lo, hi, top)
+    assert "saturation" in sat[0]["text"]
+
+
+@pytest.mark.parametrize("seed,fs", [(4, 200.0), (4, 1.0), (5, 200.0)])
+def test_missing_modes_unexplained_at_the_mode_frequency(seed, fs):
+    """The 3-mass chain fitted with one mode and no extra_mode in the catalogue: nothing is
+    forced; the residual is localised at the missing mode (12.55 Hz at 200 Hz sampling; the
+    same samples given fs = 1 Hz put it at 0.0627 Hz, not "0.1 Hz")."""
+    rec = B.three_mode(seed=seed)
+    if fs != rec.fs:
+        rec = Record(dict(rec.columns, t=np.arange(rec.n) / fs), fs, rec.meta, rec.source)
+    names = [n for n, e in REGISTRY.items() if "generic" in e.submodels
+             and getattr(e, "screened", True) and n != "extra_mode"]
+    d = diagnose_record(rec, order=1, effects=names)
+    out = d.to_json()
+    assert significant(d) == [], out["findings"][:3]
+    _shares_checked(out)
+    bands = [u for u in out["unexplained"] if "frequency_hz" in u["where"]]
+    assert bands, out["unexplained"]
+    missing = B.three_mode_frequencies()[1] * fs / 200.0
+    top = max(bands, key=lambda u: u["share"])
+    lo, hi = top["where"]["band_hz"]
+    assert lo <= missing <= hi and abs(top["where"]["frequency_hz"] - missing) < 0.02 * missing
+    assert top["share"] >= 0.5
+    assert sum(u["share"] for u in bands) <= 1.0 + 1e-9
+    assert "unmodelled mode" in top["text"]
 
 
 def test_three_mode_structure_order_auto_finds_the_missing_modes():
