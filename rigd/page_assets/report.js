@@ -6,7 +6,8 @@
   var D = JSON.parse(document.getElementById("page-data").textContent);
   var app = document.getElementById("app");
   var CFG = {responsive: true, displaylogo: false};
-  var C = {meas: "#222", base: "#999", cur: "#1f77b4", res: "#d62728"};
+  var C = {meas: "#222", base: "#999", cur: "#1f77b4", res: "#d62728",
+    resid: ["#d62728", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#2ca02c"]};
 
   function el(tag, attrs, children) {
     var e = document.createElement(tag);
@@ -55,8 +56,12 @@
         line: {color: C.base, width: 1, dash: "dot"}});
       traces.push({x: cur.traces[i].x, y: cur.traces[i].y, name: cur.label + " " + o,
         yaxis: ax(i), mode: "lines", line: {color: C.cur, width: 1}});
-      traces.push({x: cur.residual[i].x, y: cur.residual[i].y, name: "residual " + o,
-        yaxis: ax(ny), mode: "lines", line: {width: 1}});
+      if (base && base !== cur) traces.push({x: base.residual[i].x, y: base.residual[i].y,
+        name: "residual " + o + ", " + base.label, yaxis: ax(ny), mode: "lines",
+        line: {color: C.base, width: 1}});
+      traces.push({x: cur.residual[i].x, y: cur.residual[i].y, name: "residual " + o +
+        (base && base !== cur ? ", " + cur.label : ""), yaxis: ax(ny), mode: "lines",
+        line: {width: 1, color: C.resid[i % C.resid.length]}});
     });
     if (P.val_s) layout.shapes.push({type: "rect", xref: "x", yref: "paper", x0: P.val_s[0],
       x1: P.val_s[1], y0: 0, y1: 1, fillcolor: "#1f77b4", opacity: 0.06, line: {width: 0}});
@@ -256,7 +261,8 @@
     app.appendChild(el("h2", {text: "Figures (PNG, for papers)"}));
     app.appendChild(el("p", {}, [el("a", {href: "figures.html", text:
       "the figures with their captions"})]));
-    app.appendChild(el("details", {}, [el("summary", {text: "show the PNG figures"})].concat(
+    app.appendChild(el("details", {id: "figures"}, [el("summary", {text:
+      "show the PNG figures"})].concat(
       D.figures.map(function (f) {
         return el("figure", {}, [el("img", {src: f, alt: f, loading: "lazy"}),
           el("figcaption", {text: f})]);
