@@ -30,6 +30,30 @@ def _expm_or_nan(M: np.ndarray, expm: Expm | None) -> np.ndarray:
     return (expm or scipy.linalg.expm)(M)
 
 
+def _balanced(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                       np.ndarray]:
+    """(S⁻¹ A S, S⁻¹ B diag(1/b), s, b): a diagonal similarity S = diag(s) balancing A and
+    column scales b bringing each input's column to A's size, all powers of two (exact).
+
+    The exponential's scaling and squaring is as accurate as the block matrix's norm allows:
+    an input in tiny units (B of 1e11) or a velocity state in another rate's units made
+    the A part lose its digits (the fit's Jacobian then missed the damping: a record's input
+    rescaled ×1e-6 fitted 1.2 points worse). Balanced, the result does not depend on the
+    units of the inputs, states or time (docs/diagnose.md, "Invariance").
+    """
+    from scipy.linalg import matrix_balance
+
+    _, (s, _) = matrix_balance(A, permute=False, separate=True)
+    At = A * (s[None, :] / s[:, None])
+    Bt = B / s[:, None]
+    na = float(np.max(np.abs(At))) if At.size else 0.0
+    nb = np.max(np.abs(Bt), axis=0) if Bt.size else np.ones(B.shape[1])
+    ok = nb > 0
+    b = np.ones(B.shape[1])
+    b[ok] = 2.0 ** np.round(np.log2(nb[ok] / (na if na > 0 else 1.0)))
+    return At, Bt / b[None, :], s, b
+
+
 def zoh(A: np.ndarray, B: np.ndarray, dt: float, *,
         expm: Expm | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Zero-order-hold discretisation: x[k+1] = Ad x[k] + Bd u[k].
@@ -53,11 +77,15 @@ def zoh(A: np.ndarray, B: np.ndarray, dt: float, *,
     A = np.asarray(A, dtype=float)
     B = np.asarray(B, dtype=float)
     nx, nu = A.shape[0], B.shape[1]
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+        return np.full((nx, nx), np.nan), np.full((nx, nu), np.nan)
+    At, Bt, sc, b = _balanced(A, B)
     M = np.zeros((nx + nu, nx + nu))
-    M[:nx, :nx] = A * dt
-    M[:nx, nx:] = B * dt
+    M[:nx, :nx] = At * dt
+    M[:nx, nx:] = Bt * dt
     E = _expm_or_nan(M, expm)
-    return np.ascontiguousarray(E[:nx, :nx]), np.ascontiguousarray(E[:nx, nx:])
+    return (np.ascontiguousarray(E[:nx, :nx] * (sc[:, None] / sc[None, :])),
+            np.ascontiguousarray(E[:nx, nx:] * sc[:, None] * b[None, :]))
 
 
 def foh(A: np.ndarray, B: np.ndarray, dt: float, *,
@@ -70,14 +98,19 @@ def foh(A: np.ndarray, B: np.ndarray, dt: float, *,
     A = np.asarray(A, dtype=float)
     B = np.asarray(B, dtype=float)
     nx, nu = A.shape[0], B.shape[1]
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+        nan = np.full((nx, nu), np.nan)
+        return np.full((nx, nx), np.nan), nan, nan.copy()
+    At, Bt, sc, b = _balanced(A, B)
     M = np.zeros((nx + 2 * nu, nx + 2 * nu))
-    M[:nx, :nx] = A * dt
-    M[:nx, nx:nx + nu] = B * dt
+    M[:nx, :nx] = At * dt
+    M[:nx, nx:nx + nu] = Bt * dt
     M[nx:nx + nu, nx + nu:] = np.eye(nu)
     E = _expm_or_nan(M, expm)
-    G1, G2 = E[:nx, nx:nx + nu], E[:nx, nx + nu:]
-    return (np.ascontiguousarray(E[:nx, :nx]), np.ascontiguousarray(G1 - G2),
-            np.ascontiguousarray(G2))
+    back = sc[:, None] * b[None, :]
+    G1, G2 = E[:nx, nx:nx + nu] * back, E[:nx, nx + nu:] * back
+    return (np.ascontiguousarray(E[:nx, :nx] * (sc[:, None] / sc[None, :])),
+            np.ascontiguousarray(G1 - G2), np.ascontiguousarray(G2))
 
 
 def resonator(x: np.ndarray, f_hz: float, zeta: float, fs: float) -> tuple[np.ndarray, np.ndarray]:

@@ -139,6 +139,7 @@ def _refit(eff, ctx: Context, sig, data_est, max_nfev) -> Refit:
     t0 = time.perf_counter()
     structure, theta, data = ctx.structure, ctx.theta, ctx.data
     ext = eff.extend(structure)
+    ext.bind_record(data_est)  # bounds relative to the record (rigd.effects.scales)
     ws = eff.warm_start(ctx, sig)
     te = ws if ws is not None else eff.theta0_effect(structure, data_est)
     th0 = np.concatenate([theta, np.asarray(te, float)])

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from rigd.effects._signals import spread
+
 #: valve pair (plus, minus) of each lumped axis, Eq. 1 (0-based: v_2, v_4 and v_1, v_3)
 AXIS_VALVES = ((1, 3), (0, 2))
 
@@ -41,3 +43,13 @@ def drive_note(data: Any) -> str:
     """How the operator input is taken, for explanations."""
     return ("the recorded valve drives" if valve_pairs(data) is not None
             else "the input")
+
+
+def drive_spread(data: Any) -> float:
+    """Half-amplitude of the drives (the recorded valve drives, else the inputs;
+    :func:`rigd.effects._signals.spread`), in their unit (V): the scale of the valve
+    effects' operator constants."""
+    pairs = valve_pairs(data)
+    x = (np.column_stack([w for pm in pairs for w in pm]) if pairs is not None
+         else np.asarray(data.inputs, float))
+    return float(np.max(spread(x)))

@@ -76,3 +76,12 @@ def n_levels(x: np.ndarray, tol: float = 0.02) -> int:
     if np.sum(share[share >= 0.02]) < 0.9:  # spread out: a continuum of levels
         return int(1 / tol)
     return int(np.sum(share >= 0.02))
+
+
+def spread(x: np.ndarray) -> np.ndarray:
+    """Half the 1–99 % percentile span per column (a robust half-amplitude, in the channel's
+    unit); 1 for a constant column so that ratios stay finite."""
+    x = np.atleast_2d(np.asarray(x, float).T).T
+    lo, hi = np.percentile(x, [1.0, 99.0], axis=0)
+    s = 0.5 * (hi - lo)
+    return np.where(s > 0, s, 1.0)

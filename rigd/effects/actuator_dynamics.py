@@ -19,7 +19,9 @@ from rigd.effects.base import Effect, dims
 from rigd.effects.context import Context
 from rigd.ident.iddata import replace_inputs
 
-TAU_MAX_S = 0.05
+#: longest lag time constant, samples (relative to the record's rate: 50 ms at the rig's
+#: 5 kHz; rigd.effects.scales)
+TAU_MAX_SAMPLES = 250.0
 
 
 class ActuatorDynamics(Effect):
@@ -57,11 +59,16 @@ class ActuatorDynamics(Effect):
 
     def param_bounds(self, base):
         k = len(self.param_names(base))
-        return np.zeros(k), np.full(k, TAU_MAX_S)
+        return np.zeros(k), np.full(k, np.inf)
+
+    def record_bounds(self, base, rec):
+        k = len(self.param_names(base))
+        return np.zeros(k), np.full(k, TAU_MAX_SAMPLES / rec.fs)
 
     def warm_start(self, ctx, sig):
-        taus = np.maximum(-np.asarray(sig.beta, float), 1e-5)
-        return np.repeat(np.minimum(taus / 2, TAU_MAX_S / 2), 2)
+        tmax = TAU_MAX_SAMPLES / ctx.fs
+        taus = np.maximum(-np.asarray(sig.beta, float), 0.05 / ctx.fs)
+        return np.repeat(np.minimum(taus / 2, tmax / 2), 2)
 
     def simulate_with(self, sim, theta_e, data, base):
         u = np.asarray(data.inputs, float)

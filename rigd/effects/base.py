@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from rigd.effects.context import CannotReveal, Context
+from rigd.effects.scales import RecordScale
 from rigd.effects.signature import SignatureFit, signature_fit
 from rigd.effects.state_level import fixed_point
 from rigd.ident.simulate import Hooks
@@ -59,6 +60,17 @@ class ExtendedStructure:
         self.names = list(base.names) + self._enames
         self.effects = list(getattr(base, "effects", [])) + [effect.name]
         self._state_ok: bool | None = None
+        #: scales of the data the structure is fitted on (bounds relative to the record)
+        self.record: RecordScale | None = None
+
+    def bind_record(self, data: Any) -> None:
+        """Make the effects' bounds relative to ``data`` (the estimation data): its rate,
+        length and signal spreads (:class:`rigd.effects.scales.RecordScale`). Nested
+        extensions are bound too. Called by the fit (rigd.ident.pem.fit) and the diagnosis
+        refit; without it the effects' record-free bounds apply."""
+        self.record = RecordScale.of(data)
+        if isinstance(self.base, ExtendedStructure):
+            self.base.bind_record(data)
 
     @property
     def nb(self) -> int:
@@ -74,7 +86,10 @@ class ExtendedStructure:
             lb, ub = self.base.bounds()
         else:
             lb, ub = np.full(self.nb, -np.inf), np.full(self.nb, np.inf)
-        elb, eub = self.effect.param_bounds(self.base)
+        if self.record is not None:
+            elb, eub = self.effect.record_bounds(self.base, self.record)
+        else:
+            elb, eub = self.effect.param_bounds(self.base)
         return np.concatenate([lb, elb]), np.concatenate([ub, eub])
 
     # --- simulation ---------------------------------------------------------------------
@@ -176,8 +191,17 @@ class Effect:
         return np.zeros(len(self.param_names(base)))
 
     def param_bounds(self, base: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds that hold for any record (default: none)."""
         k = len(self.param_names(base))
         return np.full(k, -np.inf), np.full(k, np.inf)
+
+    def record_bounds(self, base: Any, rec: RecordScale) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds relative to the record the structure is fitted on (its rate, length,
+        signal spreads; :class:`rigd.effects.scales.RecordScale`). Default:
+        :meth:`param_bounds`. An effect whose bounds are times, frequencies or amplitudes
+        states them here relative to ``rec``, so the fit does not depend on the units or
+        the rate the record is given in."""
+        return self.param_bounds(base)
 
     def simulate_with(self, sim: Callable[[Any], np.ndarray], theta_e: np.ndarray, data: Any,
                       base: Any) -> np.ndarray:

@@ -17,7 +17,9 @@ from rigd.effects.context import CannotReveal, Context
 from rigd.effects.signature import signature_fit
 from rigd.ident.iddata import replace_inputs
 
-MAX_DELAY_S = 0.004   # scan range of the signature, s
+#: scan range of the signature, samples (relative to the record's rate: 4 ms at the rig's
+#: 5 kHz loop; a longer lag is a dynamics the model misses, not a latency)
+MAX_DELAY_SAMPLES = 20
 MAX_SCAN = 40         # at most this many trial delays
 #: a fitted delay below this (samples) is not called a transport delay: at the record's rate
 #: it cannot be told from unmodelled fast dynamics (a higher-order valve or sensor response)
@@ -30,7 +32,7 @@ class Delay(Effect):
     physics = "a transport delay between input and response"
 
     def _grid(self, ctx: Context) -> np.ndarray:
-        dmax = max(1, int(round(MAX_DELAY_S * ctx.fs)))
+        dmax = MAX_DELAY_SAMPLES
         if dmax <= MAX_SCAN:
             return np.arange(1, dmax + 1, dtype=float)
         return np.unique(np.round(np.geomspace(1, dmax, MAX_SCAN)))

@@ -16,11 +16,31 @@ from scipy import signal
 from rigd.effects import numbers as N
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import Context
+from rigd.effects.scales import pow2_ceil, pow2_floor
 from rigd.effects.signature import SignatureFit, signature_fit
 from rigd.lti import resonator
 
 MIN_SEPARATION = 0.15   # relative distance from a model resonance
 PEAK_RATIO = 4.0        # peak over the local median of the explained power
+#: spectral resolution, relative to the model's lowest resonance: 1/32 of it, so the
+#: exclusion band (± MIN_SEPARATION) around it spans ≥ 4 bins
+RESOLUTION = 1.0 / 32
+#: at least this many (half-overlapping) Welch segments of the estimation part
+MIN_SEGMENTS = 3
+#: frequency bounds of the mode, relative: above two periods of the estimation part, below
+#: this share of the Nyquist frequency (as rigd.ident.order)
+F_MAX_NYQUIST = 0.95
+
+
+def segment_length(n: int, fs: float, resonances_hz=()) -> int:
+    """Welch segment (samples) of the residual search, relative to the record: fine enough
+    to resolve the model's lowest resonance to ``RESOLUTION`` of itself, coarse enough for
+    ``MIN_SEGMENTS`` segments in ``n`` samples (≥ 256, ≤ n). Without resonances: n/8.
+    Depends on the rate only through fs/f, so the same samples at another rate give the
+    same segments."""
+    low = [f for f in resonances_hz if f > 0]
+    want = pow2_ceil(fs / (RESOLUTION * min(low))) if low else pow2_floor(n / 8)
+    return int(min(n, max(256, min(want, pow2_floor(n / MIN_SEGMENTS)))))
 
 
 def explained_power(u: np.ndarray, r: np.ndarray, fs: float, nperseg: int):
@@ -78,7 +98,8 @@ class ExtraMode(Effect):
     physics = "an unmodelled structural mode"
 
     def _search(self, ctx: Context):
-        nper = int(min(ctx.n, max(256, 2 ** int(np.log2(max(ctx.fs * 0.5, 256))))))
+        n_est = len(range(*ctx.est.indices(ctx.n)))
+        nper = segment_length(n_est, ctx.fs, ctx.resonances_hz)
         f, E, coh = explained_power(ctx.u[ctx.est], ctx.residual[ctx.est], ctx.fs, nper)
         ex = list(ctx.resonances_hz)
         if ctx.omega_hz > 0:
@@ -132,15 +153,20 @@ class ExtraMode(Effect):
     def param_bounds(self, base):
         k = len(self.param_names(base))
         lo, hi = np.full(k, -np.inf), np.full(k, np.inf)
-        lo[0], hi[0] = 0.1, 1e6
+        lo[0] = 0.0
         lo[1], hi[1] = 1e-4, 0.7
+        return lo, hi
+
+    def record_bounds(self, base, rec):
+        lo, hi = self.param_bounds(base)
+        lo[0], hi[0] = rec.lowest_hz, F_MAX_NYQUIST * rec.nyquist_hz
         return lo, hi
 
     def theta0_effect(self, base, data):
         """Start at the strongest coherent output peak away from the base's resonances."""
         ny, nu = dims(base)
         u, y, fs = np.asarray(data.inputs, float), np.asarray(data.outputs, float), float(data.fs)
-        nper = int(min(len(u), 2 ** int(np.log2(max(fs * 0.5, 256)))))
+        nper = segment_length(len(u), fs)
         f, E, coh = explained_power(u - u.mean(0), y - y.mean(0), fs, nper)
         k = int(np.argmax(E))
         pk = find_peak(f, E, coh, [f[k]], 3 * fs / nper) or (float(f[k]) * 1.5, 0.02)

@@ -28,15 +28,18 @@ import numba
 import numpy as np
 
 from rigd.effects import numbers as N
-from rigd.effects._drive import drive_note, valve_pairs
+from rigd.effects._drive import drive_note, drive_spread, valve_pairs
 from rigd.effects._signals import n_levels
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.signature import SignatureFit, signature_fit
 from rigd.ident.iddata import replace_inputs
 
-#: Bouc–Wen rates c (1/V) tried by the signature; the refit starts from the best
+#: Bouc–Wen rates c tried by the signature, per half-amplitude of the drive
+#: (:func:`drive_spread`; c = GRID / spread in 1/V): relative to the record's scale, so the
+#: same record in other units gives the same operator; the refit starts from the best
 GRID = (0.25, 0.5, 1.0, 2.0, 4.0)
+#: bounds of c, per half-amplitude of the drive
 C_BOUNDS = (0.02, 50.0)
 
 
@@ -101,8 +104,9 @@ class Hysteresis(Effect):
         return [ctx.through_model(-h[:, j], j) for j in range(ctx.nu)]
 
     def signature(self, ctx: Context) -> SignatureFit:
-        best, best_c = None, GRID[0]
-        for c in GRID:
+        sc = drive_spread(ctx.data)
+        best, best_c = None, GRID[0] / sc
+        for c in (g / sc for g in GRID):
             s = signature_fit(ctx, self._regs(ctx, c))
             if best is None or s.score_est > best.score_est:
                 best, best_c = s, c
@@ -110,7 +114,7 @@ class Hysteresis(Effect):
         return best
 
     def regressors(self, ctx):
-        return self._regs(ctx, 1.0)
+        return self._regs(ctx, 1.0 / drive_spread(ctx.data))
 
     def explain(self, ctx, sig):
         du = np.gradient(ctx.u, axis=0)
@@ -148,21 +152,28 @@ class Hysteresis(Effect):
 
     def theta0_effect(self, base, data):
         _, nu = dims(base)
-        return np.concatenate([np.zeros(nu), [1.0]])
+        return np.concatenate([np.zeros(nu), [1.0 / drive_spread(data)]])
 
     def param_bounds(self, base):
         _, nu = dims(base)
-        return (np.concatenate([np.full(nu, -np.inf), [C_BOUNDS[0]]]),
-                np.concatenate([np.full(nu, np.inf), [C_BOUNDS[1]]]))
+        return (np.concatenate([np.full(nu, -np.inf), [0.0]]),
+                np.concatenate([np.full(nu, np.inf), [np.inf]]))
+
+    def record_bounds(self, base, rec):
+        lo, hi = self.param_bounds(base)  # c per half-amplitude of the drive
+        sc = rec.drive_spread
+        lo[-1], hi[-1] = C_BOUNDS[0] / sc, C_BOUNDS[1] / sc
+        return lo, hi
 
     def warm_start(self, ctx, sig):
-        return np.concatenate([np.asarray(sig.beta, float)[:ctx.nu], [sig.extra.get("c", 1.0)]])
+        c = sig.extra.get("c", 1.0 / drive_spread(ctx.data))
+        return np.concatenate([np.asarray(sig.beta, float)[:ctx.nu], [c]])
 
     def simulate_with(self, sim, theta_e, data, base):
         u = np.asarray(data.inputs, float)
         nu = u.shape[1]
         te = np.asarray(theta_e, float)
-        A, c = te[:nu], max(float(te[nu]), 1e-6)
+        A, c = te[:nu], max(float(te[nu]), 1e-300)
         if not np.any(A):
             return sim(data)
         return sim(replace_inputs(data, u - A * operator_inputs(data, c)))

@@ -148,6 +148,9 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
     """
     if method not in METHODS:
         raise InputError(f"unknown fit method {method!r} (known: {', '.join(METHODS)})")
+    if callable(getattr(structure, "bind_record", None)):
+        # effects' bounds relative to this record (rate, length, spreads): rigd.effects.scales
+        structure.bind_record(data)
     th0 = np.asarray(structure.theta0(data) if theta0 is None else theta0, float).copy()
     npar = len(structure.names)
     if method == "pem":

@@ -1,11 +1,48 @@
-"""Metamorphic tests: the same samples in other units must give the same diagnosis
-(findings, significance, order) and the same fits (±0.1 point)."""
+"""Metamorphic tests: the same samples in other units or labelled with another rate must give
+the same diagnosis (findings, significance, order) and the same fits (±0.1 point).
+
+Invariance by construction (docs/diagnose.md, "Invariance"): every bound, grid and threshold
+of the effects and the engine is relative to the record, and the discretisation is balanced
+(rigd.lti), so no factor below is special-cased. Three kinds of record:
+
+* generic: a Duffing oscillator generated from its equation (benchmarks.py);
+* rotor: the simulated rig (plant.py), bearing sub-model with run-out at 3000 rpm; for a rotor
+  record another rate means the same samples with every time unit rescaled: fs × s *and* the
+  shaft speed Ω × s (the shaft angle per sample is the record's). Then the physical
+  parameters scale (natural frequencies × s, stiffness K × s²) and findings and fits are
+  identical;
+* Silverbox (measured by others, ../shared/data): a 6000-sample slice of the multisine part.
+
+Each for channels rescaled (×1e-6 … ×1e3) and rates rescaled (×1e-3 … ×1e3), a few factors
+across the range, not every combination (the suite stays fast).
+"""
+
+import dataclasses
 
 import benchmarks as B  # tests/diagnose/benchmarks.py
+import numpy as np
+import plant  # tests/diagnose/plant.py
 import pytest
+from conftest_paths import SHARED
 
 from rigd.data.record import Record
 from rigd.diagnose.diagnosis import diagnose_record
+from rigd.diagnose.engine import diagnose_data
+from rigd.ident.mechanical import structure_for
+
+SILVERBOX = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
+SILVERBOX_FS = 610.3515625
+
+# creep's time-constant grid and hold rule are still in seconds (rigd/effects/creep.py, being
+# made relative to the record by the "detect" change of issue 12): at fs × 1e-3 every sample
+# is a "hold" and an extra creep is named on this Duffing record. Drop the mark with it.
+CREEP_PENDING = pytest.mark.xfail(strict=True, reason="creep's grid and hold rule are in "
+                                  "seconds (docs/diagnose.md, Invariance)")
+
+# (input scale, output scale, rate scale)
+CHANNELS = [(1.0, 1e-6, 1.0), (1e3, 1.0, 1.0), (1e-6, 1e3, 1.0)]
+RATES = [(1.0, 1.0, 1e-3), (1.0, 1.0, 1e3)]
+MIXED = [(1e3, 1e-6, 1e-3)]  # one combination: every unit changed at once
 
 
 def _variant(rec, su=1.0, sy=1.0, sr=1.0):
@@ -15,36 +52,127 @@ def _variant(rec, su=1.0, sy=1.0, sr=1.0):
 
 
 def _digest(d):
+    """(base fit, [(added, fit)], modes, {significant findings}) of a Diagnosis' JSON."""
     out = d.to_json()
-    return (out["fit_percent"], [(s["added"], s["fit_percent"]) for s in out["steps"]],
-            out["order"]["generic"]["modes"])
+    steps = out["steps"]
+    if isinstance(steps, dict):  # several sub-models
+        steps = [s for sub in sorted(steps) for s in steps[sub]]
+    fp = out["fit_percent"]
+    fp = fp if not isinstance(fp, dict) else float(np.mean(list(fp.values())))
+    modes = out.get("order", {}).get("generic", {}).get("modes")
+    sig = {(f["effect"], f.get("submodel")) for f in out["findings"] if f["significant"]}
+    return fp, [(s["added"], s["fit_percent"]) for s in steps], modes, sig
 
 
 def _same(a, b):
     assert a[2] == b[2], (a, b)
     assert [s for s, _ in a[1]] == [s for s, _ in b[1]], (a, b)
-    assert abs(a[0] - b[0]) <= 0.1
+    assert a[3] == b[3], (a, b)
+    assert abs(a[0] - b[0]) <= 0.1, (a, b)
     assert all(abs(x - y) <= 0.1 for (_, x), (_, y) in zip(a[1], b[1])), (a, b)
 
 
+# --------------------------------------------------------------------------------------
+# generic: a generated Duffing record
+# --------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def duffing():
     rec = B.duffing(seed=0, n=3000)
-    return rec, _digest(diagnose_record(rec))
-
-
-@pytest.mark.parametrize("scales", [dict(sy=1e-6), dict(su=1e3), dict(su=1e-6, sy=1e3)])
-def test_duffing_channels_rescaled_same_diagnosis(duffing, scales):
-    rec, ref = duffing
+    ref = _digest(diagnose_record(rec))
     assert [s for s, _ in ref[1]] == [None, "cubic_stiffness"]
-    _same(ref, _digest(diagnose_record(_variant(rec, **scales))))
+    return rec, ref
 
 
-@pytest.mark.xfail(strict=True, reason="not invariant yet: creep's time-constant grid and "
-                   "hold rule are in seconds (valve physics), extra_mode's spectral segment "
-                   "length follows fs: at fs x 1e-3 creep, at fs x 1e3 extra_mode become "
-                   "significant on this Duffing record (docs/diagnose.md, Limits)")
-@pytest.mark.parametrize("rate", [1e-3, 1e3])
-def test_duffing_rate_rescaled_same_diagnosis(duffing, rate):
+@pytest.mark.parametrize("su,sy,sr", CHANNELS + [
+    pytest.param(*RATES[0], marks=CREEP_PENDING), RATES[1],
+    pytest.param(*MIXED[0], marks=CREEP_PENDING)])
+def test_duffing_rescaled_same_diagnosis(duffing, su, sy, sr):
     rec, ref = duffing
-    _same(ref, _digest(diagnose_record(_variant(rec, sr=rate))))
+    _same(ref, _digest(diagnose_record(_variant(rec, su, sy, sr))))
+
+
+# --------------------------------------------------------------------------------------
+# Silverbox: a short slice of the measured multisine part
+# --------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def silverbox():
+    a = np.loadtxt(SILVERBOX, delimiter=",", skiprows=1, usecols=(0, 1))[40600:46600]
+    rec = Record({"V1": a[:, 0], "V2": a[:, 1]}, SILVERBOX_FS,
+                 {"inputs": ["V1"], "outputs": ["V2"]}, str(SILVERBOX))
+    ref = _digest(diagnose_record(rec))
+    assert [s for s, _ in ref[1]][:2] == [None, "cubic_stiffness"], ref
+    return rec, ref
+
+
+@pytest.mark.parametrize("su,sy,sr", [CHANNELS[2], *RATES])
+def test_silverbox_rescaled_same_diagnosis(silverbox, su, sy, sr):
+    rec, ref = silverbox
+    _same(ref, _digest(diagnose_record(_variant(rec, su, sy, sr))))
+
+
+# --------------------------------------------------------------------------------------
+# rotor: the simulated rig's bearing with run-out at 3000 rpm
+# --------------------------------------------------------------------------------------
+def _rotor_variant(d, su=1.0, sy=1.0, sr=1.0):
+    """The same samples in other units (u × su, e × sy) and with every time unit × 1/sr:
+    fs × sr and the shaft speed Ω × sr (the shaft angle per sample unchanged)."""
+    meta = dict(d.meta, omega_rpm=d.meta.get("omega_rpm", 0.0) * sr)
+    return dataclasses.replace(d, u=d.u * su, y=d.y * sy, fs=d.fs * sr, meta=meta)
+
+
+def _rotor_diagnosis(d):
+    sd = diagnose_data(d, "bearing", structure=structure_for("bearing", d, hold="zoh"))
+    steps = [(s.added, s.fit_percent) for s in sd.steps]
+    sig = {(f.effect, "bearing") for f in sd.findings if f.significant}
+    return (sd.fit_percent, steps, None, sig), sd
+
+
+@pytest.fixture(scope="module")
+def rotor():
+    d = plant.bearing(["runout"], seed=0, seconds=1.2)
+    ref, sd = _rotor_diagnosis(d)
+    assert [s for s, _ in ref[1]] == [None, "runout"], ref
+    return d, ref, sd
+
+
+@pytest.mark.parametrize("su,sy,sr", [CHANNELS[0], CHANNELS[2], *RATES])
+def test_rotor_rescaled_same_diagnosis_physical_parameters_scale(rotor, su, sy, sr):
+    d, ref, sd_ref = rotor
+    got, sd = _rotor_diagnosis(_rotor_variant(d, su, sy, sr))
+    _same(ref, got)
+    # what changes is only the units of the physical parameters: natural frequencies × sr,
+    # the run-out's frequency (order × Ω) × sr, the stiffness K × sr² (mass-normalised)
+    f_ref = [m["f_n_hz"] for m in sd_ref.final.structure.readouts(sd_ref.final.theta)["modes"]]
+    f_new = [m["f_n_hz"] for m in sd.final.structure.readouts(sd.final.theta)["modes"]]
+    assert np.allclose(np.asarray(f_new) / sr, f_ref, rtol=2e-3), (f_ref, f_new)
+    k_ref = sd_ref.final.structure.base.unpack(sd_ref.final.theta[:sd_ref.final.structure.nb])[0]
+    k_new = sd.final.structure.base.unpack(sd.final.theta[:sd.final.structure.nb])[0]
+    assert np.allclose(k_new / sr ** 2, k_ref, rtol=5e-3, atol=1e-3 * np.abs(k_ref).max())
+    run = [f for f in sd.findings if f.effect == "runout"][0]
+    run_ref = [f for f in sd_ref.findings if f.effect == "runout"][0]
+    assert run.evidence["frequency_hz"] == pytest.approx(sr * run_ref.evidence["frequency_hz"])
+
+
+# --------------------------------------------------------------------------------------
+# rotor, valve sub-model: hysteresis on the input (its operator's rate c is per volt)
+# --------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def valve():
+    d = plant.actuator(["hysteresis"], seed=0, seconds=1.6)
+    sd = diagnose_data(d, "actuator", structure=structure_for("actuator", d, hold="zoh"))
+    ref = (sd.fit_percent, [(s.added, s.fit_percent) for s in sd.steps], None,
+           {(f.effect, "actuator") for f in sd.findings if f.significant})
+    assert [s for s, _ in ref[1]] == [None, "hysteresis"], ref
+    return d, ref
+
+
+@pytest.mark.parametrize("su,sy,sr", [(1e3, 1e-6, 1e3)])
+def test_valve_hysteresis_rescaled_same_diagnosis(valve, su, sy, sr):
+    """The Bouc–Wen rate c is searched and bounded per half-amplitude of the drive: with the
+    drive in mV (× 1e3) the same operator is found (c × 1e-3), not a saturated relay."""
+    d, ref = valve
+    v = dataclasses.replace(d, u=d.u * su, y=d.y * sy, fs=d.fs * sr)
+    sd = diagnose_data(v, "actuator", structure=structure_for("actuator", v, hold="zoh"))
+    got = (sd.fit_percent, [(s.added, s.fit_percent) for s in sd.steps], None,
+           {(f.effect, "actuator") for f in sd.findings if f.significant})
+    _same(ref, got)
