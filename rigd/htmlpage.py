@@ -23,6 +23,7 @@ import html
 import importlib.util
 import json
 import math
+import os
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -118,6 +119,29 @@ def minmax_decimate(x: np.ndarray, y: np.ndarray, points: int = 2000
         keep += [min(i, j), max(i, j)] if i != j else [i]
     idx = np.asarray(keep)
     return x[idx], y[idx]
+
+
+def report_dir(out: str | Path, what: str = "--report") -> Path:
+    """Create the report folder ``out`` (with its parents) or say in one line why not.
+
+    Called before the work a report describes, so a bad ``--report`` costs no diagnosis.
+
+    Raises
+    ------
+    InputError
+        ``out`` is a file, or cannot be created or written.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out} is a file, not a folder for the report", what)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the report folder {out}: {exc.strerror}",
+                         what) from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise InputError(f"the report folder {out} is not writable", what)
+    return out
 
 
 def page_json(data: dict[str, Any]) -> str:

@@ -306,6 +306,10 @@ def compare(model: Any, data: Record | str | Path, *,
     from rigd.diagnose.compare_page import write_compare_page
     from rigd.ident.compare import compare_model
 
+    if report:
+        from rigd.htmlpage import report_dir
+
+        report_dir(report)
     mf = _as_model(model)
     record = as_record(data, **load_kw)
     ro = as_record(runout) if runout is not None else None
@@ -410,6 +414,10 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
         raise InputError("give --split or --est/--val, not both", "--split")
     if steps < 1:
         raise InputError(f"--steps must be at least 1 (got {steps})", "--steps")
+    if report:
+        from rigd.htmlpage import report_dir
+
+        report_dir(report)
     rec = as_record(data, **load_kw)
     ro = as_record(runout) if runout is not None else None
     if est_s is not None:

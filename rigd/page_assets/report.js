@@ -147,6 +147,8 @@
           document.createTextNode(" " + e.effect + (e.significant ? " (significant, step " +
             e.step + ")" : ""))]));
       });
+      if (!this.boxes.length) boxes.appendChild(el("span", {text: "none: no tested effect " +
+        "was refitted (no signature in the residual, or the record cannot reveal it)"}));
       this.msg = el("div", {cls: "msg", id: "msg-" + id});
       boxes.appendChild(this.msg);
       root.appendChild(boxes);

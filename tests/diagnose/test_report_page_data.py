@@ -204,3 +204,32 @@ def test_page_is_written_atomically_with_the_callers_umask(tmp_path, mask):
 class _Unjsonable:
     def __str__(self):
         raise ValueError("cannot be shown")
+
+
+def test_a_bad_report_folder_is_one_line_exit_2_before_any_work(tmp_path, capsys):
+    from rigd.cli import main
+    from rigd.data.csvio import write_csv
+
+    write_csv(tmp_path / "duffing.csv", B.duffing(seed=1, n=600))
+    blocker = tmp_path / "a_file"
+    blocker.write_text("keep me")
+    for argv in (["diagnose", str(tmp_path / "duffing.csv"), "--order", "1"],
+                 ["compare", str(tmp_path / "no_model.yaml"), str(tmp_path / "duffing.csv")]):
+        assert main(argv + ["--report", str(blocker)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "--report" in err and "a_file" in err and "folder" in err
+        # a folder below a file cannot be made either
+        assert main(argv + ["--report", str(blocker / "rep")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "--report" in err
+    assert blocker.read_text() == "keep me"
+
+
+def test_diagnose_page_without_refits_has_only_the_base_model(tmp_path):
+    res = api.diagnose(B.duffing(seed=2, n=1500), effects="cubic_stiffness", order=1,
+                       refit=False, report=tmp_path / "rep")
+    (part,) = embedded(tmp_path / "rep" / "index.html")["parts"]
+    assert len(part["variants"]) == 1 and part["variants"][0]["effects"] == []
+    assert not any(e["toggle"] for e in part["effects"])
+    assert part["steps"][0]["fit_percent"] == pytest.approx(
+        res.summary()["fit_percent"], abs=1e-3)
