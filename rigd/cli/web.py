@@ -33,6 +33,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "controller YAMLs offered on the page (default config)")
     p.add_argument("--token-file", help="file holding the token (created with a new token, "
                    "mode 0600, when absent; default ~/.config/rigd/web-token)")
+    p.add_argument("--film-gap-um", type=float, default=25.0, metavar="UM",
+                   help="radial film gap drawn around the orbit, µm (default 25, the rig's)")
     p.add_argument("--timeout", type=float, default=10.0, metavar="S",
                    help="reply timeout of daemon requests, s (default 10)")
 
@@ -85,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
           f"config {config_dir})", file=sys.stderr, flush=True)
     app = build_app(Settings(socket=args.socket, runs_dir=runs_dir.resolve(),
                              config_dir=config_dir.resolve(), token=token,
-                             timeout_s=args.timeout))
+                             timeout_s=args.timeout, film_gap_um=args.film_gap_um))
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False,
                                            timeout_graceful_shutdown=2))
     server.run(sockets=[sock])

@@ -17,6 +17,7 @@ from starlette.responses import FileResponse, JSONResponse, Response, StreamingR
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
+from rigd import __version__
 from rigd.configio import read_yaml
 from rigd.errors import InputError
 from rigd.experiments.schemas import load_experiment, validate_spec
@@ -46,6 +47,8 @@ class Settings:
         The only folders whose files are served or named in requests.
     token : str
         The Bearer token of state-changing requests.
+    film_gap_um : float
+        Radial film gap, µm: the circle drawn around the orbit.
     timeout_s : float
         Reply timeout of daemon requests, s.
     """
@@ -56,6 +59,7 @@ class Settings:
     token: str
     timeout_s: float = 10.0
     max_body: int = MAX_BODY
+    film_gap_um: float = 25.0
 
 
 def _err(status: int, message: str) -> JSONResponse:
@@ -139,6 +143,9 @@ def build_app(settings: Settings) -> Starlette:
 
     async def index(request: Request) -> Response:
         return FileResponse(STATIC / "index.html", headers={"cache-control": "no-store"})
+
+    async def console(request: Request) -> Response:
+        return JSONResponse({"film_gap_um": settings.film_gap_um, "version": __version__})
 
     async def plotly(request: Request) -> Response:
         return FileResponse(plotly_js(), media_type="text/javascript")
@@ -259,6 +266,7 @@ def build_app(settings: Settings) -> Starlette:
         Route("/", index),
         Route("/static/plotly.min.js", plotly),
         Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        Route("/api/console", console),
         Route("/api/status", query_route("status")),
         Route("/api/timing", query_route("timing")),
         Route("/api/faults", query_route("faults")),

@@ -36,7 +36,9 @@ class Browser:
         return getattr(self.driver, name)
 
     def _drain(self) -> None:
-        self._log.extend(self.driver.get_log("browser"))
+        # ChromiumDriver.get_log's command, through the Chromium connection (a Remote driver
+        # with a longer command timeout has no get_log method of its own)
+        self._log.extend(self.driver.execute("getLog", {"type": "browser"})["value"])
 
     def console_log(self) -> list[dict]:
         """Every console entry so far (``level``, ``message``, ``timestamp``)."""
@@ -55,10 +57,18 @@ class Browser:
         return errors
 
 
+#: seconds for one WebDriver command (starting Chromium included): generous, the machine may
+#: be a busy shared one; a test waits on conditions, this only bounds a hung browser
+COMMAND_TIMEOUT_S = 300
+
+
 def _make_driver():
     from selenium import webdriver
     from selenium.webdriver.chrome.options import Options
     from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.chromium.remote_connection import ChromiumRemoteConnection
+    from selenium.webdriver.remote.client_config import ClientConfig
+    from selenium.webdriver.remote.file_detector import UselessFileDetector
 
     chromium, chromedriver, _ = find_chromium()
     options = Options()
@@ -68,10 +78,24 @@ def _make_driver():
                 "--disable-background-networking"):
         options.add_argument(arg)
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    driver = webdriver.Chrome(options=options, service=Service(chromedriver))
-    driver.set_page_load_timeout(60)
-    driver.set_script_timeout(60)
-    return driver
+    service = Service(chromedriver)
+    service.start()
+    try:
+        conn = ChromiumRemoteConnection(
+            remote_server_addr=service.service_url, vendor_prefix="goog", browser_name="chrome",
+            ignore_proxy=True, client_config=ClientConfig(
+                remote_server_addr=service.service_url, keep_alive=True,
+                timeout=COMMAND_TIMEOUT_S))
+        driver = webdriver.Remote(command_executor=conn, options=options)
+    except BaseException:
+        service.stop()
+        raise
+    # the driver is local: file inputs get the path itself (a Remote driver would upload the
+    # file through the Grid-only se/file command)
+    driver.file_detector = UselessFileDetector()
+    driver.set_page_load_timeout(120)
+    driver.set_script_timeout(120)
+    return driver, service
 
 
 @pytest.fixture
@@ -80,12 +104,16 @@ def browser():
     reason = skip_reason()
     if reason:
         pytest.skip(reason)
-    b = Browser(_make_driver())
+    driver, service = _make_driver()
+    b = Browser(driver)
     try:
         yield b
         errors = b.console_errors()
     finally:
-        b.driver.quit()
+        try:
+            driver.quit()
+        finally:
+            service.stop()
     assert not errors, f"browser console errors: {errors}"
 
 

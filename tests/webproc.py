@@ -1,0 +1,114 @@
+"""A real daemon (``rigd run``, tests/service/daemon_helpers.py) and a real ``rigd web``
+process for the console's process and browser tests (import as ``from webproc import ...``)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from testpaths import ROOT
+
+sys.path.append(str(ROOT / "tests" / "service"))
+
+from daemon_helpers import RIGD, Daemon, make_config  # noqa: E402
+
+from rigd.controller import save_controller  # noqa: E402
+
+SHORT_PRBS = """kind: prbs
+name: web-short
+operating_point: {omega_rpm: 0, p_inj_bar: 4.0}
+amplitude_v: 0.5
+axes: [x, y]
+switch_probability: 0.5
+min_hold_s: 0.0002
+seed: 3
+duration_s: 0.6
+lead_in_s: 0.1
+controller: false
+"""
+
+
+def write_controller(path: Path) -> Path:
+    """A small stable K∞(z) (leaky integrator of -p', 0.01 V/µm), as the daemon tests use."""
+    save_controller(path, [[0.99]], [[0.001, 0.0]], [[1.0], [0.0]],
+                    [[0.0, 0.0], [0.0, 0.0]], fs_hz=5000.0)
+    return path
+
+
+def start_daemon(tmp: Path) -> Daemon:
+    """``rigd run`` on the simulated rig with a controller loaded (K∞ off), READY waited."""
+    ctrl = write_controller(tmp / "k.yaml")
+    d = Daemon(tmp, make_config(tmp), "--controller", str(ctrl))
+    try:
+        d.wait_notify("READY=1")
+    except BaseException:
+        d.stop()
+        raise
+    return d
+
+
+def config_folder(tmp: Path) -> Path:
+    """A config folder as the page offers it: experiments/ and a controller."""
+    cfg = tmp / "config"
+    (cfg / "experiments").mkdir(parents=True)
+    shutil.copy(ROOT / "config" / "experiments" / "prbs.yaml", cfg / "experiments" / "prbs.yaml")
+    (cfg / "experiments" / "web-short.yaml").write_text(SHORT_PRBS)
+    write_controller(cfg / "controller-k.yaml")
+    return cfg
+
+
+class WebProcess:
+    """``rigd web --listen 127.0.0.1:0`` as a process; ``url`` and ``token`` once serving."""
+
+    def __init__(self, tmp: Path, socket: str, runs_dir: Path, config_dir: Path,
+                 timeout: float = 60.0):
+        self.token_file = tmp / "web-token"
+        self.lines: list[str] = []
+        self._serving = threading.Event()
+        self.proc = subprocess.Popen(
+            [RIGD, "web", "--listen", "127.0.0.1:0", "--socket", socket, "--runs-dir",
+             str(runs_dir), "--config-dir", str(config_dir), "--token-file",
+             str(self.token_file)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+            text=True, cwd=str(tmp))
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        if not self._serving.wait(timeout):
+            self.stop()
+            raise AssertionError(f"rigd web did not start: {self.lines}")
+        line = next(x for x in self.lines if "serving http://" in x)
+        self.url = line.split("serving ", 1)[1].split()[0].rstrip("/")
+        self.token = self.token_file.read_text().strip()
+
+    def _read(self):
+        for line in self.proc.stderr:
+            self.lines.append(line.rstrip("\n"))
+            if "serving http://" in line:
+                self._serving.set()
+        self._serving.set()      # exited: wake the waiter
+
+    def stop(self, timeout: float = 30.0) -> int:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+        try:
+            self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        self._reader.join(5)
+        return self.proc.returncode
+
+
+def wait_for(cond, timeout=30.0, interval=0.1, what="condition"):
+    """Poll ``cond()`` until truthy (returned) or fail after ``timeout`` s."""
+    end = time.monotonic() + timeout
+    while True:
+        v = cond()
+        if v:
+            return v
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(interval)
