@@ -4,4 +4,5 @@ Each section is a module in this package with a ``run() -> dict`` function, list
 :data:`SECTIONS`. ``python -m bench [SECTION ...]`` runs all or some of them.
 """
 
-SECTIONS = ["loop", "identify", "diagnose", "export_memory", "socket_load", "design", "reynolds"]
+SECTIONS = ["loop", "identify", "diagnose", "export_memory", "socket_load", "design", "reynolds",
+            "web"]

@@ -13,7 +13,7 @@ import pytest
 from numba import njit
 
 from rigd.loop.shared_ring import H_W, H_WALL, RingReader, SharedRing
-from rigd.service.stream import decimate
+from rigd.service.stream import decimate, outward
 
 COLS = 8
 
@@ -122,3 +122,16 @@ def test_decimate_brackets_every_frame_and_keeps_spikes(n, points):
     assert hi[:, 1].max() == 50.0
     sizes = ends - starts
     assert sizes.max() - sizes.min() <= 1              # buckets of n//b or n//b + 1 frames
+
+
+def test_outward_rounding_keeps_every_sample_inside_and_is_short():
+    rng = np.random.default_rng(3)
+    x = np.concatenate([rng.normal(scale=s, size=2000) for s in (1e-6, 1e-3, 1.0, 1e4)])
+    x = np.concatenate([x, np.arange(-3, 3) * 1e-5, [1e-5 * 7 - 1e-21, 4.3e9, 0.0]])
+    lo, hi = outward(x, x)
+    assert np.all(lo <= x) and np.all(hi >= x)
+    assert np.all(x - lo <= 1e-5 * (1 + 1e-9) + 1e-12 * abs(x))
+    assert np.all(hi - x <= 1e-5 * (1 + 1e-9) + 1e-12 * abs(x))
+    assert max(len(repr(v)) for v in lo.tolist()) <= 16      # not 17-digit doubles
+    nan_lo, nan_hi = outward(np.array([np.nan]), np.array([np.nan]))
+    assert np.isnan(nan_lo[0]) and np.isnan(nan_hi[0])
