@@ -11,8 +11,9 @@ published since the previous one (torn-read checked) and reduces them by **min/m
 decimation**: the ``n`` new frames are split into ``min(points, n)`` consecutive buckets and
 each bucket sends its minimum and maximum per channel, so a spike of one frame is never lost
 from the picture however few points are sent. Minima are rounded down and maxima up to
-:data:`QUANTUM` (:func:`outward`): the band still contains every sample, in half the bytes. The loop thread does nothing for the stream
-(it stores the published count and a wall-clock time after each kernel call, as before).
+:data:`QUANTUM` (:func:`outward`): the band still contains every sample, in half the bytes.
+The loop thread does nothing for the stream (it stores the published count and a wall-clock
+time after each kernel call).
 
 The cheap status fields come from the snapshot the daemon publishes anyway (25 Hz).
 """

@@ -135,3 +135,4 @@ def test_outward_rounding_keeps_every_sample_inside_and_is_short():
     assert max(len(repr(v)) for v in lo.tolist()) <= 16      # not 17-digit doubles
     nan_lo, nan_hi = outward(np.array([np.nan]), np.array([np.nan]))
     assert np.isnan(nan_lo[0]) and np.isnan(nan_hi[0])
+
