@@ -176,3 +176,34 @@ def test_valve_hysteresis_rescaled_same_diagnosis(valve, su, sy, sr):
     got = (sd.fit_percent, [(s.added, s.fit_percent) for s in sd.steps], None,
            {(f.effect, "actuator") for f in sd.findings if f.significant})
     _same(ref, got)
+
+
+# --------------------------------------------------------------------------------------
+# every other catalogue effect, hidden in the private rig (plant.py): one variant each with
+# every unit changed at once (input, output, rate and Ω)
+# --------------------------------------------------------------------------------------
+def _decoupled():
+    from rigd.ident.mechanical import MechanicalStructure
+
+    eye = np.eye(2, dtype=bool)
+    return MechanicalStructure("bearing", eye, eye, eye, eye, "", ["x", "y"], ["x", "y"],
+                               ["u_x", "u_y"], ["e_x", "e_y"], hold="zoh")
+
+
+def _effect_digest(d, effect):
+    st = _decoupled() if effect == "cross_coupling" else structure_for("bearing", d,
+                                                                         hold="zoh")
+    sd = diagnose_data(d, "bearing", structure=st)
+    return (sd.fit_percent, [(s.added, s.fit_percent) for s in sd.steps], None,
+            {(f.effect, "bearing") for f in sd.findings if f.significant})
+
+
+@pytest.mark.parametrize("effect,su,sy,sr", [("delay", 1e3, 1e-6, 1e-3),
+                                             ("extra_mode", 1e-6, 1e3, 1e3),
+                                             ("actuator_dynamics", 1e-6, 1e-6, 1e3),
+                                             ("cross_coupling", 1e3, 1e3, 1e-3)])
+def test_hidden_effect_rescaled_same_diagnosis(effect, su, sy, sr):
+    d = plant.bearing([effect], seed=0, seconds=1.2)
+    ref = _effect_digest(d, effect)
+    assert [s for s, _ in ref[1]] == [None, effect], ref
+    _same(ref, _effect_digest(_rotor_variant(d, su, sy, sr), effect))
