@@ -11,16 +11,20 @@ for this process's interpreter lock. This module, in the daemon (the loop's proc
 * a **publisher** thread sends a *snapshot* (status, timing, faults, experiment state, ping
   info; pickled through a pipe) ``rate_hz`` times a second and at once after each command —
   the only per-second cost a client can cause in this process is fixed by ``rate_hz``;
-* a **command** thread receives the requests the socket process has already validated,
-  runs them through :class:`~rigd.service.protocol.Dispatcher` (which validates again) and
-  replies with the reply line and a fresh snapshot;
+* a **command** thread receives the requests the socket process has already validated and
+  hands them to a **worker** thread, which runs them one after the other through
+  :class:`~rigd.service.protocol.Dispatcher` (which validates again) and replies with the
+  reply line and a fresh snapshot; ``safe`` is run at once by the command thread itself, so
+  the safe state never waits behind a slow command (a large ``controller.load``);
 * if the socket process dies it is logged and spawned again (the loop never notices).
 """
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 import os
+import queue
 import threading
 import time
 from collections.abc import Callable
@@ -88,6 +92,8 @@ class SocketFrontend:
         self._stop = threading.Event()
         self._wake = threading.Event()
         self._threads: list[threading.Thread] = []
+        self._work: queue.SimpleQueue = queue.SimpleQueue()   # commands for the worker
+        self._send_lock = threading.Lock()      # replies come from two threads
 
     # --- life cycle ---------------------------------------------------------------------
     def start(self) -> SocketFrontend:
@@ -95,7 +101,8 @@ class SocketFrontend:
         self._lsock = listen(self.path, self.mode)
         self._spawn()
         for target, name in ((self._publish_run, "rigd-snapshot"),
-                             (self._command_run, "rigd-commands")):
+                             (self._command_run, "rigd-commands"),
+                             (self._work_run, "rigd-command-worker")):
             t = threading.Thread(target=target, name=name, daemon=True)
             t.start()
             self._threads.append(t)
@@ -105,6 +112,7 @@ class SocketFrontend:
         """Stop the socket process, close the socket and remove its file."""
         self._stop.set()
         self._wake.set()
+        self._work.put(None)
         for t in self._threads:
             t.join(5.0)
         self._threads.clear()
@@ -212,15 +220,40 @@ class SocketFrontend:
                 self.pid = tag
                 self.ready.set()
                 continue
-            reply = self.handle_command(line)
+            if _is_safe(line):    # the safety button never waits behind a slow command
+                self._reply(conn, tag, self.handle_command(line))
+            else:
+                self._work.put((conn, tag, line))
+
+    def _work_run(self) -> None:
+        """Worker thread: runs the forwarded commands one after the other (but ``safe``)."""
+        as_helper(self.helper_priority)
+        while True:
+            item = self._work.get()
+            if item is None:
+                return
+            conn, tag, line = item
+            self._reply(conn, tag, self.handle_command(line))
+
+    def _reply(self, conn, tag: int, reply: bytes) -> None:
+        snap = self.snapshot()
+        with self._send_lock:
             try:
-                conn.send(("reply", tag, reply, self.snapshot()))
+                conn.send(("reply", tag, reply, snap))
             except (OSError, ValueError, EOFError):
-                pass
+                pass   # the socket process is gone (its successor does not wait for this)
 
     @property
     def n_clients(self) -> int:
         return 0  # counted by the socket process (``ping`` -> clients)
+
+
+def _is_safe(line: bytes) -> bool:
+    """Is this (already validated) command line the ``safe`` command?"""
+    try:
+        return json.loads(line).get("cmd") == "safe"
+    except (ValueError, AttributeError):
+        return False
 
 
 def as_helper(priority: int | None) -> None:
