@@ -23,6 +23,7 @@ in their docstrings ("Runs in: loop thread — O(1), allocation-free, non-blocki
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -314,6 +315,20 @@ class ControlLoop:
             return self.state.seq - seq0
         with self.lockstep.lock:
             return self.lockstep.run(int(n), None, self._stop)
+
+    def wait_cycles(self, n: int, timeout: float) -> int:
+        """Block until the running loop has run ``n`` more cycles, is stopped, or ``timeout``
+        s have passed; returns the cycles run meanwhile.
+
+        A condition on the cycle counter, not ``n / fs`` of wall time: a loaded machine may
+        run far fewer cycles per second than ``fs`` (``timeout`` only bounds a hung loop).
+        """
+        seq0 = self.state.seq
+        end = time.monotonic() + float(timeout)
+        while self.state.seq - seq0 < n and time.monotonic() < end:
+            if self._stop.wait(0.001):
+                break
+        return self.state.seq - seq0
 
     def run_for(self, seconds: float) -> int:
         """Run for ``seconds`` of loop time (see :meth:`run_cycles`)."""

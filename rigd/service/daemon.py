@@ -44,6 +44,8 @@ TIMING_REFRESH_S = 0.2
 #: after the loop died, the socket keeps answering (``rigd ctl status`` shows ``loop_died``)
 #: this long before the daemon exits non-zero for systemd to restart it, s
 LOOP_DEATH_LINGER_S = 2.0
+#: on SIGTERM/SIGINT/stop, cycles run (and recorded) in the safe state before the loop stops
+SAFE_CYCLES_ON_STOP = 20
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -205,8 +207,10 @@ class Daemon:
         if self.experiments is not None:
             self.experiments.stop()
         self.loop.trip(FC.OPERATOR_STOP)           # safe state from the next cycle on
-        fs = float(getattr(self.loop, "fs", 5000.0))
-        time.sleep(max(20.0 / fs, 0.005))          # let the safe state be applied and recorded
+        # let the safe state be applied and recorded: 20 cycles counted (a fixed 4 ms of wall
+        # time let only 3 run on a loaded machine); the bound is for a hung loop only, whose
+        # close() writes the safe drive anyway
+        self.loop.wait_cycles(SAFE_CYCLES_ON_STOP, timeout=5.0)
         self.loop.stop()
 
     def _on_hup(self, _signum, _frame) -> None:

@@ -10,7 +10,7 @@ import time
 import h5py
 import numpy as np
 import pytest
-from daemon_helpers import Daemon, make_config
+from daemon_helpers import PROCESS_S, Daemon, make_config
 from faultkit import assert_safe_after_fault, controller_file, read_frames, wait_for
 
 from rigd.frame import REC
@@ -39,7 +39,7 @@ def test_sigterm_during_experiment(tmp_path):
         d.wait_notify("READY=1")
         started = d.ctl_json("start", str(spec), "--run-dir", str(tmp_path / "run"))
         assert started["name"] == "long-prbs"
-        assert wait_for(lambda: d.ctl_json("experiment")["state"] == "running", 30)
+        assert wait_for(lambda: d.ctl_json("experiment")["state"] == "running", PROCESS_S)
         time.sleep(1.5)  # well inside the 30 s record
         assert d.ctl_json("experiment")["state"] == "running"
     finally:
@@ -82,12 +82,12 @@ def disk_full(tmp_path_factory):
     seen = {}
     try:
         d.wait_notify("READY=1")
-        seen["faulted"] = wait_for(lambda: d.ctl_json("status")["fault"]["code"] != 0, 30)
+        seen["faulted"] = wait_for(lambda: d.ctl_json("status")["fault"]["code"] != 0, PROCESS_S)
         seen["st"] = d.ctl_json("status")
         time.sleep(0.3)
         seen["st2"] = d.ctl_json("status")
         seen["human"] = d.ctl("status").stdout
-        seen["logged"] = wait_for(lambda: "recording failed" in d.log(), 5)
+        seen["logged"] = wait_for(lambda: "recording failed" in d.log(), PROCESS_S)
     finally:
         seen["code"], _ = d.stop(signal.SIGTERM)
     seen["log"] = (tmp_path / "daemon.err").read_text()

@@ -7,13 +7,13 @@ import os
 import signal
 import socket
 
-from daemon_helpers import Daemon, make_config
+from daemon_helpers import PROCESS_S, Daemon, make_config
 from faultkit import wait_for
 
 
 def _ask(path, line):
     s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    s.settimeout(20)
+    s.settimeout(PROCESS_S)
     s.connect(path)
     s.sendall(line + b"\n")
     buf = b""
@@ -48,12 +48,13 @@ def test_socket_process_separate_and_respawned(tmp_path):
         # a valid command still goes through to the loop, and the next status shows it
         d.ctl("op", "1500", "4.0")
         assert d.ctl_json("ping")["commands_run"] == ping["commands_run"] + 1
-        assert wait_for(lambda: d.ctl_json("status")["last_frame"]["omega_rpm"] == 1500.0, 10)
+        assert wait_for(lambda: d.ctl_json("status")["last_frame"]["omega_rpm"] == 1500.0,
+                        PROCESS_S)
         seq0 = d.ctl_json("status")["seq"]
         # kill the socket process: the daemon starts a new one; nothing else changes
         os.kill(child, signal.SIGKILL)
-        assert wait_for(lambda: "socket process died" in d.log(), 20), d.log()
-        assert wait_for(lambda: _ask(d.sock, b'{"cmd": "ping"}').get("ok") is True, 30)
+        assert wait_for(lambda: "socket process died" in d.log(), PROCESS_S), d.log()
+        assert wait_for(lambda: _ask(d.sock, b'{"cmd": "ping"}').get("ok") is True, PROCESS_S)
         ping2 = d.ctl_json("ping")
         assert ping2["socket_pid"] not in (child, d.proc.pid) and ping2["pid"] == d.proc.pid
         # not real-time and niced, although respawned by a real-time helper thread
@@ -90,7 +91,7 @@ def test_sigkilled_daemon_leaves_no_socket_process_and_a_new_daemon_starts(tmp_p
         code, _ = d.stop(signal.SIGKILL)
     assert code == -signal.SIGKILL
     # the socket process sees its pipe close and exits; the socket file stays behind, stale
-    assert wait_for(lambda: not _alive(child), 10), "socket process outlived the daemon"
+    assert wait_for(lambda: not _alive(child), PROCESS_S), "socket process outlived the daemon"
     assert os.path.exists(d.sock)
     os.unlink(tmp_path / "notify.sock")   # the test's own notify socket, not the daemon's
     d2 = Daemon(tmp_path, cfg)            # same control socket path: the stale file is replaced
