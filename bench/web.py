@@ -21,11 +21,12 @@ Figures (keys of ``run()``):
   100 ms); ``web_stream_events_per_s`` per client, ``web_stream_dropped_frames`` (sum of the
   updates' ``dropped``), ``web_stream_bytes_per_event``.
 
-The clients ask for what the console's live view shows: 18 channels (orbit e_x/e_y, u_x/u_y,
-valve positions y_p1..4 and references r_p1..4, r_x/r_y, K∞ output k_x/k_y, k_on, fault) at
-``rate_hz`` 50 with ``points`` 50 per update (2 500 points/s per channel).
+The clients ask for exactly what the console page asks for (``POINTS`` and ``CHANNELS``
+copied from rigd/web/static/app.js: today 17 channels — orbit e_x/e_y, u_x/u_y, r_x/r_y, K∞
+output k_x/k_y, valve positions y_p1..4 and references r_p1..4, k_on — with ``points`` 10) at
+``rate_hz`` 50.
 
-    python -m bench web            # about 60 s
+    python -m bench web            # about 1 min (2 min at load average 20)
 """
 
 from __future__ import annotations
@@ -46,8 +47,18 @@ from bench.socket_load import _counts, start_daemon, stop_daemon
 
 ROOT = Path(__file__).resolve().parents[1]
 RIGD = str(Path(sys.executable).parent / "rigd")
-CHANNELS = ["e_x", "e_y", "u_x", "u_y", "y_p1", "y_p2", "y_p3", "y_p4", "r_p1", "r_p2",
-            "r_p3", "r_p4", "r_x", "r_y", "k_x", "k_y", "k_on", "fault"]
+APP_JS = ROOT / "rigd" / "web" / "static" / "app.js"
+
+
+def page_subscription() -> tuple[int, list[str]]:
+    """``POINTS`` and ``CHANNELS`` of the console page (rigd/web/static/app.js): the bench's
+    clients ask for exactly what a browser showing the console asks for."""
+    js = APP_JS.read_text()
+    m_p = re.search(r"const POINTS\s*=\s*(\d+)", js)
+    m_c = re.search(r"const CHANNELS\s*=\s*\[([^\]]*)\]", js)
+    if not (m_p and m_c):
+        raise RuntimeError(f"{APP_JS}: no 'const POINTS' / 'const CHANNELS' to copy")
+    return int(m_p.group(1)), re.findall(r'"([a-z_0-9]+)"', m_c.group(1))
 
 
 def _client_main(url: str, go, stop, out) -> None:
@@ -112,9 +123,9 @@ def _window(sock: str, seconds: float) -> float:
     return (o1 - o0) / max(c1 - c0, 1)
 
 
-def run(seconds: float = 8.0, clients: int = 5, rate_hz: float = 50.0,
-        points: int = 50) -> dict:
+def run(seconds: float = 8.0, clients: int = 5, rate_hz: float = 50.0) -> dict:
     """Idle / clients / idle / clients / idle windows of ``seconds`` (module docstring)."""
+    points, channels = page_subscription()
     ctx = multiprocessing.get_context("spawn")
     with tempfile.TemporaryDirectory(prefix="rigd-web-bench-") as d:
         tmp = Path(d)
@@ -124,7 +135,7 @@ def run(seconds: float = 8.0, clients: int = 5, rate_hz: float = 50.0,
         try:
             web, base = _start_web(tmp, sock)
             url = (f"{base}/api/stream?rate_hz={rate_hz:g}&points={points}"
-                   f"&channels={','.join(CHANNELS)}")
+                   f"&channels={','.join(channels)}")
             idle, busy = [], []
             results = []
             for k in range(5):
@@ -185,7 +196,7 @@ def run(seconds: float = 8.0, clients: int = 5, rate_hz: float = 50.0,
         "web_stream_bytes_per_event": round(sum(r["bytes"] for r in results) / max(n, 1)),
         "web_stream_client_errors": [r["error"] for r in results if r["error"]],
         "web_clients": clients, "web_rate_hz": rate_hz, "web_points": points,
-        "web_channels": len(CHANNELS), "web_seconds": seconds,
+        "web_channels": channels, "web_seconds": seconds,
         "web_daemon_alive_after": alive, "web_daemon_exit_code": code,
     }
 
