@@ -22,7 +22,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runout", metavar="RUNOUT", help="run-out record for the run-out filter")
     p.add_argument("--part", choices=["all", "validation", "estimation"], default="all",
                    help="which part of the record (the model file's split) to compare")
-    p.add_argument("--report", metavar="DIR", help="write an HTML report into DIR")
+    p.add_argument("--report", metavar="DIR", help="write the report into DIR: index.html "
+                   "(interactive, self-contained, opens offline) and the PNG figures")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     add_range_argument(p)
     add_plain_csv_arguments(p)

@@ -16,7 +16,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("data", metavar="DATA", help="record (HDF5 recording or CSV)")
     p.add_argument("--runout", metavar="RUNOUT_DATA",
                    help="run-out record at the same operating point (run-out filter, §4.4)")
-    p.add_argument("--report", metavar="DIR", help="write the report page into DIR")
+    p.add_argument("--report", metavar="DIR", help="write the report into DIR: index.html "
+                   "(interactive: switch each tested effect on/off; self-contained, opens "
+                   "offline) and the PNG figures")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--submodel", choices=["actuator", "bearing", "generic"], action="append",
                    help="sub-model(s) to examine (default: all the record supports)")

@@ -12,7 +12,8 @@ the page computes nothing, so it needs no server. Per sub-model the page data ho
 * ``effects``: every tested effect with its finding (significant, score, evidence) — the
   page's toggles; checking a set of effects shows the variant with exactly that set (or says
   that ``diagnose`` did not fit that combination);
-* ``cannot_reveal``, ``unexplained``, ``tests``: as in ``rigd diagnose --json``.
+* ``cannot_reveal``, ``unexplained``, ``tests``: as in ``rigd diagnose --json``; ``marks``:
+  where the unexplained structure lies (a frequency band, a stretch of time) on the plots.
 """
 
 from __future__ import annotations
@@ -73,6 +74,32 @@ def _effects(sd, vs: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
+def unexplained_marks(unexplained: list[dict], window: tuple[int, int], fs: float,
+                      n: int) -> list[dict[str, Any]]:
+    """Where the unexplained structure lies, as marks on the page's plots.
+
+    A frequency band (``where.band_hz``, Hz) becomes a ``band`` on the residual spectrum; a
+    stretch of samples (``where.samples``, counted from the record's start) a ``time`` span
+    on the time plot, in the page's time base (s from the first analysed sample, so minus
+    ``window[0]``), clipped to the ``n`` analysed samples.
+    """
+    marks = []
+    for u in unexplained:
+        where = u.get("where") or {}
+        short = str(u.get("text", "")).split(":")[0]
+        band = where.get("band_hz")
+        if band and len(band) == 2 and 0 <= band[0] < band[1]:
+            marks.append({"kind": "band", "lo": float(band[0]),
+                          "hi": min(float(band[1]), fs / 2), "text": short})
+        smp = where.get("samples")
+        if smp and len(smp) == 2:
+            a = min(max(int(smp[0]) - window[0], 0), n - 1)
+            b = min(max(int(smp[1]) - window[0], 0), n - 1)
+            if b > a:
+                marks.append({"kind": "time", "t0": a / fs, "t1": b / fs, "text": short})
+    return marks
+
+
 def part_data(sd) -> dict[str, Any]:
     """Page data of one :class:`~rigd.diagnose.engine.SubDiagnosis`."""
     ctx = sd.ctx
@@ -99,6 +126,7 @@ def part_data(sd) -> dict[str, Any]:
         "effects": _effects(sd, vs),
         "cannot_reveal": [c.to_json(False) for c in sd.cannot_reveal],
         "unexplained": list(sd.unexplained),
+        "marks": unexplained_marks(sd.unexplained, sd.window, ctx.fs, ctx.n),
         "tests": sd.tests,
         "order": sd.order,
     }

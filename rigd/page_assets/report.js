@@ -65,6 +65,12 @@
     });
     if (P.val_s) layout.shapes.push({type: "rect", xref: "x", yref: "paper", x0: P.val_s[0],
       x1: P.val_s[1], y0: 0, y1: 1, fillcolor: "#1f77b4", opacity: 0.06, line: {width: 0}});
+    (P.marks || []).filter(function (m) { return m.kind === "time"; }).forEach(function (m) {
+      layout.shapes.push({type: "rect", xref: "x", yref: "paper", x0: m.t0, x1: m.t1, y0: 0,
+        y1: 1, fillcolor: "#ff7f0e", opacity: 0.12, line: {width: 0}});
+      traces.push({x: [m.t0], y: [null], name: "unexplained: " + m.text, mode: "markers",
+        marker: {color: "#ff7f0e", symbol: "square", size: 10}, yaxis: "y"});
+    });
     return {data: traces, layout: layout};
   }
 
@@ -79,11 +85,19 @@
     var lo = Infinity, hi = 0;
     data.forEach(function (d) { d.y.forEach(function (v) {
       if (v > 0) { lo = Math.min(lo, v); hi = Math.max(hi, v); } }); });
+    if (!(hi > 0 && isFinite(lo))) { lo = 1e-12; hi = 1; }    // all zero: any span
     P.resonances_hz.forEach(function (f, i) {
       data.push({x: [f, f], y: [lo, hi], mode: "lines+text", text: ["", g(f) + " Hz"],
         textposition: i % 2 ? "bottom center" : "top center", textfont: {size: 10},
         name: "model resonances", legendgroup: "res", showlegend: i === 0,
         line: {dash: "dash", width: 1, color: "#444"}, hoverinfo: "x"});
+    });
+    // bands where unexplained structure lies, as filled traces (data coordinates)
+    (P.marks || []).filter(function (m) { return m.kind === "band"; }).forEach(function (m, i) {
+      data.push({x: [m.lo, m.hi, m.hi, m.lo, m.lo], y: [lo, lo, hi, hi, lo], fill: "toself",
+        mode: "lines", line: {width: 0}, fillcolor: "rgba(255,127,14,0.15)",
+        name: "unexplained band", legendgroup: "unexpl", showlegend: i === 0,
+        hoverinfo: "text", text: m.text});
     });
     return {data: data, layout: {margin: {l: 60, r: 10, t: 24, b: 40},
       xaxis: {type: "log", title: {text: "frequency (Hz)"}},

@@ -101,6 +101,9 @@ def test_diagnose_report_from_file_url_toggles_effects(browser, screenshot, diag
     names = _trace_names(browser, "time-generic")
     assert any(n.startswith("+ cubic_stiffness") for n in names)
     assert "residual y_mm, base model" in names        # the error before, beside after
+    # an unexplained frequency band diagnose reported is shaded on the residual spectrum
+    banded = any("band_hz" in u["where"] for u in js["unexplained"])
+    assert ("unexplained band" in _trace_names(browser, "spectrum-generic")) == banded
     browser.driver.set_window_size(1400, 1700)
     screenshot("diagnose_report")
     # switch cubic_stiffness off: the base model, its fit, and its curve on the plot

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from rigd import api
+from rigd.diagnose.diagnose_page import unexplained_marks
 from rigd.diagnose.page_data import model_view, resonances_below_nyquist
 from rigd.htmlpage import json_safe, minmax_decimate, page_json
 
@@ -97,6 +98,11 @@ def test_diagnose_page_views_and_files(diagnosed):
     for v in part["variants"]:
         assert len(v["traces"][0]["x"]) <= 2000 and len(v["spectrum"]["f"]) > 10
         assert v["angle"] is None            # no shaft angle in this record
+    # every unexplained frequency band diagnose reported is marked on the spectrum
+    bands = [u["where"]["band_hz"] for u in res.summary()["unexplained"]
+             if "band_hz" in u["where"]]
+    got = [v for m in part["marks"] if m["kind"] == "band" for v in (m["lo"], m["hi"])]
+    assert got == pytest.approx([v for lo, hi in bands for v in (lo, min(hi, fs / 2))])
     # the PNGs stay (papers) beside their own page; the interactive page names them
     data = embedded(out / "index.html")
     assert data["figures"] and all((out / f).is_file() for f in data["figures"])
@@ -233,3 +239,22 @@ def test_diagnose_page_without_refits_has_only_the_base_model(tmp_path):
     assert not any(e["toggle"] for e in part["effects"])
     assert part["steps"][0]["fit_percent"] == pytest.approx(
         res.summary()["fit_percent"], abs=1e-3)
+
+
+def test_unexplained_places_become_marks_in_the_page_time_base():
+    unexpl = [{"where": {"residual": "structured"}, "text": "structured: where ..."},
+              {"where": {"frequency_hz": 122.0, "band_hz": [121.8, 145.4]},
+               "text": "11 % of the error energy lies in 121.78–145.4 Hz: a mode"},
+              {"where": {"band_hz": [200.0, 400.0]}, "text": "up to above Nyquist: x"},
+              {"where": {"samples": [5000, 6000], "time_s": [5.0, 6.0]},
+               "text": "51 % of the error energy lies in samples 5000..6000: a change"},
+              {"where": {"samples": [100, 900]}, "text": "before the window: y"}]
+    # the analysed window starts at sample 4000 of the record, 3000 samples at 1 kHz
+    marks = unexplained_marks(unexpl, (4000, 7000), 1000.0, 3000)
+    assert marks == [
+        {"kind": "band", "lo": 121.8, "hi": 145.4,
+         "text": "11 % of the error energy lies in 121.78–145.4 Hz"},
+        {"kind": "band", "lo": 200.0, "hi": 400.0, "text": "up to above Nyquist"},
+        {"kind": "time", "t0": 1.0, "t1": 2.0,
+         "text": "51 % of the error energy lies in samples 5000..6000"}]
+    assert unexplained_marks(unexpl[2:3], (0, 700), 700.0, 700)[0]["hi"] == 350.0
