@@ -1,5 +1,6 @@
 """Metamorphic tests: the same samples in other units or labelled with another rate must give
-the same diagnosis (findings, significance, order) and the same fits (±0.1 point).
+the same diagnosis (findings, significance, order, what is left unexplained and where) and the
+same fits (±0.1 point).
 
 Invariance by construction (docs/diagnose.md, "Invariance"): every bound, grid and threshold
 of the effects and the engine is relative to the record, and the discretisation is balanced
@@ -51,8 +52,20 @@ def _variant(rec, su=1.0, sy=1.0, sr=1.0):
                   "<variant>")
 
 
-def _digest(d):
-    """(base fit, [(added, fit)], modes, {significant findings}) of a Diagnosis' JSON."""
+def _unexplained(items, sr):
+    """What is left unexplained, unit- and rate-free: (kind of place, share, frequency / sr)."""
+    out = []
+    for u in items:
+        w = u.get("where", {})
+        f = w.get("frequency_hz")
+        out.append((tuple(sorted(w)), u.get("share", u.get("share_of_residual")),
+                    None if f is None else f / sr))
+    return sorted(out, key=lambda t: (t[0], -(t[1] or 0.0)))
+
+
+def _digest(d, sr=1.0):
+    """Base fit, [(added, fit)], modes, {significant findings}, unexplained of a Diagnosis
+    (``sr``: the rate factor the record was given, to compare frequencies)."""
     out = d.to_json()
     steps = out["steps"]
     if isinstance(steps, dict):  # several sub-models
@@ -61,7 +74,15 @@ def _digest(d):
     fp = fp if not isinstance(fp, dict) else float(np.mean(list(fp.values())))
     modes = out.get("order", {}).get("generic", {}).get("modes")
     sig = {(f["effect"], f.get("submodel")) for f in out["findings"] if f["significant"]}
-    return fp, [(s["added"], s["fit_percent"]) for s in steps], modes, sig
+    return (fp, [(s["added"], s["fit_percent"]) for s in steps], modes, sig,
+            _unexplained(out["unexplained"], sr))
+
+
+def _sub_digest(sd, sr=1.0):
+    """The same digest of one sub-model's diagnosis (rigd.diagnose.engine.diagnose_data)."""
+    return (sd.fit_percent, [(s.added, s.fit_percent) for s in sd.steps], None,
+            {(f.effect, sd.submodel) for f in sd.findings if f.significant},
+            _unexplained(sd.unexplained, sr))
 
 
 def _same(a, b):
@@ -70,6 +91,11 @@ def _same(a, b):
     assert a[3] == b[3], (a, b)
     assert abs(a[0] - b[0]) <= 0.1, (a, b)
     assert all(abs(x - y) <= 0.1 for (_, x), (_, y) in zip(a[1], b[1])), (a, b)
+    # the unexplained structure: the same kinds of place, shares, frequencies (per rate)
+    assert [k for k, _, _ in a[4]] == [k for k, _, _ in b[4]], (a[4], b[4])
+    for (_, sa, fa), (_, sb, fb) in zip(a[4], b[4]):
+        assert sa is None or abs(sa - sb) <= 0.02, (a[4], b[4])
+        assert fa is None or fb == pytest.approx(fa, rel=0.01), (a[4], b[4])
 
 
 # --------------------------------------------------------------------------------------
@@ -88,7 +114,7 @@ def duffing():
     pytest.param(*MIXED[0], marks=CREEP_PENDING)])
 def test_duffing_rescaled_same_diagnosis(duffing, su, sy, sr):
     rec, ref = duffing
-    _same(ref, _digest(diagnose_record(_variant(rec, su, sy, sr))))
+    _same(ref, _digest(diagnose_record(_variant(rec, su, sy, sr)), sr))
 
 
 # --------------------------------------------------------------------------------------
@@ -107,7 +133,7 @@ def silverbox():
 @pytest.mark.parametrize("su,sy,sr", [CHANNELS[2], *RATES])
 def test_silverbox_rescaled_same_diagnosis(silverbox, su, sy, sr):
     rec, ref = silverbox
-    _same(ref, _digest(diagnose_record(_variant(rec, su, sy, sr))))
+    _same(ref, _digest(diagnose_record(_variant(rec, su, sy, sr)), sr))
 
 
 # --------------------------------------------------------------------------------------
@@ -120,11 +146,9 @@ def _rotor_variant(d, su=1.0, sy=1.0, sr=1.0):
     return dataclasses.replace(d, u=d.u * su, y=d.y * sy, fs=d.fs * sr, meta=meta)
 
 
-def _rotor_diagnosis(d):
+def _rotor_diagnosis(d, sr=1.0):
     sd = diagnose_data(d, "bearing", structure=structure_for("bearing", d, hold="zoh"))
-    steps = [(s.added, s.fit_percent) for s in sd.steps]
-    sig = {(f.effect, "bearing") for f in sd.findings if f.significant}
-    return (sd.fit_percent, steps, None, sig), sd
+    return _sub_digest(sd, sr), sd
 
 
 @pytest.fixture(scope="module")
@@ -138,7 +162,7 @@ def rotor():
 @pytest.mark.parametrize("su,sy,sr", [CHANNELS[0], CHANNELS[2], *RATES])
 def test_rotor_rescaled_same_diagnosis_physical_parameters_scale(rotor, su, sy, sr):
     d, ref, sd_ref = rotor
-    got, sd = _rotor_diagnosis(_rotor_variant(d, su, sy, sr))
+    got, sd = _rotor_diagnosis(_rotor_variant(d, su, sy, sr), sr)
     _same(ref, got)
     # what changes is only the units of the physical parameters: natural frequencies × sr,
     # the run-out's frequency (order × Ω) × sr, the stiffness K × sr² (mass-normalised)
@@ -160,8 +184,7 @@ def test_rotor_rescaled_same_diagnosis_physical_parameters_scale(rotor, su, sy, 
 def valve():
     d = plant.actuator(["hysteresis"], seed=0, seconds=1.6)
     sd = diagnose_data(d, "actuator", structure=structure_for("actuator", d, hold="zoh"))
-    ref = (sd.fit_percent, [(s.added, s.fit_percent) for s in sd.steps], None,
-           {(f.effect, "actuator") for f in sd.findings if f.significant})
+    ref = _sub_digest(sd)
     assert [s for s, _ in ref[1]] == [None, "hysteresis"], ref
     return d, ref
 
@@ -173,9 +196,7 @@ def test_valve_hysteresis_rescaled_same_diagnosis(valve, su, sy, sr):
     d, ref = valve
     v = dataclasses.replace(d, u=d.u * su, y=d.y * sy, fs=d.fs * sr)
     sd = diagnose_data(v, "actuator", structure=structure_for("actuator", v, hold="zoh"))
-    got = (sd.fit_percent, [(s.added, s.fit_percent) for s in sd.steps], None,
-           {(f.effect, "actuator") for f in sd.findings if f.significant})
-    _same(ref, got)
+    _same(ref, _sub_digest(sd, sr))
 
 
 # --------------------------------------------------------------------------------------
@@ -190,12 +211,10 @@ def _decoupled():
                                ["u_x", "u_y"], ["e_x", "e_y"], hold="zoh")
 
 
-def _effect_digest(d, effect):
+def _effect_digest(d, effect, sr=1.0):
     st = _decoupled() if effect == "cross_coupling" else structure_for("bearing", d,
                                                                          hold="zoh")
-    sd = diagnose_data(d, "bearing", structure=st)
-    return (sd.fit_percent, [(s.added, s.fit_percent) for s in sd.steps], None,
-            {(f.effect, "bearing") for f in sd.findings if f.significant})
+    return _sub_digest(diagnose_data(d, "bearing", structure=st), sr)
 
 
 @pytest.mark.parametrize("effect,su,sy,sr", [("delay", 1e3, 1e-6, 1e-3),
@@ -206,4 +225,4 @@ def test_hidden_effect_rescaled_same_diagnosis(effect, su, sy, sr):
     d = plant.bearing([effect], seed=0, seconds=1.2)
     ref = _effect_digest(d, effect)
     assert [s for s, _ in ref[1]] == [None, effect], ref
-    _same(ref, _effect_digest(_rotor_variant(d, su, sy, sr), effect))
+    _same(ref, _effect_digest(_rotor_variant(d, su, sy, sr), effect, sr))
