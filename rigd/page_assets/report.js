@@ -158,7 +158,8 @@
         cb.addEventListener("change", function () { self.onToggle(); });
         self.boxes.push(cb);
         boxes.appendChild(el("label", {cls: e.significant ? "sig" : ""}, [cb,
-          document.createTextNode(" " + e.effect + (e.significant ? " (significant, step " +
+          document.createTextNode(" " + e.effect + (e.site ? " (" + e.site + ")" : "") +
+            (e.significant ? " (significant, step " +
             e.step + ")" : ""))]));
       });
       if (!this.boxes.length) boxes.appendChild(el("span", {text: "none: no tested effect " +
