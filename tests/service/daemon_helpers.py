@@ -39,19 +39,16 @@ def make_config(tmp_path, **sections):
     return path
 
 
-def _limit_fsize(nbytes):
-    """In the child: files may not grow beyond ``nbytes`` (a full disk, as the writer sees it:
-    write() fails with EFBIG instead of ENOSPC). SIGXFSZ is ignored so the write fails instead
-    of the kernel killing the process; the ignore survives exec."""
-    import resource
+def _ignore_sigxfsz():
+    """In the child: a write beyond RLIMIT_FSIZE fails (EFBIG) instead of the kernel killing
+    the process with SIGXFSZ; the ignore survives exec."""
     import signal
 
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-    resource.setrlimit(resource.RLIMIT_FSIZE, (nbytes, nbytes))
 
 
 class Daemon:
-    def __init__(self, tmp_path, config, *extra, watchdog_usec=400000, fsize_limit=None):
+    def __init__(self, tmp_path, config, *extra, watchdog_usec=400000, fsize_limit=False):
         self.tmp = Path(tmp_path)
         self.sock = str(self.tmp / "rigd.sock")
         self.notify_path = str(self.tmp / "notify.sock")
@@ -70,7 +67,16 @@ class Daemon:
             [RIGD, "run", "--config", str(config), "--socket", self.sock,
              "--runs-dir", str(self.tmp / "runs"), *extra],
             stdout=subprocess.PIPE, stderr=self.stderr, text=True, env=env, cwd=str(self.tmp),
-            preexec_fn=None if fsize_limit is None else (lambda: _limit_fsize(fsize_limit)))
+            preexec_fn=_ignore_sigxfsz if fsize_limit else None)
+
+    def limit_fsize(self, nbytes):
+        """From now on no file of the daemon may grow beyond ``nbytes`` (RLIMIT_FSIZE set on
+        the running process: a full disk, as the writer sees it — write() fails with EFBIG).
+        Set after start-up, not in the child before exec: the recorder's ring is a memfd of
+        about 80 MB, whose ftruncate the limit would refuse. Needs ``fsize_limit=True``."""
+        import resource
+
+        resource.prlimit(self.proc.pid, resource.RLIMIT_FSIZE, (nbytes, nbytes))
 
     def _collect(self):
         """Read NOTIFY_SOCKET all the time, as systemd does."""

@@ -70,21 +70,26 @@ def test_sigterm_during_experiment(tmp_path):
 
 @pytest.fixture(scope="module")
 def disk_full(tmp_path_factory):
-    """RLIMIT_FSIZE of 3 MB on the daemon process: the recording file cannot grow past it
-    (about 2.3 s of frames). A tiny tmpfs or a full loopback filesystem needs root, which the
-    test host does not give; the writer sees the same thing, a failing write() (EFBIG)."""
+    """RLIMIT_FSIZE on the running daemon process, 3 MB above the recording's size at READY:
+    the recording file cannot grow past it (about 2.3 s more frames). A tiny tmpfs or a full
+    loopback filesystem needs root, which the test host does not give; the writer sees the
+    same thing, a failing write() (EFBIG). The limit is set after start-up (prlimit): set
+    before exec it also refused the ftruncate of the recorder's shared-memory ring."""
     tmp_path = tmp_path_factory.mktemp("diskfull")
     cfg = make_config(tmp_path, clock={"spin_us": 0.0}, recorder={"flush_interval_s": 0.1})
     rec = tmp_path / "rec.h5"
     d = Daemon(tmp_path, cfg, "--record", str(rec), "--controller",
                str(controller_file(tmp_path)), "--enable-controller",
-               fsize_limit=3 * 1024 * 1024)
+               fsize_limit=True)
     seen = {}
     try:
         d.wait_notify("READY=1")
+        seen["limit"] = (rec.stat().st_size if rec.exists() else 0) + 3 * 1024 * 1024
+        d.limit_fsize(seen["limit"])
         seen["faulted"] = wait_for(lambda: d.ctl_json("status")["fault"]["code"] != 0, PROCESS_S)
         seen["st"] = d.ctl_json("status")
-        time.sleep(0.3)
+        seq = seen["st"]["seq"]          # the loop keeps cycling: waited for, not slept
+        seen["cycling"] = wait_for(lambda: d.ctl_json("status")["seq"] > seq, PROCESS_S)
         seen["st2"] = d.ctl_json("status")
         seen["human"] = d.ctl("status").stdout
         seen["logged"] = wait_for(lambda: "recording failed" in d.log(), PROCESS_S)
@@ -100,7 +105,7 @@ def test_disk_full_fault_latched_loop_safe_daemon_alive(disk_full):
     assert s["faulted"], s["log"][-2000:]
     assert s["st"]["fault"]["code"] == FC.RECORDER_OVERFLOW, s["st"]["fault"]
     # the daemon kept answering, the loop kept cycling, in the safe state (r = 0, K∞ off)
-    assert s["st2"]["seq"] > s["st"]["seq"]
+    assert s["cycling"] and s["st2"]["seq"] > s["st"]["seq"]
     assert s["st2"]["last_frame"]["r_x"] == 0.0 and s["st2"]["last_frame"]["r_y"] == 0.0
     assert s["logged"] and s["log"].count('"event": "fault latched"') == 1  # logged once
     # K∞ was enabled: status and `rigd ctl status` say it is off now, tripped by the fault
@@ -109,7 +114,7 @@ def test_disk_full_fault_latched_loop_safe_daemon_alive(disk_full):
     assert first[0].startswith("state: running") and "FAULT recorder_overflow" in first[0]
     assert first[1] == ("K∞: OFF: tripped by the fault (it was enabled; after a reset enable "
                         "it again)"), first
-    assert s["rec"].stat().st_size <= 3 * 1024 * 1024
+    assert s["rec"].stat().st_size <= s["limit"]
     assert "rigd run: recording " in s["log"]  # rigd run says so in one line on the way out
 
 
