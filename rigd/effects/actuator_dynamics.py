@@ -42,13 +42,16 @@ class ActuatorDynamics(Effect):
         tau = taus[j] if taus.size else 0.0
         fc = 1 / (2 * np.pi * tau) if tau > 0 else float("inf")
         ev["corner_hz"] = float(fc) if np.isfinite(fc) else None
-        corner = (f"corner {N.freq(fc, ctx.fs)}" if tau > 0 else "no lag found")
         what = ("the valve dynamics are missing (is the model fed with references r instead "
                 "of measured valve positions u?)" if N.is_rotor(ctx) else
                 "dynamics between the recorded input and the force are missing (an actuator "
                 "or sensor lag)")
-        return (f"the response lags the input like a low-pass of about "
-                f"{N.freqs([1000 * tau])[0]} ms ({corner}) on {ctx.label(j, 'in')}: {what}; "
+        if not tau > 0:  # the derivative's component leads: no lag to report
+            return (f"no lag of the response behind {ctx.label(j, 'in')} found (along the "
+                    f"model response to the input derivative the residual leads, not lags); "
+                    f"it explains {N.share(sig.score)} of the residual", ev)
+        return (f"the response lags the input like a low-pass of about {N.duration(tau)} "
+                f"(corner {N.freq(fc, ctx.fs)}) on {ctx.label(j, 'in')}: {what}; "
                 f"the residual follows the model response to the input derivative and "
                 f"explains {N.share(sig.score)} of it", ev)
 

@@ -71,11 +71,11 @@ class Delay(Effect):
         ms = 1000 * d / ctx.fs
         ev = {"delay_samples": float(d), "delay_ms": float(ms)}
         where = ("valve to film force" if N.is_rotor(ctx) else "input to response")
-        if d < 0:
-            return (f"the response leads the model by about {N.freqs([-ms])[0]} ms "
+        if not d > 0:  # a lead (or nothing): never printed as a negative delay
+            return (f"the response leads the model by about {N.duration(-d / ctx.fs)} "
                     f"({N.freqs([-d])[0]} samples at {ctx.fs:g} Hz): not a delay (a negative "
                     f"lag); it explains {N.share(sig.score)} of the residual", ev)
-        return (f"the response lags the model by about {N.freqs([ms])[0]} ms "
+        return (f"the response lags the model by about {N.duration(d / ctx.fs)} "
                 f"({N.freqs([d])[0]} samples at {ctx.fs:g} Hz): a transport delay ({where}) "
                 f"or sensor/computation latency; residual–input cross-correlation peaks at a "
                 f"positive lag; it explains {N.share(sig.score)} of the residual", ev)
@@ -84,7 +84,8 @@ class Delay(Effect):
         d = float(theta_e[0])
         if d >= MIN_DELAY_SAMPLES:
             return None
-        return (f"a lag of {d:.2f} samples ({1e6 * d / ctx.fs:.0f} µs) improves the fit, but a "
+        return (f"a lag of {max(d, 0.0):.2f} samples ({N.duration(max(d, 0.0) / ctx.fs)}) "
+                "improves the fit, but a "
                 f"delay shorter than {MIN_DELAY_SAMPLES:g} sample cannot be told from "
                 f"unmodelled fast dynamics at {ctx.fs:g} Hz: the model misses some "
                 "high-frequency phase lag (e.g. valve or sensor dynamics of higher order than "

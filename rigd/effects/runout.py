@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigd.effects import numbers as N
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
 from rigd.ident.iddata import get_phi
@@ -33,6 +34,10 @@ class Runout(Effect):
     def reveal(self, ctx: Context) -> CannotReveal | None:
         phi = ctx.phi
         if phi is None:
+            if not N.is_rotor(ctx):  # a record from another rig: no rotor words
+                return CannotReveal(self.name, "the record carries no rotation angle (no "
+                                    "'phi' column)", "if a part of the structure rotates, "
+                                    "record its angle as a 'phi' column", ctx.submodel)
             return CannotReveal(self.name, "the record carries no shaft angle phi",
                                 "record the encoder angle phi at shaft speed > 0",
                                 ctx.submodel)
