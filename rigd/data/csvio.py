@@ -11,8 +11,12 @@ Layout::
 
 The reader refuses a file that breaks the spec with one :class:`~rigd.errors.InputError`
 naming the file, the line and the problem (see :data:`PROBLEMS` for the list); it never
-returns a partial record. Rows are parsed in blocks with numpy, so a 131,072-row file reads in
-a fraction of a second and the temporary text of only one block is held at a time.
+returns a partial record. Cells that are not numbers (empty, text, NaN, Inf) are kept as NaN
+and refused when a command uses their column (:meth:`Record.check_finite`, one line naming
+the file, line, column and sample): an unused column with empty cells does not refuse the
+record. ``t`` is always in use (checked against ``fs``). Rows are parsed in blocks with
+numpy, so a 131,072-row file reads in a fraction of a second and the temporary text of only
+one block is held at a time.
 
 The writer formats every number with Python's shortest round-trip ``repr``: a file written by
 :func:`write_csv` / :func:`rigd.data.export.export_csv` reads back bit-for-bit.
@@ -30,7 +34,7 @@ from typing import Any, TextIO
 import numpy as np
 import yaml
 
-from rigd.data.record import Record
+from rigd.data.record import BAD_CELLS_KEPT, Record
 from rigd.errors import InputError
 
 #: Metadata keys with a meaning to the reader.
@@ -41,7 +45,8 @@ PROBLEMS = (
     "missing fs", "fs not a positive finite number", "bad metadata YAML", "metadata key twice",
     "missing omega_rpm / p_inj_bar for rotor data", "missing required column (t; phi when "
     "omega_rpm > 0)", "declared inputs/outputs not among the columns", "duplicate column",
-    "empty or quoted column name", "ragged row", "non-numeric cell", "NaN or Inf",
+    "empty or quoted column name", "ragged row",
+    "non-numeric, empty, NaN or Inf cell in a column in use (when used; t: always)",
     "non-monotonic t", "t inconsistent with fs", "'#' line after the header",
     "unsupported rig-data version", "inputs without outputs (or the reverse)",
 )
@@ -226,18 +231,15 @@ def check_meta(meta: dict[str, Any], where: dict[str, int], names: list[str], pa
     return fs, meta
 
 
-def _locate_bad_cell(block: list[tuple[int, str]], names: list[str], path: str) -> InputError:
-    for lineno, text in block:
-        for name, cell in zip(names, text.split(",")):
-            try:
-                float(cell)
-            except ValueError:
-                shown = cell.strip() or "(empty)"
-                return _err(path, lineno, f"non-numeric cell {shown!r} in column {name!r}")
-    return _err(path, block[0][0], "non-numeric cell in this block")  # pragma: no cover
+def _parse_block(block: list[tuple[int, str]], names: list[str], path: str,
+                 bad: dict[str, dict[int, str]] | None = None) -> np.ndarray:
+    """Parse rows into an array; ragged rows are refused.
 
-
-def _parse_block(block: list[tuple[int, str]], names: list[str], path: str) -> np.ndarray:
+    A cell that is not a number (empty, text) becomes NaN and its text is remembered in
+    ``bad`` (column -> {line: text}, at most :data:`rigd.data.record.BAD_CELLS_KEPT` per
+    column): only the columns a command uses are checked (:meth:`Record.check_finite`), so an
+    unused column with empty cells does not refuse the record.
+    """
     ncol = len(names)
     for lineno, text in block:
         if text.count(",") != ncol - 1:
@@ -248,16 +250,42 @@ def _parse_block(block: list[tuple[int, str]], names: list[str], path: str) -> n
             raise _err(path, lineno, f"ragged row: {got} cells, header has {ncol}{hint}")
     joined = ",".join(text for _, text in block).split(",")
     try:
-        arr = np.array(joined, dtype=np.float64)
+        return np.array(joined, dtype=np.float64).reshape(len(block), ncol)
     except ValueError:
-        raise _locate_bad_cell(block, names, path) from None
-    arr = arr.reshape(len(block), ncol)
-    finite = np.isfinite(arr)
-    if not finite.all():
-        r, c = np.argwhere(~finite)[0]
-        raise _err(path, block[r][0],
-                   f"{float(arr[r, c])!r} in column {names[c]!r}: NaN and Inf are not allowed")
+        pass
+    cells = np.array(joined, dtype=object).reshape(len(block), ncol)
+    arr = np.empty((len(block), ncol))
+    for c, name in enumerate(names):
+        try:
+            arr[:, c] = cells[:, c].astype(np.float64)
+            continue
+        except ValueError:
+            pass
+        kept = bad.setdefault(name, {}) if bad is not None else {}
+        for r, cell in enumerate(cells[:, c]):
+            try:
+                arr[r, c] = float(cell)
+            except ValueError:
+                arr[r, c] = np.nan
+                if len(kept) < BAD_CELLS_KEPT:
+                    kept[block[r][0]] = str(cell)
     return arr
+
+
+def check_t_column(columns: dict[str, np.ndarray], lines: np.ndarray, bad: dict[str, dict],
+                   path: str) -> None:
+    """The reader uses ``t`` (checked against ``fs``): it must be complete."""
+    t = columns.get("t")
+    if t is None:
+        return
+    nf = ~np.isfinite(t)
+    if nf.any():
+        i = int(np.argmax(nf))
+        text = bad.get("t", {}).get(int(lines[i]))
+        what = (f"non-numeric cell {text.strip()!r}" if text and text.strip() else
+                "empty cell" if text is not None else repr(float(t[i])))
+        raise _err(path, int(lines[i]), f"{what} in column 't' (the time column must be "
+                                        "complete: it is checked against fs)")
 
 
 def check_time(t: np.ndarray, fs: float, lines: np.ndarray, path: str) -> None:
@@ -301,28 +329,31 @@ def read_csv(path: str | Path) -> Record:
         blocks: list[np.ndarray] = []
         line_blocks: list[np.ndarray] = []
         block: list[tuple[int, str]] = []
+        bad: dict[str, dict[int, str]] = {}
         try:
             for item in rest:
                 block.append(item)
                 if len(block) >= BLOCK_ROWS:
-                    blocks.append(_parse_block(block, names, spath))
+                    blocks.append(_parse_block(block, names, spath, bad))
                     line_blocks.append(np.fromiter((ln for ln, _ in block), dtype=np.int64))
                     block = []
         except UnicodeDecodeError:
             raise _err(spath, None, "not a text file (cannot decode as UTF-8)") from None
         if block:
-            blocks.append(_parse_block(block, names, spath))
+            blocks.append(_parse_block(block, names, spath, bad))
             line_blocks.append(np.fromiter((ln for ln, _ in block), dtype=np.int64))
     if not blocks:
         raise _err(spath, hline, "header only: no data rows")
     data = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
     del blocks
     columns = {n: np.ascontiguousarray(data[:, i]) for i, n in enumerate(names)}
+    lines = np.concatenate(line_blocks)
     if "t" in columns:
-        check_time(columns["t"], fs, np.concatenate(line_blocks), spath)
+        check_t_column(columns, lines, bad, spath)
+        check_time(columns["t"], fs, lines, spath)
     meta.pop("fs", None)
     meta.pop("rig-data", None)
-    return Record(columns, fs, meta, spath)
+    return Record(columns, fs, meta, spath, lines, 0, bad)
 
 
 # --- writing ---------------------------------------------------------------------------------

@@ -77,6 +77,7 @@ def export_csv(src: str | Path, out: str | Path, *, columns: list[str] | None = 
     record = load_record(src)
     if columns:
         record = _select(record, columns)
+    record.check_finite(list(record.columns), "the export (choose --columns to leave it out)")
     return csvio.write_csv(out, record, block_rows=block_rows)
 
 
@@ -89,6 +90,7 @@ def convert_raw_csv(src: str | Path, out: str | Path, *, fs: float,
     src, out = Path(src), Path(out)
     _check_out(src, out)
     record = read_raw_csv(src, fs=fs, inputs=inputs, outputs=outputs, meta=meta)
+    record.check_finite(list(record.columns), "the conversion")
     return csvio.write_csv(out, record)
 
 
@@ -100,4 +102,4 @@ def _select(record, columns):
         raise InputError(f"no column(s) {', '.join(missing)} in the record", record.source)
     keep = (["t"] if "t" in record.columns and "t" not in columns else []) + list(columns)
     return Record({c: record.columns[c] for c in keep}, record.fs, dict(record.meta),
-                  record.source)
+                  record.source, record.lines, record.first_sample, record.bad_cells)

@@ -44,7 +44,8 @@ def read_raw_csv(path: str | Path, *, fs: float, inputs: list[str] | None = None
     Raises
     ------
     InputError
-        Bad cells, ragged rows, NaN/Inf, missing columns, bad ``fs``: file, line and problem.
+        Ragged rows, missing columns, bad ``fs``, a bad ``t`` cell: file, line and problem
+        (other bad cells are refused when their column is used: ``Record.check_finite``).
     """
     spath = str(path)
     meta = dict(meta or {})
@@ -92,6 +93,7 @@ def read_raw_csv(path: str | Path, *, fs: float, inputs: list[str] | None = None
         where = {k: None for k in meta}
         fs_, meta = csvio.check_meta(meta, where, names, spath, hline)
         blocks, line_blocks, block = [], [], []
+        bad: dict[str, dict[int, str]] = {}
 
         def flush():
             if trailing:
@@ -104,7 +106,7 @@ def read_raw_csv(path: str | Path, *, fs: float, inputs: list[str] | None = None
                     fixed.append((ln, tx.rstrip()[:-1]))
             else:
                 fixed = block
-            blocks.append(csvio._parse_block(fixed, names, spath))
+            blocks.append(csvio._parse_block(fixed, names, spath, bad))
             line_blocks.append(np.fromiter((ln for ln, _ in block), dtype=np.int64))
 
         for item in lines:
@@ -118,8 +120,10 @@ def read_raw_csv(path: str | Path, *, fs: float, inputs: list[str] | None = None
         raise InputError("header only: no data rows", f"{spath}:{hline}")
     data = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
     columns = {n: np.ascontiguousarray(data[:, i]) for i, n in enumerate(names)}
+    lines = np.concatenate(line_blocks)
     if "t" in columns:
-        csvio.check_time(columns["t"], fs_, np.concatenate(line_blocks), spath)
+        csvio.check_t_column(columns, lines, bad, spath)
+        csvio.check_time(columns["t"], fs_, lines, spath)
     meta.pop("fs", None)
     meta.setdefault("source_file", Path(spath).name)
-    return Record(columns, fs_, meta, spath)
+    return Record(columns, fs_, meta, spath, lines, 0, bad)

@@ -9,6 +9,8 @@ import numpy as np
 
 from rigd.errors import InputError
 
+#: Unparsable cells remembered per column (their text, for the message naming the first).
+BAD_CELLS_KEPT = 100
 #: Columns of a rotor record (interchange CSV names).
 ACTUATOR_INPUTS = ("r_x", "r_y")
 ACTUATOR_OUTPUTS = ("u_x", "u_y")
@@ -32,12 +34,23 @@ class Record:
         records), and anything else the file carried.
     source : str
         Where the record came from (a path), used in error messages.
+    lines : numpy.ndarray or None
+        The file line of each sample (CSV readers), for messages naming a bad cell.
+    first_sample : int
+        Index in the source of this record's sample 0 (``slice`` keeps it), for messages.
+    bad_cells : dict[str, dict[int, str]]
+        Cells that did not parse as numbers (read as NaN), column -> {file line: text}; at
+        most :data:`BAD_CELLS_KEPT` per column. Only the columns a command uses are checked
+        (:meth:`check_finite`), so an unused column with empty cells does not refuse a record.
     """
 
     columns: dict[str, np.ndarray]
     fs: float
     meta: dict[str, Any] = field(default_factory=dict)
     source: str = "<memory>"
+    lines: np.ndarray | None = None
+    first_sample: int = 0
+    bad_cells: dict[str, dict[int, str]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         lengths = {len(v) for v in self.columns.values()}
@@ -46,6 +59,8 @@ class Record:
         if not (np.isfinite(self.fs) and self.fs > 0):
             raise InputError(f"sample rate fs must be a positive number, got {self.fs!r}",
                              self.source)
+        if self.lines is not None and len(self.lines) != len(self):
+            self.lines = None  # columns replaced by a caller: no longer line by line
 
     # --- basic properties -------------------------------------------------------------
     def __len__(self) -> int:
@@ -104,6 +119,40 @@ class Record:
             raise InputError(f"record has no column {name!r} (has: {', '.join(self.columns)})",
                              self.source) from None
 
+    def check_finite(self, names: tuple[str, ...] | list[str], use: str = "") -> None:
+        """Refuse the record if a column in use holds an empty, non-numeric, NaN or Inf cell.
+
+        Parameters
+        ----------
+        names : list of str
+            The columns the caller uses (others are not looked at).
+        use : str
+            What uses them, for the message (e.g. ``"the bearing model"``).
+
+        Raises
+        ------
+        InputError
+            One line naming the file (and line, for CSV), the column and the sample.
+        """
+        for name in names:
+            col = self.col(name)
+            bad = ~np.isfinite(col)
+            if not bad.any():
+                continue
+            i = int(np.argmax(bad))
+            nbad = int(bad.sum())
+            line = int(self.lines[i]) if self.lines is not None else None
+            text = self.bad_cells.get(name, {}).get(line) if line is not None else None
+            if text is not None:
+                what = "empty cell" if not text.strip() else f"non-numeric cell {text.strip()!r}"
+            else:
+                what = "NaN" if np.isnan(col[i]) else repr(float(col[i]))
+            more = f" ({nbad - 1} more in this column)" if nbad > 1 else ""
+            by = f", used by {use}" if use else ""
+            where = (f"{self.source}:{line}" if line is not None else self.source)
+            raise InputError(f"{what} in column {name!r} at sample {self.first_sample + i}"
+                             f"{by}{more}; only the columns in use must be complete", where)
+
     def matrix(self, names: tuple[str, ...] | list[str]) -> np.ndarray:
         """Columns stacked as an (n_samples, len(names)) float64 array."""
         return np.column_stack([self.col(n) for n in names]).astype(float, copy=False)
@@ -112,10 +161,14 @@ class Record:
     def slice(self, start: int | None = None, stop: int | None = None) -> Record:
         """Samples ``start:stop`` as a new record (metadata copied)."""
         cols = {k: v[start:stop] for k, v in self.columns.items()}
-        return Record(cols, self.fs, dict(self.meta), self.source)
+        a = range(len(self))[start:stop].start if len(self) else 0
+        return Record(cols, self.fs, dict(self.meta), self.source,
+                      None if self.lines is None else self.lines[start:stop],
+                      self.first_sample + a, self.bad_cells)
 
     def with_columns(self, **cols: np.ndarray) -> Record:
         """A copy with some columns added or replaced."""
         new = dict(self.columns)
         new.update({k: np.asarray(v, dtype=float) for k, v in cols.items()})
-        return Record(new, self.fs, dict(self.meta), self.source)
+        return Record(new, self.fs, dict(self.meta), self.source, self.lines,
+                      self.first_sample, self.bad_cells)

@@ -162,18 +162,18 @@ def from_record(record: Record, submodel: str, min_samples: int = MIN_SAMPLES) -
         raise InputError(f"the {submodel} model needs column(s) {', '.join(missing)} "
                          f"(record has: {', '.join(record.columns)})", record.source)
     if record.n < min_samples:
-        raise InputError(f"record too short for identification: {record.n} samples, need at "
+        what = ("identification" if min_samples == MIN_SAMPLES
+                else f"the {submodel} model (its initial states are estimated on the record)")
+        raise InputError(f"record too short for {what}: {record.n} samples, need at "
                          f"least {min_samples}", record.source)
-    aux = {}
-    if "phi" in record.columns:
+    record.check_finite(ins + outs, f"the {submodel} model")
+    aux = {}  # optional channels: carried only when complete
+    if "phi" in record.columns and np.all(np.isfinite(record.columns["phi"])):
         aux["phi"] = np.asarray(record.columns["phi"], float)
     if submodel == "actuator":  # the valve drives v_1..v_4 (where hysteresis/creep act)
         for c in DRIVE_CHANNELS:
             if c in record.columns and np.all(np.isfinite(record.columns[c])):
                 aux[c] = np.asarray(record.columns[c], float)
-    bad = [c for c in ins + outs if not np.all(np.isfinite(record.columns[c]))]
-    if bad:
-        raise InputError(f"non-finite values in column(s) {', '.join(bad)}", record.source)
     meta = {"source": record.source, "submodel": submodel,
             "omega_rpm": record.omega_rpm, "p_inj_bar": record.p_inj_bar}
     return IdData(record.matrix(ins), record.matrix(outs), record.fs, ins, outs, aux, meta)

@@ -87,6 +87,7 @@ class RunoutFilter:
         if missing:
             raise InputError(f"run-out record lacks column(s) {', '.join(missing)}",
                              runout.source)
+        runout.check_finite(["phi", *channels], "the run-out filter")
         return cls(runout.col("phi"), {c: runout.col(c) for c in channels}, bins)
 
 
@@ -119,6 +120,7 @@ def apply_prefilters(record: Record, channels_in: list[str], channels_out: list[
         if "phi" not in record.columns:
             raise InputError("data record has no 'phi' column, so the run-out filter cannot be "
                              "applied", record.source)
+        record.check_finite(["phi"], "the run-out filter")
         F = RunoutFilter.from_record(runout, shaft, opt.runout_bins)
         removed = {}
         for c in shaft:
@@ -139,4 +141,5 @@ def apply_prefilters(record: Record, channels_in: list[str], channels_out: list[
                 offs[c] = float(np.mean(cols[c][:m]))
                 cols[c] = cols[c] - offs[c]
         report["offsets"] = {"samples": m, "values": offs}
-    return Record(cols, record.fs, dict(record.meta), record.source), report
+    return Record(cols, record.fs, dict(record.meta), record.source, record.lines,
+                  record.first_sample, record.bad_cells), report

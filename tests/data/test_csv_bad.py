@@ -37,11 +37,10 @@ BAD = {
                     "missing required column 'phi'"),
     "duplicate_column": (HEAD + "t,e_x,e_x\n0,1,2\n", 5, "duplicate column 'e_x'"),
     "empty_column_name": (HEAD + "t,e_x,\n0,1,2\n", 5, "empty column name"),
-    "non_numeric": (HEAD + "t,e_x\n0,1\n0.0002,abc\n", 7, "non-numeric cell 'abc' in column "
-                    "'e_x'"),
-    "empty_cell": (HEAD + "t,e_x\n0,1\n0.0002,\n", 7, "non-numeric cell '(empty)'"),
-    "nan": (HEAD + "t,e_x\n0,1\n0.0002,nan\n", 7, "NaN and Inf"),
-    "inf": (HEAD + "t,e_x\n0,inf\n", 6, "NaN and Inf"),
+    "t_non_numeric": (HEAD + "t,e_x\n0,1\n0.0002x,1\n", 7, "non-numeric cell '0.0002x' in "
+                      "column 't'"),
+    "t_empty": (HEAD + "t,e_x\n0,1\n,1\n", 7, "empty cell in column 't'"),
+    "t_nan": (HEAD + "t,e_x\n0,1\nnan,1\n", 7, "nan in column 't'"),
     "ragged_short": (HEAD + "t,e_x,e_y\n0,1,2\n0.0002,1\n", 7, "ragged row: 2 cells, header "
                      "has 3"),
     "ragged_long": (HEAD + "t,e_x\n0,1\n0.0002,1,5\n", 7, "ragged row: 3 cells"),
@@ -90,6 +89,30 @@ def test_bad_file_refused(tmp_path, name):
     assert msg.startswith(expected_where), msg
 
 
+# a bad cell outside `t` is refused when its column is used (Record.check_finite):
+# name -> (file text, line named, words)
+BAD_CELLS = {
+    "non_numeric": (HEAD + "t,e_x\n0,1\n0.0002,abc\n", 7, "non-numeric cell 'abc' in column "
+                    "'e_x' at sample 1"),
+    "empty_cell": (HEAD + "t,e_x\n0,1\n0.0002,\n", 7, "empty cell in column 'e_x' at sample 1"),
+    "nan": (HEAD + "t,e_x\n0,1\n0.0002,nan\n", 7, "NaN in column 'e_x' at sample 1"),
+    "inf": (HEAD + "t,e_x\n0,inf\n", 6, "inf in column 'e_x' at sample 0"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD_CELLS))
+def test_bad_cell_refused_when_its_column_is_used(tmp_path, name):
+    text, line, words = BAD_CELLS[name]
+    p = _write(tmp_path, name, text)
+    rec = load_record(p)  # the reader keeps it (the column may be unused) ...
+    rec.check_finite(["t"])
+    with pytest.raises(InputError) as info:  # ... a command using e_x refuses it
+        rec.check_finite(["t", "e_x"], "the bearing model")
+    msg = str(info.value)
+    assert "\n" not in msg and words in msg and "used by the bearing model" in msg, msg
+    assert msg.startswith(f"{p}:{line}:"), msg
+
+
 def test_spec_example_with_comments_and_unknown_keys(tmp_path):
     text = ("# rig-data: 1\n# fs: 5000            # sample rate, Hz (required)\n"
             "# omega_rpm: 1200    # shaft speed\n# p_inj_bar: 4.0\n# kind: prbs          # k\n"
@@ -122,8 +145,12 @@ def test_large_file_in_several_blocks_locates_late_error(tmp_path):
     lines = p.read_text().splitlines(keepends=True)
     lines[5 + 135_000] = "27.0,oops\n"
     p.write_text("".join(lines))
-    with pytest.raises(InputError, match=rf":{5 + 135_000 + 1}: non-numeric cell 'oops'"):
-        load_record(p)
+    rec = load_record(p)
+    with pytest.raises(InputError, match=rf":{5 + 135_000 + 1}: non-numeric cell 'oops' in "
+                                         "column 'e_x' at sample 135000"):
+        rec.check_finite(["e_x"])
+    with pytest.raises(InputError, match=rf":{5 + 135_001}: non-numeric cell 'oops'"):
+        rec.slice(135_000).check_finite(["e_x"])  # a range keeps the file's line
 
 
 def test_silverbox_raw_refused_then_loaded_with_fs(tmp_path):
@@ -152,7 +179,7 @@ def test_raw_csv_bad_cases(tmp_path):
 
 @pytest.mark.parametrize("name", ["non_numeric", "missing_fs", "ragged_short"])
 def test_cli_refuses_bad_file_one_line_no_output(tmp_path, name):
-    text, line, words = BAD[name]
+    text, line, words = {**BAD, **BAD_CELLS}[name]  # export uses every column
     src = _write(tmp_path, name, text)
     out = tmp_path / "out.csv"
     proc = subprocess.run([sys.executable, "-c", RIGD, "export", str(src), "--csv",

@@ -93,5 +93,6 @@ def test_missing_columns_for_asked_model_refused():
 def test_non_finite_values_refused():
     rec = rotor_record(n=3000, seed=1)
     bad = rec.with_columns(e_x=np.where(np.arange(3000) == 5, np.nan, rec.col("e_x")))
-    with pytest.raises(InputError, match="non-finite"):
+    with pytest.raises(InputError, match="NaN in column 'e_x' at sample 5, used by the "
+                                         "bearing model"):
         from_record(bad, "bearing")
