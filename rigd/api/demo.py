@@ -145,6 +145,8 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
                         report=out / "design", plant_at=plant_at,
                         plant_at_label=rob_source).summary
     design["robustness_model"] = rob_source
+    for w in design.get("model_warnings", []):
+        _say(f"      WARNING model {w}")
     timings["design_s"] = time.perf_counter() - t0
 
     # 4.+5. deploy and impacts

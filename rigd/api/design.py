@@ -56,7 +56,7 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
            report: str | Path | None = None,
            plant_at: Callable[[float, float], Any] | None = None,
            plant_at_label: str = "", method: str | None = None,
-           order: int | None = None) -> Design:
+           order: int | None = None, allow_flagged: bool = False) -> Design:
     """Design K∞ on an identified model, check its robustness, write the controller file.
 
     Parameters
@@ -84,6 +84,11 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
         full-order controller).
     order : int, optional
         Controller states (overrides ``reduction.order``).
+    allow_flagged : bool
+        Design even on a model with an unstable mode (default: refused). The model's sanity
+        warnings (:func:`rigd.ident.sanity.file_warnings`: unstable modes, parameters at a
+        bound — the latter never refuse) are in the summary (``model_warnings``) and printed
+        by ``rigd design``.
 
     Returns
     -------
@@ -93,15 +98,24 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
     Raises
     ------
     InputError
-        Bad files, a model without both sub-models, an order that cannot hold the structure
+        Bad files, a model with an unstable mode (unless ``allow_flagged``), a model without
+        both sub-models, an order that cannot hold the structure
         or stabilise the design set, no stabilising reduced controller, or
         (without an operating range) a discrete closed loop unstable on the design model.
     """
     from rigd.design.workflow import design_from_model
+    from rigd.errors import InputError
     from rigd.ident.modelfile import sha256_file
+    from rigd.ident.sanity import file_warnings, is_unstable
 
     mf, model_path = _model_and_path(model)
     shown = str(model_path) if model_path is not None else mf.source
+    warnings = file_warnings(mf)
+    unstable = [w for w in warnings if is_unstable(w)]
+    if unstable and not allow_flagged:
+        more = f" (and {len(unstable) - 1} more)" if len(unstable) > 1 else ""
+        raise InputError(f"model flagged by identification: {unstable[0]}{more}; refit it, "
+                         "or design anyway with --allow-flagged", shown)
     if range_model:
         from rigd.ident.oprange import ReassembledBearing
 
@@ -116,6 +130,8 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
                                      model_hash=sha256_file(model_path) if model_path else None,
                                      report=report, plant_at=plant_at,
                                      plant_at_label=plant_at_label, method=method, order=order)
+    if warnings:
+        summary["model_warnings"] = warnings
     return Design(res.K_z, res.K_red, res.K_full, res, summary)
 
 

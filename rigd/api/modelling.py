@@ -26,7 +26,8 @@ def parse_effects(names: str | list[str] | None, what: str = "--add") -> list[st
     Raises
     ------
     InputError
-        An unknown name; the message lists the known ones (``rigd.effects.resolve``).
+        An unknown name (the message lists the known ones) or a name given twice
+        (``rigd.effects.resolve``).
     """
     if not names:
         return []
@@ -34,10 +35,7 @@ def parse_effects(names: str | list[str] | None, what: str = "--add") -> list[st
         names = [n.strip() for n in names.split(",") if n.strip()]
     from rigd.effects import resolve
 
-    resolve(names, what)
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:  # an effect's parameters would appear twice under the same names
-        raise InputError(f"effect(s) {', '.join(dup)} given more than once", what)
+    resolve(names, what)  # unknown names and names given twice
     return list(names)
 
 
@@ -140,7 +138,8 @@ class Identification:
 
 def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
              runout: Record | str | Path | None = None, add: str | list[str] | None = None,
-             method: str = "pem", init: Any = None, split: float = DEFAULT_SPLIT,
+             method: str = "pem", init: Any = None, split: float | None = None,
+             est: str | slice | None = None, val: str | slice | None = None,
              hold: str = "auto", offsets: bool = True, median: bool = True,
              runout_filter: bool = True, offset_samples: int = 2000,
              out: str | Path | None = None, order: str | int = "auto",
@@ -162,8 +161,12 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
         Prediction error (one-step predictor) or output error.
     init : Identification, ModelFile or path, optional
         Start from this model's parameters.
-    split : float
-        Fraction of samples used for estimation; the rest validates (default 2/3).
+    split : float, optional
+        Fraction of samples used for estimation; the rest validates (default 2/3); not with
+        ``est``/``val``.
+    est, val : "A:B" or slice, optional
+        Estimation and validation samples (both or neither, each at least 100 samples; as
+        :func:`diagnose`): fitted on ``est``, fit reported on both.
     hold : {"auto", "zoh", "foh"}
         Inputs between samples (``auto``: declared by the record, known for rigd
         recordings, else chosen from the data; docs/identify.md).
@@ -187,16 +190,19 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
     from rigd.ident.workflow import identify_record
 
     effects = parse_effects(add)
+    est_s, val_s = _est_val(est, val, split)
     if offset_samples <= 0:
         raise InputError("--offset-samples must be positive", "--offset-samples")
     options = PrefilterOptions(offsets=offsets, median=median, runout=runout_filter,
                                offset_samples=offset_samples)
     record = as_record(data, **load_kw)
+    _check_parts(est_s, val_s, record.n)
     ro = as_record(runout) if runout is not None else None
     model = identify_record(record, submodels, runout=ro, options=options, method=method,
                             init=_as_model(init) if init is not None else None,
-                            effects=resolve(effects), split=split,
-                            data_hash=_data_hash(data),
+                            effects=resolve(effects),
+                            split=DEFAULT_SPLIT if split is None else split,
+                            est=est_s, val=val_s, data_hash=_data_hash(data),
                             hold=hold, order=order)
     if out:
         model.save(out)
@@ -204,7 +210,7 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
 
 
 def identify_sweep(run_dir: str | Path, *, out: str | Path | None = None,
-                   jobs: int | None = None, method: str = "pem", split: float = DEFAULT_SPLIT,
+                   jobs: int | None = None, method: str = "pem", split: float | None = None,
                    offsets: bool = True, median: bool = True, runout_filter: bool = True,
                    offset_samples: int = 2000):
     """Identify every point of a sweep run directory; reassemble G_bear(Ω, P_I).
@@ -232,7 +238,8 @@ def identify_sweep(run_dir: str | Path, *, out: str | Path | None = None,
         raise InputError("--offset-samples must be positive", "--offset-samples")
     options = PrefilterOptions(offsets=offsets, median=median, runout=runout_filter,
                                offset_samples=offset_samples)
-    res = _sweep(run_dir, out=out, jobs=jobs, method=method, options=options, split=split)
+    res = _sweep(run_dir, out=out, jobs=jobs, method=method, options=options,
+                 split=DEFAULT_SPLIT if split is None else split)
     try:
         res.source = describe_source(read_manifest(run_dir))
     except InputError:
@@ -254,11 +261,16 @@ class ComparisonResult:
         Where the record came from.
     report : str or None
         HTML report directory, if one was written.
+    warnings : list of str
+        The model's sanity warnings (unstable mode, parameter at a bound;
+        :func:`rigd.ident.sanity.file_warnings`), each prefixed by its sub-model: the fit of
+        such a model is shown, not trusted.
     """
 
     comparisons: dict[str, Any]
     source: dict[str, Any] = field(default_factory=dict)
     report: str | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def fit_percent(self) -> float | dict[str, float]:
@@ -273,6 +285,7 @@ class ComparisonResult:
         res = summary(self.comparisons)
         if self.report:
             res["report"] = self.report
+        res["warnings"] = list(self.warnings)
         res["source"] = self.source
         return res
 
@@ -302,9 +315,13 @@ def compare(model: Any, data: Record | str | Path, *,
     Returns
     -------
     ComparisonResult
+        ``.warnings``: the model's sanity warnings (unstable mode, parameter at a bound),
+        printed by ``rigd compare`` and in its JSON: such a model is compared, never
+        silently (``rigd design`` refuses it).
     """
     from rigd.diagnose.compare_page import write_compare_page
     from rigd.ident.compare import compare_model
+    from rigd.ident.sanity import file_warnings
 
     if report:
         from rigd.htmlpage import report_dir
@@ -314,10 +331,11 @@ def compare(model: Any, data: Record | str | Path, *,
     record = as_record(data, **load_kw)
     ro = as_record(runout) if runout is not None else None
     comps = compare_model(mf, record, ro, part)
-    res = ComparisonResult(comps, describe_source(record.meta))
+    warnings = [w for w in file_warnings(mf) if w.split(":", 1)[0] in comps]
+    res = ComparisonResult(comps, describe_source(record.meta), warnings=warnings)
     if report:
         res.report = str(write_compare_page(comps, report, title or f"{mf.source} vs "
-                                            f"{record.source}"))
+                                            f"{record.source}", warnings=warnings))
     return res
 
 
@@ -364,6 +382,31 @@ def _sample_range(s: str | slice | None, what: str) -> slice | None:
                          f"--{what}") from None
 
 
+def _est_val(est: str | slice | None, val: str | slice | None,
+             split: float | None) -> tuple[slice | None, slice | None]:
+    """``--est``/``--val`` as slices, checked against each other and ``--split`` (the one
+    rule of ``identify`` and ``diagnose``)."""
+    est_s, val_s = _sample_range(est, "est"), _sample_range(val, "val")
+    if (est_s is None) != (val_s is None):
+        raise InputError("give both --est and --val, or neither", "--est/--val")
+    if split is not None and est_s is not None:
+        raise InputError("give --split or --est/--val, not both", "--split")
+    return est_s, val_s
+
+
+def _check_parts(est: slice | None, val: slice | None, n: int) -> None:
+    """Each of ``--est``/``--val`` selects at least 100 of the record's ``n`` samples."""
+    if est is None:
+        return
+    for s, what in ((est, "est"), (val, "val")):
+        if s.step not in (None, 1):
+            raise InputError(f"{what} range must be START:STOP without a step", f"--{what}")
+        a, b = s.indices(n)[:2]
+        if b - a < 100:
+            raise InputError(f"{what} range has {max(b - a, 0)} samples of {n}; need "
+                             "at least 100", f"--{what}")
+
+
 def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = None,
              submodels: list[str] | None = None, est: str | slice | None = None,
              val: str | slice | None = None, split: float | None = None,
@@ -404,14 +447,10 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
     """
     from rigd.diagnose.diagnosis import diagnose_record
 
-    est_s, val_s = _sample_range(est, "est"), _sample_range(val, "val")
-    if (est_s is None) != (val_s is None):
-        raise InputError("give both --est and --val, or neither", "--est/--val")
+    est_s, val_s = _est_val(est, val, split)
     names = None
     if effects:
         names = parse_effects(effects, "--effects")
-    if split is not None and est_s is not None:
-        raise InputError("give --split or --est/--val, not both", "--split")
     if steps < 1:
         raise InputError(f"--steps must be at least 1 (got {steps})", "--steps")
     if report:
@@ -420,12 +459,7 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
         report_dir(report)
     rec = as_record(data, **load_kw)
     ro = as_record(runout) if runout is not None else None
-    if est_s is not None:
-        for s, what in ((est_s, "est"), (val_s, "val")):
-            a, b = s.indices(rec.n)[:2]
-            if b - a < 100:
-                raise InputError(f"{what} range has {max(b - a, 0)} samples of {rec.n}; need "
-                                 "at least 100", f"--{what}")
+    _check_parts(est_s, val_s, rec.n)
     diag = diagnose_record(rec, runout=ro, submodels=submodels, est=est_s, val=val_s,
                            effects=names, refit=refit, hold=hold, split=split,
                            max_steps=steps, order=order)

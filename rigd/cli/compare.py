@@ -45,6 +45,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"[{name}] " + ", ".join(f"{o}: fit {f:.2f} %, residual rms "
                                           f"{c.residual[o]['rms']:.4g}"
                                           for o, f in zip(c.data.output_names, c.fit)))
+        for w in res.warnings:
+            print(f"WARNING {w}")
         if args.report:
             print(f"report: {out['report']}")
     return 0

@@ -35,19 +35,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "config/design.yaml); truncate: balanced truncation of the full order")
     p.add_argument("--order", type=int, metavar="N",
                    help="controller states (default reduction.order of the design YAML)")
+    p.add_argument("--allow-flagged", action="store_true",
+                   help="design even on a model with an unstable mode (refused by default; "
+                        "a parameter at a bound is only warned about)")
 
 
 def run(args: argparse.Namespace) -> int:
     from rigd.api.design import design
 
     s = design(args.model, args.weights, args.out, range_model=args.range_model,
-               report=args.report, method=args.method, order=args.order).summary
+               report=args.report, method=args.method, order=args.order,
+               allow_flagged=args.allow_flagged).summary
     if args.json:
         json.dump(s, sys.stdout, default=float)
         sys.stdout.write("\n")
     else:
         print(f"controller written: {s['controller']} ({s['method']}, order "
               f"{s['controller_order']}; full order {s['order_full']}, gamma = {s['gamma']:.3f})")
+        for w in s.get("model_warnings", []):
+            print(f"WARNING model {w}")
         if "robustness" in s:
             r = s["robustness"]
             print(f"robustness over {r['n_realizations']} operating points: stable="

@@ -2,9 +2,11 @@
 
     rigd identify DATA [--runout RUNOUT] [--model auto|actuator|bearing|both|generic]
                   [-o MODEL.yaml] [--json] [--add NAME[,NAME...]] [--init MODEL.yaml]
+                  [--split F | --est A:B --val A:B]
     rigd identify RUN_DIR [-o G_BEAR.yaml] [--jobs N]      # operating range of a sweep
 
-The first 2/3 of the record are used for estimation, the last 1/3 for validation (``--split``).
+The first 2/3 of the record are used for estimation, the last 1/3 for validation (``--split``;
+or any two sample ranges, ``--est A:B --val A:B``, as ``rigd diagnose``).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from rigd.cli._args import (
     load_options,
     print_source,
 )
+from rigd.errors import InputError
 
 HELP = "identify grey-box actuator/bearing models (PEM) from a record or a sweep run directory"
 
@@ -42,8 +45,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "parameters (default: automatic initial guess)")
     p.add_argument("--method", choices=["pem", "oe"], default="pem",
                    help="prediction error (one-step predictor, default) or output error")
-    p.add_argument("--split", type=float, default=2.0 / 3.0,
+    p.add_argument("--split", type=float, default=None,
                    help="fraction of samples for estimation; the rest validates (default 2/3)")
+    p.add_argument("--est", metavar="A:B", help="estimation samples (with --val; instead of "
+                   "--split, as rigd diagnose)")
+    p.add_argument("--val", metavar="A:B", help="validation samples (with --est)")
     p.add_argument("--hold", choices=["auto", "zoh", "foh"], default="auto",
                    help="inputs between samples: held (zoh) or linear (foh); auto: as the "
                    "record declares (metadata 'intersample'), known for rigd recordings, "
@@ -62,10 +68,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _print_human(model, out) -> None:
+    split = model.split or {}
+    if "fraction" in split or "validation" not in split:
+        part = f"last {100 * (1 - split.get('fraction', 2 / 3)):.0f} %"
+    else:
+        part = "samples {}:{}".format(*split["validation"])
     for name, sm in model.submodels.items():
         fp = sm.fit_percent
-        print(f"[{name}] {sm.method.upper()} fit (validation, last "
-              f"{100 * (1 - model.split.get('fraction', 2 / 3)):.0f} %): "
+        print(f"[{name}] {sm.method.upper()} fit (validation, {part}): "
               + ", ".join(f"{o} {v:.2f} %" for o, v in zip(fp["outputs"], fp["validation"]))
               + "   (estimation: " + ", ".join(f"{v:.2f} %" for v in fp["estimation"]) + ")",
               file=out)
@@ -113,6 +123,9 @@ def run(args: argparse.Namespace) -> int:
 
     if Path(args.data).is_dir():
         api.parse_effects(args.add)
+        if args.est or args.val:
+            raise InputError("--est/--val select samples of one record, not of a sweep run "
+                             "directory (use --split)", "--est/--val")
         res = api.identify_sweep(args.data, out=args.out, jobs=args.jobs, method=args.method,
                                  split=args.split, **_prefilter_kw(args))
         if args.json:
@@ -123,7 +136,8 @@ def run(args: argparse.Namespace) -> int:
             print(res.text())
         return 0
     idf = api.identify(args.data, args.model, runout=args.runout, add=args.add,
-                       method=args.method, init=args.init, split=args.split, hold=args.hold,
+                       method=args.method, init=args.init, split=args.split, est=args.est,
+                       val=args.val, hold=args.hold,
                        order=args.order, out=args.out, **_prefilter_kw(args), **load_options(args))
     if args.json:
         json.dump(idf.summary(), sys.stdout)

@@ -52,16 +52,21 @@ def part_data(c) -> dict[str, Any]:
     }
 
 
-def page_data(comps: dict[str, Any], title: str, figures: list[str]) -> dict[str, Any]:
-    """Page data of a comparison (sub-model name -> Comparison)."""
+def page_data(comps: dict[str, Any], title: str, figures: list[str],
+              warnings: list[str] | None = None) -> dict[str, Any]:
+    """Page data of a comparison (sub-model name -> Comparison); ``warnings``: the model's
+    sanity warnings (:func:`rigd.ident.sanity.file_warnings`), shown first."""
     return {"kind": "compare", "title": title,
-            "notes": ["Fit = 100·(1 − ‖y − ŷ‖/‖y − mean(y)‖) per output, ŷ simulated from "
-                      "the inputs only (initial state estimated on this record)."],
+            "notes": [f"WARNING {w}" for w in warnings or []]
+            + ["Fit = 100·(1 − ‖y − ŷ‖/‖y − mean(y)‖) per output, ŷ simulated from "
+               "the inputs only (initial state estimated on this record)."],
             "figures": figures, "parts": [part_data(c) for c in comps.values()]}
 
 
-def write_compare_page(comps: dict[str, Any], out: str | Path, title: str) -> Path:
-    """Write ``out/index.html`` (interactive) and ``out/figures.html`` with the PNGs.
+def write_compare_page(comps: dict[str, Any], out: str | Path, title: str,
+                       warnings: list[str] | None = None) -> Path:
+    """Write ``out/index.html`` (interactive) and ``out/figures.html`` with the PNGs;
+    ``warnings`` (the model's sanity warnings) come first on both.
 
     Returns the path of ``index.html``.
     """
@@ -69,6 +74,9 @@ def write_compare_page(comps: dict[str, Any], out: str | Path, title: str) -> Pa
     from rigd.ident.compare import add_figures
 
     rep = Report(out, title)
+    for w in warnings or []:
+        rep.text(f"WARNING {w}")
     add_figures(rep, comps)
     rep.write("figures.html")
-    return write_page(out, title, page_data(comps, title, [p.name for p in rep.figures]))
+    return write_page(out, title, page_data(comps, title, [p.name for p in rep.figures],
+                                            warnings))

@@ -44,13 +44,17 @@ def resolve(names: Iterable[str], where: str | None = None) -> list[Effect]:
     Raises
     ------
     InputError
-        Naming the unknown names (at ``where``) and listing the known ones.
+        Naming the unknown names (at ``where``) and listing the known ones, or a name given
+        twice.
     """
     names = list(names)
     unknown = [n for n in names if n not in REGISTRY]
     if unknown:
         raise InputError(f"unknown effect(s) {', '.join(unknown)} (known: "
                          f"{', '.join(sorted(REGISTRY))})", where)
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:  # its parameters would appear twice under the same names
+        raise InputError(f"effect(s) {', '.join(dup)} given more than once", where)
     return [REGISTRY[n] for n in names]
 
 

@@ -13,6 +13,7 @@ frequency response (Welch/H1) of the data.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,7 +27,7 @@ from rigd.ident.initial import frf
 from rigd.ident.modelfile import ModelFile
 from rigd.ident.pem import fit_percent
 from rigd.ident.prefilter import PrefilterOptions
-from rigd.ident.workflow import estimate_x0, prepare, residual_stats
+from rigd.ident.workflow import estimate_x0, prepare, residual_stats, samples_needed
 
 
 @dataclass
@@ -52,6 +53,23 @@ def _options_from(model: ModelFile, name: str) -> PrefilterOptions:
                             runout=bool(rep.get("runout", True)))
 
 
+def _part(model: ModelFile, part: str, n: int, where: str) -> tuple[int, int]:
+    """Samples (start, stop) of ``part`` (``estimation``/``validation``) of an ``n``-sample
+    record: the model file's split fraction, or its ``--est/--val`` samples (same length
+    of record only)."""
+    split = model.split or {}
+    if "fraction" in split or part not in split:
+        k = int(round(n * float(split.get("fraction", 2 / 3))))
+        return (k, n) if part == "validation" else (0, k)
+    n_id = (model.data or {}).get("n_samples")
+    if n_id is not None and int(n_id) != n:
+        raise InputError(f"--part {part}: the model was fitted with --est/--val sample ranges "
+                         f"of a {n_id}-sample record, this record has {n} samples (give "
+                         "--part all with --range START:STOP)", where)
+    a, b = (int(v) for v in split[part])
+    return a, b
+
+
 def compare_model(model: ModelFile, record: Record, runout: Record | None = None,
                   part: str = "all") -> dict[str, Comparison]:
     """Compare every sub-model of ``model`` that ``record`` has columns for.
@@ -69,17 +87,20 @@ def compare_model(model: ModelFile, record: Record, runout: Record | None = None
         if name == "generic":
             if not record.has(*ins, *outs):
                 continue
-            rec = record if record.is_generic else Record(record.columns, record.fs, {
-                **record.meta, "inputs": ins, "outputs": outs}, record.source)
+            rec = record if record.is_generic else dataclasses.replace(record, meta={
+                **record.meta, "inputs": ins, "outputs": outs})
         else:
             rec = record
             if not record.has(*ins, *outs):
                 continue
-        data, _ = prepare(rec, name, _options_from(model, name), runout)
+        need = samples_needed(sm.structure)
+        data, _ = prepare(rec, name, _options_from(model, name), runout, min_samples=need)
         if part != "all":
-            frac = float(model.split.get("fraction", 2 / 3))
-            k = int(round(data.n * frac))
-            data = data.slice(k, None) if part == "validation" else data.slice(0, k)
+            data = data.slice(*_part(model, part, data.n, record.source))
+            if data.n < need:
+                raise InputError(f"--part {part} has {data.n} samples; the {name} model "
+                                 f"needs at least {need} to be compared (its initial "
+                                 "states are estimated on the record)", record.source)
         theta = estimate_x0(sm.structure, sm.theta, data)
         yhat = np.asarray(sm.structure.simulate(theta, data))
         out[name] = Comparison(name, data, yhat, fit_percent(data.y, yhat),
@@ -120,11 +141,17 @@ def model_frequency_response(structure, theta, f_hz: np.ndarray) -> np.ndarray:
 
 
 def write_report(comps: dict[str, Comparison], out: str | Path, title: str = "Model vs "
-                 "measurement", zoom_s: float | None = None) -> Path:
-    """HTML report with Fig.-2-like plots and Bode over empirical FRF; returns index path."""
+                 "measurement", zoom_s: float | None = None,
+                 warnings: list[str] | None = None) -> Path:
+    """HTML report with Fig.-2-like plots and Bode over empirical FRF; returns index path.
+
+    ``warnings``: the model's sanity warnings, shown first.
+    """
     from rigd.htmlreport import Report
 
     rep = Report(out, title)
+    for w in warnings or []:
+        rep.text(f"WARNING {w}")
     add_figures(rep, comps, zoom_s)
     return rep.write()
 

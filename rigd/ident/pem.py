@@ -56,6 +56,9 @@ class FitResult:
     nfev, niter : int
     status : str
         Optimiser message.
+    info : dict
+        ``njev``, ``success``, ``n_samples``, ``skip`` and ``at_bound`` (bool per parameter:
+        the bound was active when the optimiser stopped).
     """
 
     structure: Structure
@@ -200,6 +203,9 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
         std[free] = np.nan
     ysim = structure.simulate(theta, data)
     fp = fit_percent(data.y[skip:], ysim[skip:])
+    at_bound = np.zeros(npar, bool)  # trust-region reflective: the active bounds at the end
+    at_bound[free] = np.asarray(getattr(sol, "active_mask", np.zeros(nfree)), float) != 0
     return FitResult(structure, theta, std, method, fp, float(sol.cost), int(sol.nfev),
                      str(sol.message), {"njev": int(sol.njev or 0), "success": bool(sol.success),
-                                        "n_samples": data.n, "skip": skip})
+                                        "n_samples": data.n, "skip": skip,
+                                        "at_bound": at_bound})

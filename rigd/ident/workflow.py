@@ -60,12 +60,18 @@ def resolve_submodels(record: Record, asked: str = "auto") -> list[str]:
 
 
 def prepare(record: Record, submodel: str, options: PrefilterOptions | None = None,
-            runout: Record | None = None) -> tuple[IdData, dict]:
-    """Prefiltered :class:`IdData` of one sub-model and the prefilter report."""
+            runout: Record | None = None,
+            min_samples: int | None = None) -> tuple[IdData, dict]:
+    """Prefiltered :class:`IdData` of one sub-model and the prefilter report.
+
+    ``min_samples``: fewest samples accepted (default: what identification needs,
+    :data:`rigd.ident.iddata.MIN_SAMPLES`; ``compare`` asks only what the model needs).
+    """
     ins, outs = channels_for(record, submodel)
-    from_record(record, submodel)  # column / length checks before filtering
+    kw = {} if min_samples is None else {"min_samples": min_samples}
+    from_record(record, submodel, **kw)  # column / length checks before filtering
     filt, rep = apply_prefilters(record, ins, outs, options, runout)
-    return from_record(filt, submodel), rep
+    return from_record(filt, submodel, **kw), rep
 
 
 def estimate_x0(structure, theta: np.ndarray, data: IdData) -> np.ndarray:
@@ -109,6 +115,15 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData) -> np.ndarray:
     return th
 
 
+def samples_needed(structure) -> int:
+    """Fewest samples a fitted model needs to be compared on a record: its initial states
+    are estimated by least squares (one more sample than states), and at least 3."""
+    base = structure
+    while hasattr(base, "effect"):  # effect wrappers (their parameters come last)
+        base = base.base
+    return max(3, len(list(getattr(base, "x0_index", []))) + 1)
+
+
 def residual_stats(y: np.ndarray, yhat: np.ndarray, names: list[str]) -> dict[str, Any]:
     """Per-output residual statistics: mean, std, rms, max |ε|, lag-1 autocorrelation."""
     out = {}
@@ -140,7 +155,8 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                     method: str = "pem", init: ModelFile | None = None,
                     effects: Sequence[Any] = (), split: float = DEFAULT_SPLIT,
                     data_hash: str | None = None, hold: str | None = None,
-                    order: str | int = "auto") -> ModelFile:
+                    order: str | int = "auto", est: slice | None = None,
+                    val: slice | None = None) -> ModelFile:
     """Identify the asked sub-models of ``record``; returns a :class:`ModelFile`.
 
     Parameters
@@ -159,6 +175,10 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         and ``submodels``; from names: ``rigd.effects.resolve(names)``), applied in order.
     split : float
         Fraction of samples used for estimation (rest: validation).
+    est, val : slice, optional
+        Estimation and validation samples (both or neither; instead of ``split``, as
+        ``rigd diagnose --est/--val``): the model is fitted on ``est``, simulated over the
+        whole record and its fit reported on both.
     data_hash : str, optional
         ``sha256:...`` of the data file.
     hold : {"zoh", "foh", "auto"}, optional
@@ -170,7 +190,9 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     """
     if isinstance(submodels, str):
         submodels = resolve_submodels(record, submodels)
-    if not 0.2 <= split <= 0.95:
+    if (est is None) != (val is None):
+        raise InputError("give both --est and --val, or neither", "--est/--val")
+    if est is None and not 0.2 <= split <= 0.95:
         raise InputError(f"split must be within 0.2..0.95 (got {split})")
     effects = list(effects or [])
     subs: dict[str, Submodel] = {}
@@ -179,42 +201,46 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     for sm in submodels:
         data, rep = prepare(record, sm, options, runout)
         prefilter_reports[sm] = rep
-        k = int(round(data.n * split))
-        est = data.slice(0, k)
-        choice = choose_hold(sm, est, record.meta, hold, where=record.source)
+        if est is None:
+            k = int(round(data.n * split))
+            es, vs = slice(0, k), slice(k, data.n)
+        else:
+            es, vs = (slice(*s.indices(data.n)[:2]) for s in (est, val))
+        est_data = data.slice(es.start, es.stop)
+        choice = choose_hold(sm, est_data, record.meta, hold, where=record.source)
         base = structure_for(sm, data, hold=choice.hold)
-        th0 = _start_values(base, init, sm, est)
-        res = fit(base, est, method=method, theta0=th0)
+        th0 = _start_values(base, init, sm, est_data)
+        res = fit(base, est_data, method=method, theta0=th0)
         order_info = None
         if sm == "generic":
             from rigd.ident.order import choose_order
 
             try:
-                oc = choose_order(base, data, slice(0, k), slice(k, data.n), order,
+                oc = choose_order(base, data, es, vs, order,
                                   base_theta=res.theta if res.method == "oe" else None)
             except ValueError as exc:
                 raise InputError(str(exc), "--order") from None
             order_info = oc.to_json()
             if oc.structure is not base:
                 base = oc.structure
-                res = fit(base, est, method=method, theta0=oc.theta)
+                res = fit(base, est_data, method=method, theta0=oc.theta)
         structure, theta, std, used = base, res.theta, res.std, res.method
         applied = _effects_for(effects, sm)
         if applied:
             structure = apply_effects(base, applied)
-            th_ext = _start_values(structure, init, sm, est)
+            th_ext = _start_values(structure, init, sm, est_data)
             if th_ext is None:
-                th_ext = np.asarray(structure.theta0(est), float)
+                th_ext = np.asarray(structure.theta0(est_data), float)
                 th_ext[:len(base.names)] = res.theta
-            res = fit(structure, est, method=method, theta0=th_ext)
+            res = fit(structure, est_data, method=method, theta0=th_ext)
             theta, std, used = res.theta, res.std, res.method
         ysim = np.asarray(structure.simulate(theta, data))
-        fe = fit_percent(data.y[:k], ysim[:k])
-        fv = fit_percent(data.y[k:], ysim[k:])
+        fe = fit_percent(data.y[es], ysim[es])
+        fv = fit_percent(data.y[vs], ysim[vs])
         readouts = structure.readouts(theta) if hasattr(structure, "readouts") else {}
         from rigd.ident.sanity import model_warnings
 
-        warn = model_warnings(structure, theta)
+        warn = model_warnings(structure, theta, res.info.get("at_bound"), std)
         if warn:  # flagged in the output and the model file, never used silently
             readouts = dict(readouts, warnings=warn)
         subs[sm] = Submodel(sm, structure, theta, std, used,
@@ -223,9 +249,10 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                              "outputs": data.output_names,
                              "input_hold": choice.as_dict(),
                              **({"order": order_info} if order_info else {})},
-                            readouts, residual_stats(data.y[k:], ysim[k:], data.output_names))
+                            readouts, residual_stats(data.y[vs], ysim[vs], data.output_names))
         subs[sm].residual["iterations"] = {"nfev": res.nfev, "status": res.status}
-        split_info = {"estimation": [0, k], "validation": [k, data.n], "fraction": split}
+        split_info = {"estimation": [es.start, es.stop], "validation": [vs.start, vs.stop],
+                      **({"fraction": split} if est is None else {})}
     return ModelFile(record.fs, subs,
                      {"omega_rpm": record.omega_rpm, "p_inj_bar": record.p_inj_bar},
                      prefilter_reports, {"path": record.source, "sha256": data_hash,

@@ -82,11 +82,13 @@ def test_analyze_impact_bad_input_exit_2(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_demo_add_effect_step_identifies_with_it(tmp_path):
+def test_demo_add_effect_step_identifies_with_it(tmp_path, capsys):
     """``rigd demo --add NAME``: the add-effect step after diagnose is fitted into the models
-    the design uses (it crashed with the names handed on as strings)."""
+    the design uses (it crashed with the names handed on as strings). A lag the data do not
+    need ends at its bound 0: the design goes on, saying so (never silently)."""
     from rigd.effects import resolve
     from rigd.ident.modelfile import load_model
+    from rigd.ident.sanity import file_warnings
 
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--quick", "--add", "actuator_dynamics"]) == 0
@@ -95,3 +97,6 @@ def test_demo_add_effect_step_identifies_with_it(tmp_path):
     model = load_model(out / "G_p.yaml", resolve)
     assert "actuator_dynamics" in (out / "G_p.yaml").read_text()
     assert s["controller_order"] <= 6 and model is not None
+    err = capsys.readouterr().err
+    for w in file_warnings(model):
+        assert f"WARNING model {w}" in err
