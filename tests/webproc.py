@@ -72,7 +72,8 @@ class WebProcess:
         self.proc = subprocess.Popen(
             [RIGD, "web", "--listen", "127.0.0.1:0", "--socket", socket, "--runs-dir",
              str(runs_dir), "--config-dir", str(config_dir), "--token-file",
-             str(self.token_file)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+             str(self.token_file), "--timeout", "60"],   # a busy shared test machine
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
             text=True, cwd=str(tmp))
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()

@@ -12,6 +12,7 @@ mode 0600).
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import os
 import socket
 import sys
@@ -46,6 +47,15 @@ def parse_listen(text: str) -> tuple[str, int]:
     if not sep or not host or not port.isdigit() or int(port) > 65535:
         raise InputError(f"--listen {text!r}: expected HOST:PORT, e.g. 127.0.0.1:8080")
     return host, int(port)
+
+
+def loopback_hosts(host: str) -> tuple[str, ...] | None:
+    """Host names accepted when serving on a loopback address (None: any, e.g. 0.0.0.0)."""
+    try:
+        loopback = ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        loopback = host == "localhost"
+    return ("127.0.0.1", "localhost", "::1", "[::1]") if loopback else None
 
 
 def _bind(host: str, port: int) -> socket.socket:
@@ -87,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
           f"config {config_dir})", file=sys.stderr, flush=True)
     app = build_app(Settings(socket=args.socket, runs_dir=runs_dir.resolve(),
                              config_dir=config_dir.resolve(), token=token,
-                             timeout_s=args.timeout, film_gap_um=args.film_gap_um))
+                             timeout_s=args.timeout, film_gap_um=args.film_gap_um,
+                             allowed_hosts=loopback_hosts(host)))
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False,
                                            timeout_graceful_shutdown=2))
     server.run(sockets=[sock])

@@ -12,6 +12,8 @@ from typing import Any
 
 from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
+from starlette.middleware import Middleware
+from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
 from starlette.routing import Mount, Route
@@ -25,12 +27,16 @@ from rigd.fileio import atomic_write_text
 from rigd.web import runs as runs_mod
 from rigd.web import sse
 from rigd.web.auth import MAX_BODY, Guard
-from rigd.web.ctl import COMMANDS, Daemon, DaemonDown, DaemonRefused
+from rigd.web.ctl import COMMANDS, Daemon, DaemonDown, DaemonRefused, DaemonSilent
 from rigd.web.paths import PathRefused, resolve_inside, split_rooted
 
 STATIC = Path(str(resources.files("rigd.web") / "static"))
 #: SSE clients at once (each holds one daemon socket connection)
 MAX_STREAMS = 16
+#: the console page loads only its own files (Plotly adds inline styles)
+PAGE_CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+            "img-src 'self' data: blob:; connect-src 'self'; frame-ancestors 'none'; "
+            "base-uri 'none'; form-action 'none'")
 #: uploaded file names: plain words, dots, dashes
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
 
@@ -49,6 +55,10 @@ class Settings:
         The Bearer token of state-changing requests.
     film_gap_um : float
         Radial film gap, µm: the circle drawn around the orbit.
+    allowed_hosts : tuple of str, optional
+        Accepted ``Host`` header names (without port); None accepts any. ``rigd web`` on a
+        loopback address accepts only loopback names: a web page whose domain an attacker
+        re-points to 127.0.0.1 (DNS rebinding) cannot read the console's answers.
     timeout_s : float
         Reply timeout of daemon requests, s.
     """
@@ -60,6 +70,7 @@ class Settings:
     timeout_s: float = 10.0
     max_body: int = MAX_BODY
     film_gap_um: float = 25.0
+    allowed_hosts: tuple[str, ...] | None = None
 
 
 def _err(status: int, message: str) -> JSONResponse:
@@ -137,12 +148,15 @@ def build_app(settings: Settings) -> Starlette:
             result = await run_in_threadpool(daemon.call, cmd, **args)
         except DaemonDown as exc:
             return _err(503, str(exc))
+        except DaemonSilent as exc:
+            return _err(504, str(exc))
         except DaemonRefused as exc:
             return _err(409, str(exc))
         return JSONResponse(result)
 
     async def index(request: Request) -> Response:
-        return FileResponse(STATIC / "index.html", headers={"cache-control": "no-store"})
+        return FileResponse(STATIC / "index.html", headers={"cache-control": "no-store",
+                                                             "content-security-policy": PAGE_CSP})
 
     async def console(request: Request) -> Response:
         return JSONResponse({"film_gap_um": settings.film_gap_um, "version": __version__})
@@ -278,5 +292,27 @@ def build_app(settings: Settings) -> Starlette:
         Route("/runs/{path:path}", run_file),
         Route("/api/{name}", command, methods=["POST"]),
     ]
-    app = Starlette(routes=routes)
+    middleware = [Middleware(SecurityHeaders)]
+    if settings.allowed_hosts is not None:
+        middleware.insert(0, Middleware(TrustedHostMiddleware,
+                                        allowed_hosts=list(settings.allowed_hosts)))
+    app = Starlette(routes=routes, middleware=middleware)
     return Guard(app, settings.token, settings.max_body)
+
+
+class SecurityHeaders:
+    """``nosniff`` and no framing on every response (report pages under ``/runs/`` keep
+    their inline scripts: the content security policy is the console page's only)."""
+
+    def __init__(self, app):
+        self.app = app
+
+    async def __call__(self, scope, receive, send):
+        async def send_with_headers(message):
+            if message["type"] == "http.response.start":
+                message.setdefault("headers", [])
+                message["headers"] = list(message["headers"]) + [
+                    (b"x-content-type-options", b"nosniff"), (b"x-frame-options", b"DENY")]
+            await send(message)
+
+        await self.app(scope, receive, send_with_headers)

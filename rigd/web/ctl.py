@@ -25,6 +25,11 @@ class DaemonDown(Exception):
     """The daemon socket is missing, refuses or does not answer (-> HTTP 503)."""
 
 
+class DaemonSilent(Exception):
+    """Connected, but no (complete) reply in time (-> HTTP 504): a command may still have
+    been applied, so the caller must not assume either outcome."""
+
+
 class DaemonRefused(Exception):
     """The daemon answered ``ok: false`` (its one line is the message; -> HTTP 409)."""
 
@@ -49,17 +54,24 @@ class Daemon:
         Raises
         ------
         DaemonDown
-            Not reachable or no reply (message: one line naming the socket).
+            Not reachable (message: one line naming the socket).
+        DaemonSilent
+            No complete reply within ``timeout`` (the request may have been applied).
         DaemonRefused
             The daemon refused the request (its error line).
         """
+        client = ControlClient(self.socket_path, timeout=self.timeout)
         try:
-            with ControlClient(self.socket_path, timeout=self.timeout) as client:
-                reply = client.request(cmd, **args)
+            client.connect()
         except InputError as exc:
             raise DaemonDown(f"daemon not reachable: {exc}") from None
-        except (OSError, ValueError) as exc:
-            raise DaemonDown(f"daemon not reachable: {self.socket_path}: {exc}") from None
+        try:
+            reply = client.request(cmd, **args)
+        except (InputError, OSError, ValueError) as exc:
+            raise DaemonSilent(f"no complete reply from the daemon to {cmd} ({exc}); it may "
+                               "still have been applied: check the status") from None
+        finally:
+            client.close()
         if not reply.get("ok"):
             raise DaemonRefused(" ".join(str(reply.get("error", "refused")).split()))
         return reply.get("result")

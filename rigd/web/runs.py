@@ -3,12 +3,14 @@ decimated server-side (min/max per bucket) so that a long record opens fast and 
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rigd.data import h5io
 from rigd.data.io import load_record
 from rigd.data.manifest import MANIFEST, read_manifest
 from rigd.errors import InputError
@@ -95,10 +97,72 @@ def minmax(x: np.ndarray, buckets: int) -> tuple[np.ndarray, np.ndarray, np.ndar
     return starts, np.minimum.reduceat(x, starts), np.maximum.reduceat(x, starts)
 
 
+def minmax_blocks(blocks: Iterable[tuple[int, np.ndarray]], start: int, stop: int,
+                  buckets: int, ncols: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`minmax` of rows ``[start, stop)`` of a record read in row blocks (bounded
+    memory: a long HDF5 recording is never loaded whole).
+
+    Parameters
+    ----------
+    blocks : iterable of (first_row, array (rows, ncols))
+        Consecutive row blocks covering ``[start, stop)`` (rows outside are ignored).
+    start, stop : int
+        Row window.
+    buckets : int
+        Buckets wanted (at most ``stop - start``).
+    ncols : int
+
+    Returns
+    -------
+    (first_row, min, max)
+        ``first_row`` (B,), ``min``/``max`` (B, ncols); the same buckets as :func:`minmax`.
+    """
+    n = stop - start
+    b = max(1, min(int(buckets), n))
+    edges = start + (np.arange(b + 1) * n) // b
+    lo = np.full((b, ncols), np.inf)
+    hi = np.full((b, ncols), -np.inf)
+    for b0, block in blocks:
+        s0, s1 = max(b0, start), min(b0 + len(block), stop)
+        if s0 >= s1:
+            continue
+        part = block[s0 - b0:s1 - b0]
+        first = int(np.searchsorted(edges, s0, "right")) - 1
+        last = int(np.searchsorted(edges, s1 - 1, "right")) - 1
+        ids = np.arange(first, last + 1)
+        local = np.maximum(edges[ids], s0) - s0
+        lo[ids] = np.fmin(lo[ids], np.minimum.reduceat(part, local, axis=0))
+        hi[ids] = np.fmax(hi[ids], np.maximum.reduceat(part, local, axis=0))
+    lo[np.isinf(lo) & (lo > 0)] = np.nan      # a bucket of only NaN samples
+    hi[np.isinf(hi) & (hi < 0)] = np.nan
+    return edges[:-1], lo, hi
+
+
+#: rows read at a time from an HDF5 recording
+BLOCK_ROWS = 65536
+
+
+def _window(n: int, fs: float, t0: float | None, t1: float | None, path) -> tuple[int, int]:
+    start = 0 if t0 is None else int(np.clip(np.floor(t0 * fs), 0, n))
+    stop = n if t1 is None else int(np.clip(np.ceil(t1 * fs) + 1, 0, n))
+    if stop - start < 1:
+        raise InputError(f"empty window t0={t0} t1={t1} (record {n / fs:.6g} s)", str(path))
+    return start, stop
+
+
+def _pick(available: list[str], channels: list[str] | None, path) -> list[str]:
+    names = channels or [c for c in available if c != "t"]
+    unknown = [c for c in names if c not in available]
+    if unknown:
+        raise InputError(f"no channel {unknown[0]!r} (has {', '.join(available)})", str(path))
+    return names
+
+
 def record_view(path: str | Path, points: int = 2000, t0: float | None = None,
                 t1: float | None = None, channels: list[str] | None = None) -> dict[str, Any]:
     """A record (or its ``[t0, t1]`` s window) decimated to at most ``points`` min/max pairs
-    per channel, for zoomable traces.
+    per channel, for zoomable traces. An HDF5 recording is read in row blocks (memory bounded
+    by the block, whatever the record's length); a CSV file is read whole.
 
     Returns
     -------
@@ -112,28 +176,31 @@ def record_view(path: str | Path, points: int = 2000, t0: float | None = None,
     InputError
         Unreadable record, unknown channel, empty window.
     """
-    rec = load_record(path)
-    n = rec.n
-    start = 0 if t0 is None else int(np.clip(np.floor(t0 * rec.fs), 0, n))
-    stop = n if t1 is None else int(np.clip(np.ceil(t1 * rec.fs) + 1, 0, n))
-    if stop - start < 1:
-        raise InputError(f"empty window t0={t0} t1={t1} (record {n / rec.fs:.6g} s)", str(path))
-    names = channels or list(rec.columns)
-    unknown = [c for c in names if c not in rec.columns]
-    if unknown:
-        raise InputError(f"no channel {unknown[0]!r} (has {', '.join(rec.columns)})", str(path))
     points = int(np.clip(points, 10, 20000))
-    out: dict[str, Any] = {}
-    idx = None
-    for name in names:
-        if name == "t":
-            continue
-        idx, lo, hi = minmax(np.asarray(rec.columns[name][start:stop], float), points)
-        out[name] = {"min": _finite_list(lo), "max": _finite_list(hi)}
-    t = ((idx if idx is not None else np.zeros(0, int)) + start) / rec.fs
-    return {"fs_hz": rec.fs, "n": n, "start": start, "stop": stop,
-            "t_s": [float(v) for v in t], "channels": out,
-            "units": rec.meta.get("units") or {}, "decimated": stop - start > points}
+    if h5io.is_hdf5(path):
+        with h5io.open_recording(path) as rec:
+            n, fs = rec.n, rec.fs
+            start, stop = _window(n, fs, t0, t1, path)
+            names = _pick(rec.names, channels, path)
+            cols = [rec.names.index(c) for c in names]
+            units = {c: u for c, u in zip(rec.names, rec.units) if c in names}
+            blocks = ((s, np.asarray(rec.frames[s:min(s + BLOCK_ROWS, stop)],
+                                     dtype=np.float64)[:, cols])
+                      for s in range(start, stop, BLOCK_ROWS))
+            idx, lo, hi = minmax_blocks(blocks, start, stop, points, len(cols))
+    else:
+        rec = load_record(path)
+        n, fs = rec.n, rec.fs
+        start, stop = _window(n, fs, t0, t1, path)
+        names = _pick(list(rec.columns), channels, path)
+        data = np.column_stack([np.asarray(rec.columns[c], float) for c in names])
+        idx, lo, hi = minmax_blocks([(0, data)], start, stop, points, len(names))
+        units = {c: u for c, u in (rec.meta.get("units") or {}).items() if c in names}
+    out = {c: {"min": _finite_list(lo[:, k]), "max": _finite_list(hi[:, k])}
+           for k, c in enumerate(names)}
+    return {"fs_hz": fs, "n": n, "start": start, "stop": stop,
+            "t_s": [float(v) for v in idx / fs], "channels": out, "units": units,
+            "decimated": stop - start > points}
 
 
 def _finite_list(a: np.ndarray) -> list[float | None]:

@@ -120,3 +120,39 @@ def test_static_page_and_plotly_served_from_the_package(site):
     r = client.get("/static/plotly.min.js")
     assert r.status_code == 200 and "plotly.js" in r.text[:2000]
     assert json.dumps({"a": 1})  # the page itself is checked by tests/browser
+
+
+def test_daemon_silent_is_504_saying_it_may_have_been_applied(tmp_path):
+    import socket
+    import threading
+
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    srv.bind(str(tmp_path / "mute.sock"))
+    srv.listen(4)
+    held, done = [], threading.Event()
+
+    def accept():                      # accepts and reads, never answers
+        while not done.is_set():
+            try:
+                conn, _ = srv.accept()
+            except OSError:
+                return
+            held.append(conn)
+
+    t = threading.Thread(target=accept, daemon=True)
+    t.start()
+    s = Settings(socket=str(tmp_path / "mute.sock"), runs_dir=tmp_path, config_dir=tmp_path,
+                 token=TOKEN, timeout_s=0.3)
+    try:
+        with TestClient(build_app(s)) as client:
+            r = client.post("/api/enable", headers=auth())
+    finally:
+        done.set()
+        srv.close()
+        for c in held:
+            c.close()
+        t.join(5)
+    assert r.status_code == 504
+    err = r.json()["error"]
+    assert "controller.enable" in err and "may still have been applied" in err
+    assert "\n" not in err

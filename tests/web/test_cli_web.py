@@ -1,0 +1,80 @@
+"""``rigd web`` arguments and start-up errors (one line, exit 2, before serving), the Host
+check on loopback, the security headers."""
+
+import os
+import socket
+
+import pytest
+from starlette.testclient import TestClient
+from webkit import TOKEN
+
+from rigd.cli import main
+from rigd.cli.web import loopback_hosts, parse_listen
+from rigd.web.app import Settings, build_app
+
+
+def test_parse_listen():
+    assert parse_listen("127.0.0.1:8080") == ("127.0.0.1", 8080)
+    assert parse_listen("[::1]:0") == ("::1", 0)
+    for bad in ("8080", "host:", ":80", "127.0.0.1:http", "127.0.0.1:70000"):
+        with pytest.raises(Exception, match="HOST:PORT"):
+            parse_listen(bad)
+
+
+@pytest.mark.parametrize("case", ["listen", "config", "token_mode", "port_taken"])
+def test_start_up_errors_are_one_line_exit_2(case, tmp_path, capsys):
+    (tmp_path / "config").mkdir()
+    args = ["web", "--socket", str(tmp_path / "s.sock"), "--runs-dir", str(tmp_path / "runs"),
+            "--config-dir", str(tmp_path / "config"), "--token-file", str(tmp_path / "tok"),
+            "--listen", "127.0.0.1:0"]
+    held = None
+    if case == "listen":
+        args[-1] = "everywhere"
+        needle = "--listen 'everywhere'"
+    elif case == "config":
+        args[args.index("--config-dir") + 1] = str(tmp_path / "nope")
+        needle = "nope: no such folder (--config-dir)"
+    elif case == "token_mode":
+        (tmp_path / "tok").write_text("x" * 40 + "\n")
+        os.chmod(tmp_path / "tok", 0o644)
+        needle = "chmod 600"
+    else:
+        held = socket.socket()
+        held.bind(("127.0.0.1", 0))
+        held.listen(1)
+        args[-1] = f"127.0.0.1:{held.getsockname()[1]}"
+        needle = "cannot listen on 127.0.0.1"
+    try:
+        assert main(args) == 2
+    finally:
+        if held is not None:
+            held.close()
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("rigd web: ") and needle in err and len(err.splitlines()) == 1, err
+
+
+def test_loopback_only_accepts_loopback_host_names(tmp_path):
+    assert loopback_hosts("0.0.0.0") is None and loopback_hosts("192.168.1.5") is None
+    hosts = loopback_hosts("127.0.0.1")
+    assert hosts == loopback_hosts("::1") == loopback_hosts("localhost")
+    s = Settings(socket=str(tmp_path / "none.sock"), runs_dir=tmp_path, config_dir=tmp_path,
+                 token=TOKEN, allowed_hosts=hosts)
+    app = build_app(s)
+    with TestClient(app, base_url="http://attacker.example:8080") as client:
+        r = client.get("/api/status")
+        assert r.status_code == 400 and "daemon" not in r.text
+    for base in ("http://127.0.0.1:8080", "http://localhost:8080"):
+        with TestClient(app, base_url=base) as client:
+            assert client.get("/api/status").status_code == 503    # past the check: no daemon
+
+
+def test_security_headers(tmp_path):
+    s = Settings(socket=str(tmp_path / "none.sock"), runs_dir=tmp_path, config_dir=tmp_path,
+                 token=TOKEN)
+    with TestClient(build_app(s)) as client:
+        page = client.get("/")
+        csp = page.headers["content-security-policy"]
+        assert "script-src 'self'" in csp and "frame-ancestors 'none'" in csp
+        for r in (page, client.get("/api/status"), client.get("/static/app.js")):
+            assert r.headers["x-content-type-options"] == "nosniff"
+            assert r.headers["x-frame-options"] == "DENY"
