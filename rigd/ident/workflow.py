@@ -241,6 +241,9 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         from rigd.ident.sanity import model_warnings
 
         warn = model_warnings(structure, theta, res.info.get("at_bound"), std)
+        if not np.all(np.isfinite(ysim)):
+            warn.append("the model's simulated response is not finite on this record (the "
+                        "fit diverged; its fit is not a number): do not use this model")
         if warn:  # flagged in the output and the model file, never used silently
             readouts = dict(readouts, warnings=warn)
         subs[sm] = Submodel(sm, structure, theta, std, used,

@@ -321,3 +321,23 @@ def test_hdf5_nan_only_refused_in_a_used_channel(tmp_path, capsys):
     assert main(["identify", str(tmp_path / "bad.h5"), "--order", "1", "--range", "1000:"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "bad.h5: NaN in column 'y_mm' at sample 1500" in err, err
+
+
+def test_a_diverged_fit_is_flagged_not_just_printed_as_nan(tmp_path, capsys):
+    """Data no oscillator explains (a response that is a short moving average of white noise):
+    the OE fit diverges; identify says so in a WARNING and in the model file, besides the
+    'nan %' fit."""
+    import yaml
+
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(800)
+    y = np.convolve(u, [0.5, 0.3, 0.1])[:800]
+    np.savetxt(tmp_path / "f.csv", np.column_stack([u, y]), delimiter=",", header="u,y",
+               comments="")
+    assert main(["identify", str(tmp_path / "f.csv"), "--fs", "100", "--inputs", "u",
+                 "--outputs", "y", "--order", "1", "--method", "oe",
+                 "-o", str(tmp_path / "m.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert "y nan %" in out and "WARNING: the model's simulated response is not finite" in out
+    stored = yaml.safe_load((tmp_path / "m.yaml").read_text())["submodels"]["generic"]
+    assert any("not finite" in w for w in stored["readouts"]["warnings"])
