@@ -64,6 +64,9 @@ class ActuatorDynamics(Effect):
         k = len(self.param_names(base))
         return np.zeros(k), np.full(k, np.inf)
 
+    def param_typical(self, base, rec):
+        return np.full(len(self.param_names(base)), 1.0 / rec.fs)  # one sample
+
     def record_bounds(self, base, rec):
         k = len(self.param_names(base))
         return np.zeros(k), np.full(k, TAU_MAX_SAMPLES / rec.fs)

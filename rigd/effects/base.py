@@ -118,6 +118,13 @@ class ExtendedStructure:
         fs, nu = float(data.fs), np.asarray(data.inputs).shape[1]
         return fixed_point(sim, data, lambda p: self.effect.feedback(p, te, fs, nu))
 
+    def typical(self) -> np.ndarray | None:
+        """Typical sizes of the effect's parameters on the bound record (None: unknown)."""
+        if self.record is None:
+            return None
+        t = self.effect.param_typical(self.base, self.record)
+        return None if t is None else np.asarray(t, float)
+
     def ss(self, theta: np.ndarray):
         return self.base.ss(np.asarray(theta, float)[:self.nb])
 
@@ -194,6 +201,12 @@ class Effect:
         """Bounds that hold for any record (default: none)."""
         k = len(self.param_names(base))
         return np.full(k, -np.inf), np.full(k, np.inf)
+
+    def param_typical(self, base: Any, rec: RecordScale) -> np.ndarray | None:
+        """Typical size of each parameter on this record (the fit's step sizes for a
+        parameter near 0), or None: 1 in the parameter's unit. An effect with parameters
+        in seconds, Hz or signal units states them here relative to ``rec``."""
+        return None
 
     def record_bounds(self, base: Any, rec: RecordScale) -> tuple[np.ndarray, np.ndarray]:
         """Bounds relative to the record the structure is fitted on (its rate, length,

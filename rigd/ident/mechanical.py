@@ -117,7 +117,7 @@ class MechanicalStructure(Structure):
         g = self.group_slices()
         sc[slice(*g["k"])] = max(np.max(np.abs(K)), 1e-6)
         sc[slice(*g["d"])] = max(np.max(np.abs(D)), 0.02 * wmax)
-        sc[slice(*g["b"])] = max(np.max(np.abs(B)), 1e-9)
+        sc[slice(*g["b"])] = max(np.max(np.abs(B)), 1e-300)  # any unit: no absolute floor
         sc[slice(*g["bd"])] = max(np.max(np.abs(Bd)), wmax)
         xs = max(np.max(np.abs(x0[:self.n])), 1e-9)
         sc[self._x0:self._x0 + self.n] = xs

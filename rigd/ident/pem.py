@@ -90,7 +90,11 @@ def _scale(structure, theta: np.ndarray) -> np.ndarray:
     base = getattr(structure, "base", None)
     if base is not None:
         nb = len(base.names)
-        return np.concatenate([_scale(base, theta[:nb]), np.maximum(np.abs(theta[nb:]), 1.0)])
+        # an effect's parameters: their size, at least their typical size on this record
+        # (rigd.effects: seconds relative to the rate, amplitudes to the signals), else 1
+        typ = structure.typical() if callable(getattr(structure, "typical", None)) else None
+        typ = 1.0 if typ is None or typ.shape != theta[nb:].shape else typ
+        return np.concatenate([_scale(base, theta[:nb]), np.maximum(np.abs(theta[nb:]), typ)])
     return np.maximum(np.abs(theta), 1e-6)
 
 
