@@ -192,7 +192,7 @@ def valve():
 @pytest.mark.parametrize("su,sy,sr", [(1e3, 1e-6, 1e3)])
 def test_valve_hysteresis_rescaled_same_diagnosis(valve, su, sy, sr):
     """The Bouc–Wen rate c is searched and bounded per half-amplitude of the drive: with the
-    drive in mV (× 1e3) the same operator is found (c × 1e-3), not a saturated relay."""
+    drive in mV (× 1e3) the same steps and fits (a grid in 1/V would meet a relay)."""
     d, ref = valve
     v = dataclasses.replace(d, u=d.u * su, y=d.y * sy, fs=d.fs * sr)
     sd = diagnose_data(v, "actuator", structure=structure_for("actuator", v, hold="zoh"))
