@@ -56,7 +56,8 @@ class SocketFrontend:
         Snapshot rate.
     log : structlog logger, optional
     nice : int
-        Niceness increment of the socket process (it is not time-critical; the loop is).
+        Niceness of the socket process, at least (it is not time-critical; the loop is);
+        absolute, not added to the daemon's.
     helper_priority : int, optional
         SCHED_FIFO priority of the publisher and command threads (best effort): just below
         the loop thread's, like the loop's other helper threads. They share the interpreter

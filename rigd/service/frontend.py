@@ -271,8 +271,11 @@ def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
     except (OSError, AttributeError):
         pass
-    try:
-        os.nice(int(opts.get("nice", 10)))
+    try:  # niceness 10, not 10 *more* than the daemon's: a daemon started niced (a test run,
+        # `nice rigd run`) would put this process at 19 and starve it on a busy machine
+        # (measured under load: no stream update nor ping reply for 30 s)
+        cur = os.getpriority(os.PRIO_PROCESS, 0)
+        os.setpriority(os.PRIO_PROCESS, 0, max(cur, int(opts.get("nice", 10))))
     except OSError:
         pass
     server = ControlServer(opts["path"], lambda line: b"",
