@@ -17,7 +17,8 @@ Values are IEEE-754 float32 in two registers, high word first (``word_order: big
 Modbus convention) or low word first (``little``).
 
 Health: ``failures_to_fault`` consecutive failed polls (timeout, refused connection, Modbus
-exception) mark the sample ``ok = False`` (the loop latches a fault); the thread keeps
+exception) mark the sample ``ok = False`` (the loop latches a fault) — from the first poll on,
+so one late first answer after a connect is not a fault either; the thread keeps
 reconnecting every ``reconnect_s`` and the sample is ``ok`` again when the device answers.
 """
 
@@ -167,13 +168,23 @@ class ModbusDriver(SlowDriver):
         thread after :meth:`start_polling` when used stand-alone. Not thread-safe: one
         polling thread only.
 
+        Returns
+        -------
+        dict
+            The values; empty while the device has not answered yet and fewer than
+            ``failures_to_fault`` polls in a row have failed (the same grace as after a good
+            poll: one late first answer after a connect is not a fault).
+
         Raises
         ------
         FaultError
-            The device is unreachable, answered with an error, or reports a non-zero status.
+            ``failures_to_fault`` polls in a row failed (unreachable, timeout, Modbus error),
+            or the device reports a non-zero status.
         """
         s = self.poll_once()
         if not s.ok:
+            if s.t == 0.0 and 0 < self._fails < self.opts.failures_to_fault:
+                return {}    # never answered yet, not down yet
             raise FaultError(s.error)
         return {"p_inj_bar": s.p_inj_bar, "omega_rpm": s.omega_rpm, "status": float(s.status)}
 

@@ -171,7 +171,8 @@ class SlowDriver(Driver):
         """Read the slow channels; return ``{"omega_rpm": ..., "p_inj_bar": ...}`` etc.
 
         Runs in the driver's own thread, may block up to the device timeout. Raise
-        :class:`rigd.errors.FaultError` when the device is unreachable.
+        :class:`rigd.errors.FaultError` when the device is unreachable. An empty dict means
+        no values yet and no fault yet (the staleness clock keeps running).
         """
 
     def write_setpoints(self, **setpoints: float) -> None:  # noqa: B027 - optional

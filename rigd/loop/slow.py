@@ -93,6 +93,8 @@ class SlowPollers:
                     self._requests.post(RQ.SLOW, FC.SLOW_DRIVER)
                 failed = True
                 continue
+            if not vals:
+                continue     # no values yet, no fault yet (the driver's own grace)
             failed = False
             self._since[i] = time.monotonic()
             self._polled[i] = True

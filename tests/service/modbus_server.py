@@ -83,6 +83,7 @@ class PlcServer:
                  baudrate=19200, parity="E", first_delay_s=0.0):
         self.device = device            # RTU on this serial device; TCP on loopback if None
         self.first_delay_s = first_delay_s
+        self._first_done = False
         self.serial = {"baudrate": baudrate, "parity": parity}
         self.port = None if device else (port or free_port())
         self.values = {"p_inj_bar": p_inj_bar, "omega_rpm": omega_rpm, "status": status}
@@ -97,7 +98,8 @@ class PlcServer:
         regs[2 - start:4 - start] = float_to_regs(self.values["omega_rpm"])
         regs[4 - start] = self.values["status"]
         if fc == 4:
-            if self.first_delay_s and not self.reads:
+            if self.first_delay_s and not self._first_done:
+                self._first_done = True          # only the very first read request
                 await asyncio.sleep(self.first_delay_s)
             self.reads += 1
         if set_values is not None:

@@ -106,10 +106,14 @@ def test_rtu_over_a_serial_line_stop_and_come_back():
 
 
 def test_poll_raises_fault_when_nobody_listens():
-    drv = ModbusDriver({"host": "127.0.0.1", "port": free_port(), "timeout_s": 0.1})
-    with pytest.raises(FaultError, match="cannot connect"):
+    """``failures_to_fault`` (3) failed polls in a row are a fault, from the first poll on:
+    the first two return no values (no fault yet), the third raises."""
+    drv = ModbusDriver({"host": "127.0.0.1", "port": free_port(), "timeout_s": 0.1,
+                        "reconnect_s": 0.01})
+    assert drv.poll() == {} and drv.poll() == {}
+    with pytest.raises(FaultError, match="modbus"):
         drv.poll()
-    assert not drv.latest().ok and drv.counters()["errors"] == 1
+    assert not drv.latest().ok and drv.counters()["errors"] == 3
 
 
 def test_options_validation(tmp_path):
@@ -192,5 +196,24 @@ def test_first_poll_bound_latches_slow_driver(tmp_path):
                                      loop.status()["fault"]["code"] == FC.SLOW_DRIVER)[1], 30.0)
             assert plc.reads == 0, "latched by the first-poll bound, not by an answer"
             assert loop.faults()[-1]["name"] == "slow_driver"
+    finally:
+        plc.stop()
+
+
+def test_late_first_answer_is_no_fault(tmp_path):
+    """The PLC answers the very first read after 0.5 s, beyond the driver's 0.2 s timeout:
+    one failed poll, not ``failures_to_fault`` (3), so no fault — the next polls answer. (The
+    first failure latched ``slow_driver`` at cycle 0: before a good poll there was no grace.)"""
+    from faultkit import wait_for
+
+    plc = PlcServer(p_inj_bar=4.5, omega_rpm=0.0, first_delay_s=0.5).start()
+    try:
+        loop = _loop_with_plc(tmp_path, plc, timeout_s=0.2)
+        with loop:
+            assert wait_for(lambda: (loop.run_cycles(50), plc.reads >= 10)[1], 60.0)
+            loop.run_cycles(100)
+            assert [f["name"] for f in loop.faults()] == []
+            assert loop.slow[0].counters()["errors"] >= 1, "the first poll did time out"
+            assert loop.slow[0].latest().ok and loop.slow[0].latest().p_inj_bar == 4.5
     finally:
         plc.stop()
