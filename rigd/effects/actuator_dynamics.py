@@ -22,6 +22,8 @@ from rigd.ident.iddata import replace_inputs
 #: longest lag time constant, samples (relative to the record's rate: 50 ms at the rig's
 #: 5 kHz; rigd.effects.scales)
 TAU_MAX_SAMPLES = 250.0
+#: a fitted lag below this (samples) is not called actuator dynamics (as ``delay``)
+MIN_TAU_SAMPLES = 0.5
 
 
 class ActuatorDynamics(Effect):
@@ -54,6 +56,17 @@ class ActuatorDynamics(Effect):
                 f"(corner {N.freq(fc, ctx.fs)}) on {ctx.label(j, 'in')}: {what}; "
                 f"the residual follows the model response to the input derivative and "
                 f"explains {N.share(sig.score)} of it", ev)
+
+    def implausible(self, ctx, theta_e):
+        # as a delay (rigd.effects.delay): lags all shorter than half a sample cannot be
+        # told from unmodelled fast dynamics at the record's rate (relative: samples)
+        tmax = float(np.max(np.asarray(theta_e, float))) if len(theta_e) else 0.0
+        if tmax * ctx.fs >= MIN_TAU_SAMPLES:
+            return None
+        return (f"lags of at most {tmax * ctx.fs:.2f} samples improve the fit, but a lag "
+                f"shorter than {MIN_TAU_SAMPLES:g} sample cannot be told from unmodelled fast "
+                f"dynamics at {ctx.fs:g} Hz: the model misses some high-frequency phase lag, "
+                "not an actuator lag")
 
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):
