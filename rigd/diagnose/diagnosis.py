@@ -142,9 +142,13 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                              f"{structure.base.n})")
         sd = diagnose_data(data, sub, structure=structure, est=est, val=val, effects=effects,
                            refit=refit, max_steps=max_steps, theta0=theta0,
-                           offsets=offsets, start=window[0])
+                           offsets=offsets, start=window[0],
+                           # a hold chosen by the linear base is asked again with the effects
+                           other_hold=({"zoh": "foh", "foh": "zoh"}[choice.hold]
+                                       if choice.source == "fit" else None))
         if chosen is not None:
             sd.order = chosen.to_json()
+        notes += [f"{sub}: {n}" for n in sd.notes]
         from rigd.ident.sanity import model_warnings
 
         for st, what in ((sd.steps[0], "base model"), (sd.final, "final model")):

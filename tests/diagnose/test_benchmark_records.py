@@ -111,6 +111,22 @@ def test_three_mode_structure_with_one_mode_names_extra_mode():
     assert top["fit_percent_with"] - out["fit_percent"] >= 10.0
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_bouc_wen_benchmark_hysteresis_in_the_restoring_force(seed):
+    """Noël & Schoukens' hysteretic benchmark (Bouc–Wen restoring force; the seed picks the
+    random-phase multisine and a parameter variant of β, γ, δ) diagnosed with the default
+    catalogue: hysteresis at the restoring-force site named first, held-out error cut ≥ 3×."""
+    d = diagnose_record(B.bouc_wen(seed=seed, variant=seed))
+    out = d.to_json()
+    top = out["findings"][0]
+    assert (top["effect"], top.get("site"), top["significant"]) == (
+        "hysteresis", "restoring force", True), out["findings"][:3]
+    assert top["add"] == "hysteresis_restoring"
+    final = out["steps"][-1]["fit_percent"]
+    assert 100 - out["fit_percent"] >= 3 * (100 - final), out["steps"]
+    _shares_checked(out)
+
+
 def _restoring_record(seed):
     """A 1-DOF oscillator with a Bouc–Wen restoring force, simulated by the extension's own
     kernel (a check that the extension, its signature and refit work together; the
