@@ -197,10 +197,12 @@ def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
                     dict(ev, signature_p=sig.f_p, signature_k=sig.k))
         # an effect with a costly refit is refitted only when its signature's F test is
         # decisive (without it the effect cannot be significant: both rules below need it)
-        # and the signature explains something out of sample
-        worth_refit = ((sig.f_p < P_LEVEL and sig.score > 0.005)
-                       if getattr(eff, "costly_refit", False)
-                       else sig.score > 0.005 or sig.f_p < P_LEVEL)
+        # and the signature alone, in sample, is worth half the practical-significance gain
+        # (a first-order signature underestimates a large effect: it is not asked for all)
+        worth_refit = ((sig.f_p < P_LEVEL and (100.0 - fp) * (
+            1.0 - np.sqrt(1.0 - min(max(sig.score_est, 0.0), 1.0))) >= MIN_FIT_GAIN / 2)
+            if getattr(eff, "costly_refit", False)
+            else sig.score > 0.005 or sig.f_p < P_LEVEL)
         if refit and worth_refit:
             ref = _refit(eff, ctx, sig, data_est, max_nfev)
             refits[name] = ref
@@ -303,9 +305,17 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     cannot: list[CannotReveal] = []
     names = effects or [nm for nm, e in REGISTRY.items()
                         if submodel in e.submodels and getattr(e, "screened", True)]
+    notes: list[str] = []
+    n_est = (est.stop or n) - (est.start or 0)
+    if not effects:  # costly effects are screened by default on records they can afford
+        for nm in list(names):
+            cap = getattr(REGISTRY[nm], "max_screened_samples", None)
+            if cap is not None and n_est > cap:
+                names.remove(nm)
+                notes.append(f"{nm} not screened: {n_est} estimation samples > {cap} (its "
+                             f"fits cost minutes there); ask for it with --effects {nm}")
     added: list[Finding] = []
     refits: dict[str, Refit] = {}
-    notes: list[str] = []
     ctx = ctx0
     findings, round_refits = _screen(ctx, names, refit, data_est, max_nfev, cannot)
     revealable = [f.effect for f in findings]
