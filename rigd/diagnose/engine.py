@@ -189,7 +189,8 @@ def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             if cannot is not None:
                 why.submodel = ctx.submodel
                 cannot.append(why)
-            continue
+            if not why.partial:  # a partial one (slow creep only) is still tested
+                continue
         sig = eff.signature(ctx)
         text, ev = eff.explain(ctx, sig)
         sig_ok = sig.score >= eff.min_score and sig.f_p < P_LEVEL
@@ -364,6 +365,8 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         if f.effect in round_refits:
             refits.setdefault(f.effect, round_refits[f.effect])
     findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
+    # a partial "cannot tell" (slow creep) is void once the effect was found
+    cannot = [c for c in cannot if not (c.partial and c.effect in {f.effect for f in added})]
     sd = SubDiagnosis(submodel, fp_base, added + findings, cannot, [], ctx0, {}, refits,
                       (0, data.n), steps, notes=notes)
     _tests_and_unexplained(sd, offsets, start)

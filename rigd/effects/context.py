@@ -78,15 +78,23 @@ class Finding:
 
 @dataclass
 class CannotReveal:
-    """An effect this record cannot show, why, and the experiment that would."""
+    """An effect this record cannot show, why, and the experiment that would.
+
+    ``partial``: the record can tell part of the effect's range (e.g. fast creep but not
+    slow creep): it is listed *and* still tested.
+    """
 
     effect: str
     why: str
     experiment: str
     submodel: str = "generic"
+    partial: bool = False
 
     def to_json(self, with_submodel: bool = True) -> dict[str, Any]:
-        d = {"effect": self.effect, "why": self.why, "experiment": self.experiment}
+        d: dict[str, Any] = {"effect": self.effect, "why": self.why,
+                             "experiment": self.experiment}
+        if self.partial:
+            d["partial"] = True
         if with_submodel:
             d["submodel"] = self.submodel
         return d
@@ -130,6 +138,9 @@ class Context:
     input_names: list[str] = field(default_factory=list)
     output_names: list[str] = field(default_factory=list)
     _zero_response: np.ndarray | None = None
+    #: per-context results shared by the effects (the base model's sensitivities of
+    #: rigd.effects.detectability)
+    cache: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # derived ---------------------------------------------------------------------------
     @property

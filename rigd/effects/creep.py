@@ -2,29 +2,39 @@
 
 Physics (docs/plant.md): the stack follows a step of its drive by a fast part and a slow
 drift, modelled as first-order lags adding fractions of the drive, v' = v + Σ_m f_m L_τm(v),
-L_τ = 1/(τ s + 1). Through the PD-closed valve loop (rigd.effects._drive)
+L_τ = 1/(τ s + 1). Through the P(D)-closed valve loop (rigd.effects._drive), by superposition
 
-    u = H_a(s) · (r + Σ_m c_m · (L_τm(x) − x))                        (Eqs. 8–10 plus creep)
+    u = H_a(s) · (r + Σ_m c_m · L_τm(x))                              (Eqs. 8–10 plus creep)
 
 with x = (v_+ − v_−)/2 the recorded drives of the axis' valve pair (Eq. 1; the input itself
-when the record has no drives) and c_m ≈ f_m/(kff + kp) the loop-suppressed fractions (the
-static part c_m·x, ≈ c_m·r, is absorbed by the base gain, so the prefilters' offset removal
-leaves it unbiased). Two lags; the weights c_m per axis and the time constants τ_1 < τ_2
-(shared by the axes, as the valves' material) are fitted with the rest.
+when the record has no drives) and c_m ≈ f_m/(kff + kp) the loop-suppressed fractions. This
+is exact for a closed loop: the drive contains the loop's feedback of u, so a form
+c_m·(L(x) − x) that leaves the static part to the base gain is not (it fed back u). Each
+creep input is offset-corrected like r and u (the mean over the prefilters' offset window,
+rigd.ident.prefilter, removed), and two initial-state decays c0_m·e^(−t/τm) let the record
+start mid-creep. Two lags; the weights c_m and c0_m per axis and the time constants
+τ_1 < τ_2 (shared by the axes, as the valves' material) are fitted with the rest.
+
+Time constants are relative to the record: the signature's grid spans 10 samples … a sixth
+of the record (a slower lag cannot be told from a drift), no fixed seconds.
 
 Signature: after each step the output keeps drifting exponentially toward its final value
-while the input holds still (rate-dependent: a fast back-and-forth leaves no trace; hysteresis
-instead keeps a direction-dependent offset that does not decay). The regressors are the
-model-filtered lags for the best (τ_1, τ_2) of a small grid (estimation part).
+(rate-dependent: a fast back-and-forth leaves a slow wander of the lag; hysteresis instead
+keeps a direction-dependent offset that does not decay). The regressors are the
+model-filtered lags for the best (τ_1, τ_2) of the grid (estimation part).
 
-A record whose input never holds still long enough cannot show it: the diagnosis asks for
-steps held for tens of ms or more (config/experiments/multilevel_slow.yaml).
+Can the record tell (rigd.effects.detectability): a creep of 10 % of the step (typical of
+piezo stacks; the simulated plant's default is 18 % of the drive) (in the input's
+units) at each time constant of the grid, simulated through the base model on the record's
+own drives, must stay detectable after what the base model would absorb; else "cannot tell"
+with the experiment (longer holds, a longer record).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from rigd.effects import detectability as DT
 from rigd.effects import numbers as N
 from rigd.effects._drive import drive_note, valve_pairs
 from rigd.effects._signals import lag1
@@ -32,13 +42,42 @@ from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.signature import SignatureFit, signature_fit
 from rigd.ident.iddata import replace_inputs
+from rigd.ident.prefilter import PrefilterOptions
 
-#: (τ_1, τ_2) pairs tried by the signature, s
-GRID = ((0.005, 0.05), (0.01, 0.1), (0.02, 0.2), (0.05, 0.5), (0.1, 1.0), (0.01, 0.5))
-TAU_BOUNDS = (0.001, 10.0)
-#: the input must hold still this long, s, on at least HOLD_SHARE of the record
-MIN_HOLD_S = 0.02
-HOLD_SHARE = 0.3
+#: the grid of time constants: from this many samples ...
+TAU_MIN_SAMPLES = 10.0
+#: ... to this fraction of the record, geometrically spaced, this many values
+TAU_MAX_SHARE = 1.0 / 6.0
+N_TAUS = 7
+#: (fast, slow) index pairs of the grid tried by the signature (ratios ≈ 8 and ≈ 60)
+PAIRS = ((0, 2), (1, 3), (2, 4), (3, 5), (4, 6), (0, 4), (1, 5), (2, 6))
+#: nominal creep for "can the record tell": this share of the step
+NOMINAL_SHARE = 0.10
+
+
+def tau_grid(n: int, fs: float) -> np.ndarray:
+    """Time constants (s) the diagnosis tries on an n-sample record at fs: 10 samples … n/6
+    samples, geometric; empty when the record is too short for any."""
+    lo, hi = TAU_MIN_SAMPLES / fs, TAU_MAX_SHARE * n / fs
+    if hi < 2 * lo:
+        return np.zeros(0)
+    return np.geomspace(lo, hi, N_TAUS)
+
+
+def tau_pairs(n: int, fs: float) -> list[tuple[float, float]]:
+    """(τ_1, τ_2) pairs of the signature's grid, s."""
+    g = tau_grid(n, fs)
+    return [(float(g[i]), float(g[j])) for i, j in PAIRS] if g.size else []
+
+
+def offset_window(n: int) -> int:
+    """Samples whose mean the prefilters remove as the offset (rigd.ident.prefilter)."""
+    return min(PrefilterOptions().offset_samples, max(n // 4, 1))
+
+
+def duration(t_s: float) -> str:
+    """A time constant or record length for the text: ms below 1 s, else s (3 digits)."""
+    return f"{1000 * t_s:.3g} ms" if t_s < 1.0 else f"{t_s:.3g} s"
 
 
 def drives(data) -> np.ndarray:
@@ -51,27 +90,28 @@ def drives(data) -> np.ndarray:
     return x - x[:1]
 
 
+def _demean(h: np.ndarray) -> np.ndarray:
+    return h - np.mean(h[:offset_window(h.shape[0])])
+
+
 def creep_terms(x: np.ndarray, taus, fs: float) -> list[np.ndarray]:
-    """L_τ(x) − x for each τ (lags starting at rest; no offset: the prefilters removed the
-    mean of r and u, and the base model's gain absorbs the creep's extra static gain)."""
-    return [lag1(x, t, fs) - x for t in taus]
+    """L_τ(x) for each τ (lags starting at rest on x[0]), offset-corrected like r and u."""
+    return [_demean(lag1(x, t, fs)) for t in taus]
 
 
 def initial_terms(n: int, taus, fs: float) -> list[np.ndarray]:
-    """exp(−t/τ) for each τ: the creep states' own decay when the record starts mid-creep
-    (after a step before the record began, or the valves settling at start-up)."""
+    """exp(−t/τ) for each τ, offset-corrected: the creep states' own decay when the record
+    starts mid-creep (after a step before it began, or the valves settling at start-up)."""
     t = np.arange(n) / fs
-    return [np.exp(-t / max(tau, 1e-9)) for tau in taus]
+    return [_demean(np.exp(-t / max(tau, 1e-300))) for tau in taus]
 
 
-def held_share(u: np.ndarray, fs: float, min_hold_s: float = MIN_HOLD_S) -> float:
-    """Share of samples inside stretches where the input holds still ≥ ``min_hold_s``."""
-    u = np.asarray(u, float)
-    span = max(float(np.ptp(u)), 1e-300)
-    moving = np.r_[True, np.abs(np.diff(u)) > 1e-3 * span]
-    starts = np.flatnonzero(moving)
-    lengths = np.diff(np.r_[starts, u.shape[0]])
-    return float(np.sum(lengths[lengths >= min_hold_s * fs]) / u.shape[0])
+def nominal_weights(ctx: Context, x: np.ndarray) -> np.ndarray:
+    """Per axis the creep weight c (input units per drive unit) of a creep of
+    NOMINAL_SHARE of the step."""
+    su = np.std(ctx.u, axis=0)
+    sx = np.std(x, axis=0)
+    return NOMINAL_SHARE * su / np.where(sx > 0, sx, 1.0)
 
 
 class Creep(Effect):
@@ -81,15 +121,38 @@ class Creep(Effect):
     physics = "slow creep after steps (piezo valves)"
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
-        share = min(held_share(ctx.u[:, j], ctx.fs) for j in range(ctx.nu))
-        if share < HOLD_SHARE:
-            return CannotReveal(self.name, f"the input seldom holds still: only "
-                                f"{100 * share:.0f} % of the record lies in holds of "
-                                f"≥ {1000 * MIN_HOLD_S:.0f} ms, too short to see a slow drift",
-                                "re-run with steps held for 0.05–0.5 s (multi-level with "
-                                "long holds, config/experiments/multilevel_slow.yaml)",
-                                ctx.submodel)
-        return None
+        taus = tau_grid(ctx.n, ctx.fs)
+        experiment = ("re-run with steps held for 0.05–0.5 s (multi-level with long holds, "
+                      "config/experiments/multilevel_slow.yaml) and a record several times "
+                      "longer than the creep's slow time constant")
+        if taus.size == 0:
+            return CannotReveal(self.name, f"the record is too short ({ctx.n} samples) to "
+                                "tell a slow drift from an offset", experiment, ctx.submodel)
+        x = drives(ctx.data)
+        c = nominal_weights(ctx, x)
+        sigs = [sum(ctx.through_model(c[j] * creep_terms(x[:, j], [tau], ctx.fs)[0], j)
+                    for j in range(ctx.nu)) for tau in taus]
+        # the creep states' initial decays are free too: what they take up is no creep
+        decays = [[ctx.through_model(initial_terms(ctx.n, [tau], ctx.fs)[0], j)
+                   for j in range(ctx.nu)] for tau in taus]
+        each = [DT.detectability(ctx, s, 4 * ctx.nu, z) for s, z in zip(sigs, decays)]
+        ok = [d.detectable for d in each]
+        if ok[-1] or DT.seen(ctx, self.signature(ctx)):
+            return None
+        ms = [duration(t) for t in taus]
+        size = f"a creep of {100 * NOMINAL_SHARE:.0f} % of the step"
+        record = f"{duration(ctx.n / ctx.fs)} record"
+        if not any(ok):
+            d = max(each, key=lambda e: e.fit_gain)
+            return CannotReveal(self.name, f"{size} with a time constant of {ms[0]}–{ms[-1]} "
+                                f"would not show on this input (at best: {d.describe()});"
+                                f" slower creep cannot be told from a drift in a {record}",
+                                experiment, ctx.submodel)
+        last = max(i for i, v in enumerate(ok) if v)
+        d = each[-1]
+        return CannotReveal(self.name, f"{size} slower than ~{ms[last]} would not show on "
+                            f"this input (at {ms[-1]}: {d.describe()}); faster creep would "
+                            f"and is tested", experiment, ctx.submodel, partial=True)
 
     # --- signature ---------------------------------------------------------------------
     def _regs(self, ctx: Context, taus) -> list[np.ndarray]:
@@ -100,8 +163,12 @@ class Creep(Effect):
                 for h in (*creep_terms(x[:, j], taus, ctx.fs), *initial_terms(n, taus, ctx.fs))]
 
     def signature(self, ctx: Context) -> SignatureFit:
-        best, best_t = None, GRID[0]
-        for taus in GRID:
+        return DT.cached_signature(ctx, self)
+
+    def _signature(self, ctx: Context) -> SignatureFit:
+        grid = tau_pairs(ctx.n, ctx.fs) or [(1.0 / ctx.fs, ctx.n / ctx.fs)]
+        best, best_t = None, grid[0]
+        for taus in grid:
             s = signature_fit(ctx, self._regs(ctx, taus))
             if best is None or s.score_est > best.score_est:
                 best, best_t = s, taus
@@ -109,10 +176,11 @@ class Creep(Effect):
         return best
 
     def regressors(self, ctx):
-        return self._regs(ctx, GRID[0])
+        grid = tau_pairs(ctx.n, ctx.fs) or [(1.0 / ctx.fs, ctx.n / ctx.fs)]
+        return self._regs(ctx, grid[min(3, len(grid) - 1)])
 
     def explain(self, ctx, sig):
-        taus = sig.extra.get("tau_s", list(GRID[0]))
+        taus = sig.extra.get("tau_s") or [1.0 / ctx.fs, ctx.n / ctx.fs]
         c = np.asarray(sig.beta, float).reshape(ctx.nu, 2 * len(taus))[:, :len(taus)]
         j, m = np.unravel_index(np.argmax(np.abs(c)), c.shape)
         ev = {"weights": {ctx.label(i, "in"): c[i].tolist() for i in range(ctx.nu)},
@@ -137,17 +205,31 @@ class Creep(Effect):
 
     def theta0_effect(self, base, data):
         _, nu = dims(base)
-        return np.concatenate([np.zeros(4 * nu), GRID[3]])
+        grid = tau_pairs(data.n, float(data.fs)) or [(1.0 / data.fs, data.n / data.fs)]
+        return np.concatenate([np.zeros(4 * nu), grid[min(3, len(grid) - 1)]])
 
     def param_bounds(self, base):
+        # time constants only positive: their range is relative to the record (the grid,
+        # and implausible() for a refit that leaves it), never fixed seconds
         _, nu = dims(base)
-        return (np.concatenate([np.full(4 * nu, -np.inf), [TAU_BOUNDS[0]] * 2]),
-                np.concatenate([np.full(4 * nu, np.inf), [TAU_BOUNDS[1]] * 2]))
+        return (np.concatenate([np.full(4 * nu, -np.inf), [0.0, 0.0]]),
+                np.full(4 * nu + 2, np.inf))
+
+    def implausible(self, ctx, theta_e):
+        taus = np.asarray(theta_e, float)[-2:]
+        n_s = ctx.n / ctx.fs
+        if np.min(taus) < 1.0 / ctx.fs:
+            return (f"a creep time constant of {N.freqs([1000 * np.min(taus)])[0]} ms is "
+                    "shorter than a sample: not a drift after steps")
+        if np.max(taus) > n_s:
+            return (f"a creep time constant of {N.freqs([np.max(taus)])[0]} s is longer than "
+                    f"the record ({N.freqs([n_s])[0]} s): a drift the record cannot tell from "
+                    "an offset or a trend")
+        return None
 
     def warm_start(self, ctx, sig):
         b = np.asarray(sig.beta, float).reshape(ctx.nu, 4)
-        return np.concatenate([b[:, :2].ravel(), b[:, 2:].ravel(),
-                               sig.extra.get("tau_s", list(GRID[3]))])
+        return np.concatenate([b[:, :2].ravel(), b[:, 2:].ravel(), sig.extra["tau_s"]])
 
     def simulate_with(self, sim, theta_e, data, base):
         u = np.asarray(data.inputs, float)

@@ -16,8 +16,13 @@ Signature: the residual depends on the direction of the last motion and does not
 the input holds still (no drift: that is creep). The regressor is the model-filtered operator
 output for the best c of a few (estimation part); the refit starts there.
 
-A two-level input cannot show it: the operator of a two-level signal is a gain change, so the
-diagnosis asks for multi-level excitation.
+Can the record tell (rigd.effects.detectability): a loop of half-width 5 % of the input's
+range (full width 10 % of the stroke, typical of piezo stacks; three operator rates relative
+to the drive's range), simulated through the base model on the record's own drives, must
+stay detectable after what the base model would absorb. A two-level drive cannot show it —
+the operator of a two-level signal is a gain change, all absorbed — so the diagnosis asks for
+multi-level excitation. (Recorded drives of a closed valve loop can overshoot after each
+switch of a binary reference: the operator then sees reversals and the loop may show.)
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ import math
 import numba
 import numpy as np
 
+from rigd.effects import detectability as DT
 from rigd.effects import numbers as N
 from rigd.effects._drive import drive_note, drive_spread, valve_pairs
 from rigd.effects._signals import n_levels
@@ -41,6 +47,11 @@ from rigd.ident.iddata import replace_inputs
 GRID = (0.25, 0.5, 1.0, 2.0, 4.0)
 #: bounds of c, per half-amplitude of the drive
 C_BOUNDS = (0.02, 50.0)
+#: nominal loop for "can the record tell": half-width as a share of the input's range (a full
+#: width of 10 % of the stroke, typical of piezo stacks),
+#: operator rates as reversals' saturation within 1/g of the drive's range
+NOMINAL_SHARE = 0.05
+NOMINAL_G = (2.0, 8.0, 32.0)
 
 
 @numba.njit(cache=True)
@@ -90,13 +101,26 @@ class Hysteresis(Effect):
     physics = "hysteresis (piezo valves): the response depends on the direction of motion"
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
+        pairs = valve_pairs(ctx.data)
+        w = np.asarray(pairs[0][0] if pairs is not None else ctx.u[:, 0], float)
+        span = max(float(np.ptp(w)), 1e-300)
+        amp = NOMINAL_SHARE * np.ptp(ctx.u, axis=0)
+        sigs = []
+        for g in NOMINAL_G:
+            h = operator_inputs(ctx.data, g / span)
+            sigs.append(sum(ctx.through_model(-amp[j] * h[:, j], j) for j in range(ctx.nu)))
+        d, _ = DT.best(ctx, sigs, k=ctx.nu + 1)
+        if d.detectable or (d.absorbed < 0.999 and DT.seen(ctx, self.signature(ctx))):
+            return None
         lv = min(n_levels(ctx.u[:, j]) for j in range(ctx.nu))
-        if lv <= 2:
-            return CannotReveal(self.name, f"the input has only {lv} levels: hysteresis looks "
-                                "like a gain change", "re-run with multi-level excitation "
-                                "(multi-level PRBS or a slow triangle, e.g. "
-                                "config/experiments/multilevel_slow.yaml)", ctx.submodel)
-        return None
+        what = (f"the input has only {lv} levels: a hysteresis loop of half-width "
+                f"{100 * NOMINAL_SHARE:.0f} % of the input range acts as a gain change"
+                if lv <= 2 else f"a hysteresis loop of half-width {100 * NOMINAL_SHARE:.0f} % "
+                "of the input range would not show on this input")
+        return CannotReveal(self.name, f"{what} ({d.describe()})",
+                            "re-run with multi-level excitation (multi-level PRBS or a slow "
+                            "triangle, e.g. config/experiments/multilevel_slow.yaml)",
+                            ctx.submodel)
 
     # --- signature ---------------------------------------------------------------------
     def _regs(self, ctx: Context, c: float) -> list[np.ndarray]:
@@ -104,6 +128,9 @@ class Hysteresis(Effect):
         return [ctx.through_model(-h[:, j], j) for j in range(ctx.nu)]
 
     def signature(self, ctx: Context) -> SignatureFit:
+        return DT.cached_signature(ctx, self)
+
+    def _signature(self, ctx: Context) -> SignatureFit:
         sc = drive_spread(ctx.data)
         best, best_c = None, GRID[0] / sc
         for c in (g / sc for g in GRID):

@@ -3,18 +3,26 @@
 Signature: residual coherent with cos/sin(k·φ), k = 1, 2 (per output). Extension: an additive
 output term Σ_k a_ik cos(kφ) + b_ik sin(kφ) — the run-out filter F_r(φ) of the paper's §4.4
 identified together with the model instead of from a separate run-out record.
+
+Can the record tell: without a shaft angle column, no (a structural rule). With one, by
+detectability (rigd.effects.detectability): a 1× run-out of 10 % of each output's rms on the
+recorded angle must stay detectable after what the base model and an offset would absorb. At
+standstill (Ω = 0) φ is constant, the run-out an offset: all absorbed, cannot tell.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from rigd.effects import detectability as DT
 from rigd.effects import numbers as N
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
 from rigd.ident.iddata import get_phi
 
 HARMONICS = (1, 2)
+#: nominal 1× run-out for "can the record tell", share of each output's rms
+NOMINAL_SHARE = 0.10
 
 
 def harmonics(phi: np.ndarray) -> list[np.ndarray]:
@@ -42,12 +50,29 @@ class Runout(Effect):
                                 "record the encoder angle phi at shaft speed > 0",
                                 ctx.submodel)
         turns = np.sum(np.abs(np.diff(np.unwrap(phi)))) / (2 * np.pi)
-        if ctx.omega_hz <= 0 or turns < 3:
-            return CannotReveal(self.name, f"the shaft turned {turns:.1f} times (Ω = "
-                                f"{60 * ctx.omega_hz:.0f} rpm): no angle-locked response",
-                                "re-run at Ω > 0 (e.g. 3000 rpm) or add a run-out record "
-                                "(--runout)", ctx.submodel)
-        return None
+        amp = NOMINAL_SHARE * np.std(ctx.y, axis=0)
+        sigs = [np.outer(f(phi), amp) for f in (np.cos, np.sin)]
+        d, _ = DT.best(ctx, sigs, k=len(HARMONICS) * 2 * ctx.ny)
+        # an angle-locked signature the base model absorbs whole (a constant φ: an offset)
+        # cannot be seen in the residual either
+        if d.detectable or (d.absorbed < 0.999 and DT.seen(ctx, self.signature(ctx))):
+            return None
+        size = f"a 1× response of {100 * NOMINAL_SHARE:.0f} % of the output"
+        if not N.is_rotor(ctx):
+            return CannotReveal(self.name, f"the angle phi turned {turns:.1f} times: {size}, "
+                                f"locked to it, would not show ({d.describe()})",
+                                "record while the part rotates several turns", ctx.submodel)
+        return CannotReveal(self.name, f"the shaft turned {turns:.1f} times (Ω = "
+                            f"{60 * ctx.omega_hz:.0f} rpm): {size} (run-out) would not show "
+                            f"({d.describe()})",
+                            "re-run at Ω > 0 (e.g. 3000 rpm) or add a run-out record "
+                            "(--runout)", ctx.submodel)
+
+    def signature(self, ctx: Context):
+        return DT.cached_signature(ctx, self)
+
+    def _signature(self, ctx: Context):
+        return super().signature(ctx)
 
     def regressors(self, ctx: Context) -> list[np.ndarray]:
         regs = []
