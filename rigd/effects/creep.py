@@ -209,11 +209,17 @@ class Creep(Effect):
         return np.concatenate([np.zeros(4 * nu), grid[min(3, len(grid) - 1)]])
 
     def param_bounds(self, base):
-        # time constants only positive: their range is relative to the record (the grid,
-        # and implausible() for a refit that leaves it), never fixed seconds
+        # without a record (record_bounds): time constants only positive; their range is
+        # relative to the record (the grid, record_bounds, implausible()), never fixed seconds
         _, nu = dims(base)
         return (np.concatenate([np.full(4 * nu, -np.inf), [0.0, 0.0]]),
                 np.full(4 * nu + 2, np.inf))
+
+    def record_bounds(self, base, rec):
+        """Time constants from half a sample to twice the fitted data's length."""
+        _, nu = dims(base)
+        return (np.concatenate([np.full(4 * nu, -np.inf), [0.5 / rec.fs] * 2]),
+                np.concatenate([np.full(4 * nu, np.inf), [2.0 * rec.n / rec.fs] * 2]))
 
     def implausible(self, ctx, theta_e):
         taus = np.asarray(theta_e, float)[-2:]
