@@ -33,6 +33,31 @@ def percentiles(hist: np.ndarray, row: int) -> dict[str, float]:
     return out
 
 
+def coarse(hist: np.ndarray, row: int, nbins: int = 32) -> dict:
+    """The histogram of one row in at most ``nbins`` equal bins, for display.
+
+    Returns
+    -------
+    dict
+        ``{"edges_us": [nbins + 1 bin edges, µs], "counts": [nbins ints], "overflow": int}``;
+        the bins cover 0 up to the highest occupied fine bin (``H_BIN_NS`` each), the
+        samples beyond the fine range are in ``overflow``. Empty lists before any sample.
+    """
+    h = np.array(hist[row])           # snapshot: the loop keeps adding
+    fine = h[:H_NB]
+    nz = np.flatnonzero(fine)
+    if nz.size == 0:
+        return {"edges_us": [], "counts": [], "overflow": int(h[H_NB])}
+    width = -(-(int(nz[-1]) + 1) // nbins)            # fine bins per coarse bin (ceil)
+    padded = np.zeros(width * nbins, dtype=np.int64)
+    top = min(width * nbins, H_NB)
+    padded[:top] = fine[:top]
+    counts = padded.reshape(nbins, width).sum(axis=1)
+    edges = np.arange(nbins + 1) * (width * H_BIN_NS / 1000.0)
+    return {"edges_us": [round(float(e), 3) for e in edges],
+            "counts": [int(c) for c in counts], "overflow": int(h[H_NB])}
+
+
 def summary(hist: np.ndarray, *, overruns: int = 0, skipped: int = 0,
             cycles: int | None = None) -> dict:
     """Timing summary as served by ``ControlLoop.timing()`` on the real-time clock."""
@@ -47,6 +72,7 @@ def summary(hist: np.ndarray, *, overruns: int = 0, skipped: int = 0,
         "overruns": int(overruns),
         "skipped_periods": int(skipped),
         "miss_fraction": (overruns / n) if n else 0.0,
+        "histogram_us": {"compute": coarse(hist, H_COMPUTE), "lateness": coarse(hist, H_LATE)},
     }
 
 

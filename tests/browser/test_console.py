@@ -82,6 +82,12 @@ def test_page_loads_and_live_view_moves(browser, screenshot, rig):
     last_x = _js(browser, "document.getElementById('trace-p').data[0].x.slice(-1)[0]")
     assert 0 <= _js(browser, "window.rigd.lastT") - last_x <= 2.0
     assert browser.find_element(By.ID, "safe").is_displayed()
+    # the cycle-time histogram: bars of the daemon's own timing histogram (real-time clock)
+    _wait(browser, lambda drv: _js(browser, "window.rigd.histRenders") > 0 and _js(
+        browser, "document.getElementById('timing-hist').data.length") > 0,
+        what="cycle-time histogram drawn")
+    counts = _js(browser, "document.getElementById('timing-hist').data[0].y")
+    assert sum(counts) > 0 and all(c >= 0 for c in counts)
     ctl_seq = d.ctl_json("status")["seq"]
     assert abs(ctl_seq - int(browser.find_element(By.ID, "cycle").text)) < 5 * 5000
     screenshot("console-live")

@@ -14,7 +14,7 @@ const CHANNELS = ["e_x", "e_y", "u_x", "u_y", "r_x", "r_y", "k_x", "k_y",
 // what tests (and curious users) can read: window.rigd
 const rigd = window.rigd = {
   updates: 0, renders: 0, orbitRenders: 0, lastSeq: null, cycle: null, mode: "connecting",
-  filmGap: 25.0, buf: null, lastStatus: null,
+  filmGap: 25.0, buf: null, lastStatus: null, histRenders: 0,
 };
 
 const $ = (id) => document.getElementById(id);
@@ -284,6 +284,24 @@ function drawTiming() {
     (misses === undefined ? "–" : misses) + ")", {barmode: "group"}), PLOT_CONFIG);
 }
 
+// the cycle-time histogram: `timing`'s coarse histograms (the daemon's 100 ns bins summed to
+// at most 32 bars), fetched with the same period as the percentiles
+async function drawHistogram() {
+  const r = await api("/api/timing");
+  const h = r.ok && r.body && r.body.histogram_us;
+  if (!h) return;
+  const bars = [];
+  for (const [name, d] of [["compute", h.compute], ["lateness", h.lateness]]) {
+    if (!d || !d.counts.length) continue;
+    const mid = d.counts.map((_, i) => 0.5 * (d.edges_us[i] + d.edges_us[i + 1]));
+    bars.push({x: mid, y: d.counts, type: "bar", name: name + (d.overflow ? " (+" +
+      d.overflow + " beyond)" : ""), opacity: 0.7});
+  }
+  Plotly.react("timing-hist", bars, layoutBase("cycle-time histogram, cycles vs µs",
+    {barmode: "overlay", yaxis: {type: "log"}}), PLOT_CONFIG);
+  rigd.histRenders++;
+}
+
 let dirty = {orbit: false, traces: false}, lastOrbit = 0, lastTraces = 0, lastTiming = 0;
 function markDirty() { dirty.orbit = dirty.traces = true; }
 function renderLoop(now) {
@@ -293,7 +311,7 @@ function renderLoop(now) {
     } else if (dirty.traces && now - lastTraces >= TRACES_MS) {
       dirty.traces = false; lastTraces = now; drawTraces(); rigd.renders++;
     } else if (now - lastTiming >= TIMING_MS) {
-      lastTiming = now; drawTiming();
+      lastTiming = now; drawTiming(); drawHistogram();
     }
   }
   requestAnimationFrame(renderLoop);
