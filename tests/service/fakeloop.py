@@ -1,5 +1,7 @@
 """A test double of the *loop* (rigd.loop.ControlLoop command API), not of service code."""
 
+import contextlib
+import os
 import threading
 
 from rigd.errors import InputError
@@ -64,3 +66,25 @@ class GatedLoop(FakeLoop):
         if not self.gate.wait(60.0):
             raise RuntimeError("gate never opened")
         super().load_controller(path)
+
+
+@contextlib.contextmanager
+def gated_frontend(loop: GatedLoop, path: str):
+    """The real socket process (rigd.service.bridge.SocketFrontend) on ``path`` with the real
+    Dispatcher in front of ``loop``; yields once it serves, opens the gate and stops it after."""
+    from rigd.service.bridge import SocketFrontend
+    from rigd.service.protocol import Dispatcher
+
+    disp = Dispatcher(loop, info=lambda: {"pid": os.getpid()})
+
+    def snapshot():
+        return {"status": loop.status(), "timing": loop.timing(), "faults": loop.faults(),
+                "info": {"pid": os.getpid()}, "experiment": None}
+
+    fe = SocketFrontend(path, 0o660, disp.handle_line, snapshot).start()
+    try:
+        assert fe.ready.wait(60), "socket process did not come up"
+        yield
+    finally:
+        loop.gate.set()
+        fe.stop()

@@ -10,35 +10,20 @@ slow command was in progress. Latency figures: ``python -m bench socket_load``
 (``socket_busy_status_ms``)."""
 
 import json
-import os
 import select
 import socket
 import threading
 
 import pytest
-from fakeloop import GatedLoop
-
-from rigd.service.bridge import SocketFrontend
-from rigd.service.protocol import Dispatcher
+from fakeloop import GatedLoop, gated_frontend
 
 
 @pytest.fixture()
 def busy(tmp_path):
     loop = GatedLoop()
-    disp = Dispatcher(loop, info=lambda: {"pid": os.getpid()})
-
-    def snapshot():
-        return {"status": loop.status(), "timing": loop.timing(), "faults": loop.faults(),
-                "info": {"pid": os.getpid()}, "experiment": None}
-
     path = str(tmp_path / "rigd.sock")
-    fe = SocketFrontend(path, 0o660, disp.handle_line, snapshot).start()
-    try:
-        assert fe.ready.wait(60), "socket process did not come up"
+    with gated_frontend(loop, path):
         yield path, loop
-    finally:
-        loop.gate.set()
-        fe.stop()
 
 
 class Conn:

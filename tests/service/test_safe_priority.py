@@ -4,15 +4,12 @@ test opens a gate. While that load is provably pending (blocked inside the doubl
 from another client is run and answered; the load is answered after the gate opens.
 No timing: "pending" is a fact (the gate is closed)."""
 
-import os
 
 import pytest
-from fakeloop import GatedLoop
+from fakeloop import GatedLoop, gated_frontend
 from test_busy_socket import Conn
 
 from rigd.loop import faults as FC
-from rigd.service.bridge import SocketFrontend
-from rigd.service.protocol import Dispatcher
 
 
 class TrippableLoop(GatedLoop):
@@ -36,20 +33,9 @@ class TrippableLoop(GatedLoop):
 @pytest.fixture()
 def gated(tmp_path):
     loop = TrippableLoop()
-    disp = Dispatcher(loop, info=lambda: {"pid": os.getpid()})
-
-    def snapshot():
-        return {"status": loop.status(), "timing": loop.timing(), "faults": loop.faults(),
-                "info": {"pid": os.getpid()}, "experiment": None}
-
     path = str(tmp_path / "rigd.sock")
-    fe = SocketFrontend(path, 0o660, disp.handle_line, snapshot).start()
-    try:
-        assert fe.ready.wait(60), "socket process did not come up"
+    with gated_frontend(loop, path):
         yield path, loop
-    finally:
-        loop.gate.set()
-        fe.stop()
 
 
 def test_safe_answered_while_a_slow_load_is_pending(gated):
