@@ -87,9 +87,13 @@ def test_listener_that_never_answers(work):
 
 
 @pytest.mark.skipif(os.geteuid() == 0 and not shutil.which("setpriv"),
-                    reason="root connects to a mode-000 socket; no setpriv to drop to nobody")
+                    reason="root connects to a mode-000 socket; no setpriv to drop its "
+                           "permission-override capabilities")
 def test_socket_without_permission():
-    """A socket the user may not open (mode 000; as root the client runs as nobody)."""
+    """A socket the user may not open (mode 000). As root the client keeps uid 0 but loses
+    CAP_DAC_OVERRIDE/CAP_DAC_READ_SEARCH (setpriv), so the socket's mode applies to it while it
+    still reads its own checkout and venv as their owner (dropping to nobody failed on a clone
+    under a 0700 directory: 'No module named rigd')."""
     import tempfile
 
     d = Path(tempfile.mkdtemp(prefix="rigd-perm-"))
@@ -104,7 +108,8 @@ def test_socket_without_permission():
         os.chmod(sock, 0)
         cmd = [*RIGD, "experiment", "e.yaml", "--socket", sock, "--out", "run"]
         if os.geteuid() == 0:
-            cmd = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", *cmd]
+            caps = "-dac_override,-dac_read_search"
+            cmd = ["setpriv", f"--bounding-set={caps}", f"--inh-caps={caps}", *cmd]
         env = {k: v for k, v in os.environ.items() if k != "RIGD_SOCKET"}
         env["HOME"] = str(d)
         try:
