@@ -3,6 +3,7 @@ process for the console's process and browser tests (import as ``from webproc im
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 import sys
@@ -113,3 +114,19 @@ def wait_for(cond, timeout=30.0, interval=0.1, what="condition"):
         if time.monotonic() > end:
             raise AssertionError(f"timed out waiting for {what}")
         time.sleep(interval)
+
+
+def sse_events(lines, limit=None):
+    """``(event name or None, data)`` pairs parsed from Server-Sent-Event ``lines``; stops
+    after ``limit`` events when given."""
+    name = None
+    n = 0
+    for line in lines:
+        if line.startswith("event: "):
+            name = line[7:]
+        elif line.startswith("data: "):
+            yield name, json.loads(line[6:])
+            name = None
+            n += 1
+            if limit is not None and n >= limit:
+                return

@@ -9,6 +9,7 @@ import threading
 import pytest
 from starlette.testclient import TestClient
 from webkit import TOKEN
+from webproc import sse_events
 
 from rigd.web.app import Settings, build_app
 
@@ -46,17 +47,10 @@ class PushServer:
 
 
 def _events(client, url="/api/stream"):
-    events, name = [], None
     with client.stream("GET", url) as r:
         assert r.status_code == 200
         assert r.headers["content-type"].startswith("text/event-stream")
-        for line in r.iter_lines():
-            if line.startswith("event: "):
-                name = line[7:]
-            elif line.startswith("data: "):
-                events.append((name, json.loads(line[6:])))
-                name = None
-    return events
+        return list(sse_events(r.iter_lines()))
 
 
 def _settings(tmp_path, sock):

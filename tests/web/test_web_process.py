@@ -2,12 +2,11 @@
 HTTP API mirrors ``rigd ctl``, the token guards it, paths stay inside, the stream is relayed."""
 
 import http.client
-import json
 from urllib.parse import urlsplit
 
 import httpx
 import pytest
-from webproc import WebProcess, config_folder, start_daemon, wait_for
+from webproc import WebProcess, config_folder, sse_events, start_daemon, wait_for
 
 
 @pytest.fixture(scope="module")
@@ -129,17 +128,9 @@ def test_raw_paths_never_leave_the_folders(rig, raw):
 
 def test_stream_relayed_from_the_daemon(rig):
     _, _, http = rig
-    events, name = [], None
     with http.stream("GET", "/api/stream?rate_hz=20&points=5&channels=e_x,e_y") as r:
         assert r.status_code == 200
-        for line in r.iter_lines():
-            if line.startswith("event: "):
-                name = line[7:]
-            elif line.startswith("data: "):
-                events.append((name, json.loads(line[6:])))
-                name = None
-                if len(events) >= 6:
-                    break
+        events = list(sse_events(r.iter_lines(), limit=6))
     assert events[0][0] == "subscribed" and events[0][1]["channels"] == ["e_x", "e_y"]
     updates = [e for n, e in events[1:] if n is None]
     assert len(updates) == 5
