@@ -3,6 +3,7 @@ process for the console's process and browser tests (import as ``from webproc im
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 import subprocess
@@ -102,6 +103,22 @@ class WebProcess:
             self.proc.wait()
         self._reader.join(5)
         return self.proc.returncode
+
+
+@contextlib.contextmanager
+def daemon_and_web(tmp: Path):
+    """A real ``rigd run`` (:func:`start_daemon`) and a real ``rigd web`` in front of it on
+    ``tmp``; yields ``(daemon, web)`` and stops both (``web.proc.returncode`` tells how
+    ``rigd web`` ended)."""
+    d = start_daemon(tmp)
+    try:
+        web = WebProcess(tmp, d.sock, tmp / "runs", config_folder(tmp))
+        try:
+            yield d, web
+        finally:
+            web.stop()
+    finally:
+        d.stop()
 
 
 def wait_for(cond, timeout=30.0, interval=0.1, what="condition"):

@@ -9,7 +9,7 @@ import json
 import pytest
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select, WebDriverWait
-from webproc import WebProcess, config_folder, start_daemon, wait_for
+from webproc import daemon_and_web, wait_for
 
 BAD_EXPERIMENT = """kind: prbs
 name: bad-upload
@@ -24,15 +24,8 @@ switch_probability: 1.7
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("consolerig")
-    d = start_daemon(tmp)
-    try:
-        web = WebProcess(tmp, d.sock, tmp / "runs", config_folder(tmp))
-        try:
-            yield d, web, tmp
-        finally:
-            web.stop()
-    finally:
-        d.stop()
+    with daemon_and_web(tmp) as (d, web):
+        yield d, web, tmp
 
 
 def _wait(browser, cond, timeout=60, what=""):

@@ -6,24 +6,17 @@ from urllib.parse import urlsplit
 
 import httpx
 import pytest
-from webproc import WebProcess, config_folder, sse_events, start_daemon, wait_for
+from webproc import daemon_and_web, sse_events, wait_for
 
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("webrig")
-    d = start_daemon(tmp)
-    try:
-        web = WebProcess(tmp, d.sock, tmp / "runs", config_folder(tmp))
-        try:
-            with httpx.Client(base_url=web.url, timeout=60) as http:
-                yield d, web, http
-        finally:
-            # uvicorn re-raises SIGTERM after its clean shutdown: -15 is a clean stop
-            code = web.stop()
-        assert code in (0, -15), web.lines
-    finally:
-        d.stop()
+    with daemon_and_web(tmp) as (d, web), \
+            httpx.Client(base_url=web.url, timeout=60) as http:
+        yield d, web, http
+    # uvicorn re-raises SIGTERM after its clean shutdown: -15 is a clean stop
+    assert web.proc.returncode in (0, -15), web.lines
 
 
 def _auth(web):
