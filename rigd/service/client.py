@@ -127,6 +127,9 @@ class ControlClient:
         ------
         ControlError
             The daemon refused the subscription (its one line).
+        ControlError
+            The daemon stopped the push (an error line with no request id, e.g. ``push
+            stopped: ...``): raised at once with that line, never left to a time-out.
         rigd.errors.InputError
             The connection closed or no update came within ``timeout``. Use the client on a
             connection of its own (replies to other requests on it are skipped).
@@ -140,3 +143,5 @@ class ControlClient:
             msg = self.read_reply()
             if "stream" in msg:
                 yield msg["stream"]
+            elif msg.get("ok") is False and msg.get("id") is None:
+                raise ControlError(msg.get("error", "the daemon stopped the stream"))

@@ -28,6 +28,7 @@ import numpy as np
 
 from rigd.frame import REC, RECORD_NAMES
 from rigd.loop.shared_ring import RingReader
+from rigd.plain import plain
 
 #: one update covers at most this much loop time; older frames are counted in ``dropped``
 MAX_BACK_S = 1.0
@@ -175,7 +176,7 @@ class StreamHub:
                 "channels": names}, sub
 
     def status(self) -> dict[str, Any]:
-        """The cheap status fields, recomputed once per snapshot version."""
+        """The cheap status fields, recomputed once per snapshot version (non-finite -> None)."""
         snap = self._snapshot()
         v = snap.get("v", -1)
         if self._cache[0] == v:
@@ -196,6 +197,9 @@ class StreamHub:
                "cycles_timed": tm.get("cycles"),
                "compute_us": tm.get("compute_us"), "lateness_us": tm.get("lateness_us"),
                "experiment": (snap.get("experiment") or {}).get("state")}
+        # the one NaN policy (rigd.plain): before the loop has timed a cycle its percentiles
+        # are NaN, and a NaN would make the strict-JSON update line fail
+        out = plain(out)
         self._cache = (v, out)
         return out
 

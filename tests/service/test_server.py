@@ -243,3 +243,26 @@ def test_deferred_replies_keep_order_and_do_not_hold_other_clients(tmp_path):
         a.close()                                        # gone before its reply
         futures[-1][1].set_result(b'{"id": 4}\n')        # delivered to nobody, no error
         assert _raw(srv.path, b'{"id": 5, "cmd": "fast"}\n') == [{"id": 5, "ok": True}]
+
+
+def test_a_stopped_push_ends_the_client_stream_at_once(tmp_path):
+    """A push that fails sends one error line (no id); ``ControlClient.stream`` raises it as a
+    ControlError at once instead of skipping it and waiting for its time-out."""
+    class Broken:
+        next_due = 0.0
+
+        def update(self, now):
+            raise ValueError("Out of range float values are not JSON compliant")
+
+    def handle(line):
+        req = json.loads(line)
+        ok = json.dumps({"id": req["id"], "ok": True, "result": {"fs_hz": 1.0}}).encode()
+        return ok + b"\n", Broken()
+
+    with ControlServer(tmp_path / "s.sock", handle) as srv:
+        c = ControlClient(srv.path, timeout=60.0).connect()
+        it = c.stream(rate_hz=50, points=8)
+        assert c.subscribed == {"fs_hz": 1.0}
+        with pytest.raises(ControlError, match="push stopped: internal error: ValueError"):
+            next(it)
+        c.close()

@@ -136,3 +136,29 @@ def test_outward_rounding_keeps_every_sample_inside_and_is_short():
     nan_lo, nan_hi = outward(np.array([np.nan]), np.array([np.nan]))
     assert np.isnan(nan_lo[0]) and np.isnan(nan_hi[0])
 
+
+
+def test_an_update_before_the_first_timed_cycle_is_strict_json():
+    """Right after start the loop has timed no cycle: the timing percentiles are NaN. The
+    update must still be one strict-JSON line (NaN -> null, rigd.plain's policy); a NaN once
+    made the push stop and the subscriber wait for a time-out (CI, stop 18)."""
+    import json
+
+    from rigd.frame import N_REC
+    from rigd.loop.layout import H_NB
+    from rigd.loop.timing import summary
+    from rigd.service.stream import StreamHub
+
+    ring = SharedRing(1024, N_REC, fs=5000.0)
+    _write_frames(ring.ring, ring.hdr, 0, 200)
+    timing = summary(np.zeros((2, H_NB + 3), dtype=np.int64))
+    assert np.isnan(timing["compute_us"]["p99"])            # what the daemon publishes
+    snap = {"v": 1, "status": {"seq": 200, "running": True, "fault": {"code": 0}},
+            "timing": timing}
+    hub = StreamHub(RingReader(ring.handle()), lambda: snap)
+    _, sub = hub.subscribe(50, 8, ["seq", "t"])
+    line = sub.update()
+    body = json.loads(line)["stream"]                         # strict JSON parses it
+    assert body["status"]["compute_us"]["p99"] is None
+    assert body["status"]["lateness_us"]["max"] is None
+    assert body["status"]["cycle"] == 200 and body["n"] > 0
