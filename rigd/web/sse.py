@@ -2,8 +2,11 @@
 
 One control-socket connection per SSE client, opened with ``stream.subscribe``
 (docs/service.md): each pushed line ``{"stream": {...}}`` becomes one ``data:`` event with the
-inner object unchanged. When the daemon refuses or is gone, one ``event: error`` with a one-line
-``{"error": ...}`` ends the stream (the page then falls back to polling ``/api/status``).
+inner object unchanged — its bytes are sliced out of the line, not decoded and re-encoded (the
+daemon's socket process already wrote strict JSON; :func:`stream_body`). When the daemon
+refuses, stops the push (an error line without request id) or is gone, one ``event: error``
+with a one-line ``{"error": ...}`` ends the stream (the page then falls back to polling
+``/api/status``).
 """
 
 from __future__ import annotations
@@ -23,6 +26,30 @@ def event(data: Any, name: str | None = None) -> bytes:
     """One SSE event (``event:`` line when named, one ``data:`` line, blank line)."""
     head = f"event: {name}\n" if name else ""
     return (head + "data: " + json.dumps(data, separators=(",", ":")) + "\n\n").encode()
+
+
+_PREFIX = b'{"stream":'
+
+
+def stream_body(line: bytes) -> bytes | None:
+    """The bytes of the inner object of a pushed line ``{"stream": {...}}``, or None when the
+    line is something else (a reply, an error line).
+
+    The socket process writes each push as one JSON object whose only key is ``stream``
+    (:meth:`rigd.service.stream.Subscription.update`), so the inner object is the line
+    without its prefix and its final ``}``.
+    """
+    if not line.startswith(_PREFIX):
+        return None
+    body = line[len(_PREFIX):].strip()
+    if not (body.startswith(b"{") and body.endswith(b"}}")):
+        return None
+    return body[:-1].rstrip()
+
+
+def data_event(body: bytes) -> bytes:
+    """One unnamed SSE event whose ``data:`` line is ``body`` (one line of JSON) as it is."""
+    return b"data: " + body + b"\n\n"
 
 
 async def relay(socket_path: str, subscribe: dict[str, Any],
@@ -62,12 +89,18 @@ async def relay(socket_path: str, subscribe: dict[str, Any],
             if not line:
                 yield event({"error": "daemon closed the stream"}, "error")
                 return
+            body = stream_body(line)
+            if body is not None:
+                yield data_event(body)
+                continue
             try:
                 msg = json.loads(line)
             except ValueError:
                 continue
-            if isinstance(msg, dict) and "stream" in msg:
-                yield event(msg["stream"])
+            if isinstance(msg, dict) and msg.get("ok") is False and msg.get("id") is None:
+                yield event({"error": "daemon stopped the stream: "
+                             + " ".join(str(msg.get("error", "")).split())}, "error")
+                return
     finally:
         writer.close()
         try:

@@ -12,16 +12,17 @@ from webkit import TOKEN
 from webproc import sse_events
 
 from rigd.web.app import Settings, build_app
+from rigd.web.sse import stream_body
 
 
 class PushServer:
     """Answers ``stream.subscribe`` (or refuses it) and pushes ``frames``, then closes."""
 
-    def __init__(self, path, frames, refuse=None):
+    def __init__(self, path, frames, refuse=None, then=None):
         self.srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         self.srv.bind(str(path))
         self.srv.listen(4)
-        self.path, self.frames, self.refuse = str(path), frames, refuse
+        self.path, self.frames, self.refuse, self.then = str(path), frames, refuse, then
         self.requests = []
         self.thread = threading.Thread(target=self._serve, daemon=True)
         self.thread.start()
@@ -38,8 +39,12 @@ class PushServer:
             conn.sendall((json.dumps({"id": req["id"], "ok": True, "result": {
                 "fs_hz": 5000.0, "rate_hz": req["rate_hz"], "points": req["points"],
                 "channels": ["e_x", "e_y"]}}) + "\n").encode())
-            for f in self.frames:
-                conn.sendall((json.dumps({"stream": f}) + "\n").encode())
+            for i, f in enumerate(self.frames):    # both separator styles of json.dumps
+                sep = (",", ":") if i % 2 else (", ", ": ")
+                conn.sendall((json.dumps({"stream": f}, separators=sep) + "\n").encode())
+            if self.then is not None:
+                conn.sendall((json.dumps(self.then) + "\n").encode())
+                conn.makefile("rb").readline()          # hold the connection open
 
     def close(self):
         self.thread.join(10)
@@ -71,6 +76,27 @@ def test_stream_payloads_are_relayed_unchanged(tmp_path):
                                         "channels": ["e_x", "e_y"]})
     assert [e for _, e in events[1:6]] == frames and all(n is None for n, _ in events[1:6])
     assert events[6][0] == "error" and "closed" in events[6][1]["error"]
+
+
+def test_a_stopped_push_is_one_error_event_not_a_silent_stream(tmp_path):
+    """The socket process stops a failed push with an error line without id: the relay ends
+    the stream with one error event naming it (it once skipped it and sent keepalives)."""
+    frames = [{"seq": 1, "n": 1, "min": {"e_x": [0.0]}, "max": {"e_x": [1.0]}}]
+    stop = {"id": None, "ok": False, "error": "push stopped: internal error: ValueError: x"}
+    srv = PushServer(tmp_path / "d.sock", frames, then=stop)
+    with TestClient(build_app(_settings(tmp_path, srv.path))) as client:
+        events = _events(client)
+    srv.close()
+    assert [e for _, e in events[1:2]] == frames
+    assert events[2:] == [("error", {"error": "daemon stopped the stream: push stopped: "
+                                              "internal error: ValueError: x"})]
+
+
+def test_stream_body_slices_only_pushed_lines():
+    line = json.dumps({"stream": {"a": [1, {"b": 2}]}}, separators=(",", ":")).encode()
+    assert json.loads(stream_body(line + b"\n")) == {"a": [1, {"b": 2}]}
+    assert stream_body(b'{"id":1,"ok":true}\n') is None
+    assert stream_body(b'{"stream":1}\n') is None
 
 
 @pytest.mark.parametrize("refuse", ["unknown command 'stream.subscribe' (known: ping, ...)"])
