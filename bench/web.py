@@ -64,7 +64,7 @@ def page_subscription() -> tuple[int, list[str]]:
 def _client_main(url: str, go, stop, out) -> None:
     """One browser-equivalent client (a process): read the SSE stream, parse every event,
     keep the latencies of the events received while ``go`` is set."""
-    import httpx
+    import httpx2 as httpx
 
     lat, dropped, nbytes, n = [], 0, 0, 0
     ready = True

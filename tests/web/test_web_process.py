@@ -4,7 +4,7 @@ HTTP API mirrors ``rigd ctl``, the token guards it, paths stay inside, the strea
 import http.client
 from urllib.parse import urlsplit
 
-import httpx
+import httpx2 as httpx
 import pytest
 from webproc import daemon_and_web, sse_events, wait_for
 
