@@ -1,6 +1,7 @@
 """Loop benchmark: lock-step throughput, per-cycle compute time, real-time lateness.
 
-Figures (``make bench`` / ``python -m bench loop``):
+Figures (``make bench`` / ``python -m bench loop``; ``RIGD_BENCH_LOOP=op_change,compute`` runs
+only those parts: ``lockstep``, ``compute``, ``realtime``, ``op_change``):
 
 * ``lockstep_cycles_per_s``: loop + simulated plant + recording of every frame to an HDF5 file,
   10^6 cycles, wall time until the file is closed.
@@ -180,28 +181,48 @@ def _percentiles(us: np.ndarray) -> dict:
             "max": round(float(us.max()), 3)}
 
 
+#: the parts of the section; ``RIGD_BENCH_LOOP=op_change,compute`` runs only those (A/B runs)
+PARTS = ("lockstep", "compute", "realtime", "op_change")
+
+
+def _parts() -> tuple[str, ...]:
+    want = [p.strip() for p in os.environ.get("RIGD_BENCH_LOOP", "").split(",") if p.strip()]
+    bad = [p for p in want if p not in PARTS]
+    if bad:
+        raise SystemExit(f"RIGD_BENCH_LOOP: unknown part(s) {', '.join(bad)} "
+                         f"(parts: {', '.join(PARTS)})")
+    return tuple(want) or PARTS
+
+
 def run() -> dict:
-    cps = lockstep_throughput()
-    samples, kernel_ns = compute_samples()
-    samples14, kernel14_ns = compute_samples(order=14)
-    t = realtime()
-    oc = op_change()
-    return {
-        **oc,
-        "lockstep_cycles_per_s": round(cps),
-        "loop_compute_us": _percentiles(samples / 1000.0),
-        "loop_kernel_ns": round(kernel_ns, 1),
-        "loop_compute_us_k14": _percentiles(samples14 / 1000.0),
-        "loop_kernel_ns_k14": round(kernel14_ns, 1),
-        "rt_lateness_us": t["lateness_us"],
-        "rt_compute_us": t["compute_us"],
-        "rt_miss_fraction": t["miss_fraction"],
-        "rt_cycles": t["cycles"],
-        "rt_overruns": t["overruns"],
-        "rt_skipped_periods": t["skipped_periods"],
-        "rt_seconds": RT_SECONDS,
-        "rt_sched_fifo": not any("SCHED_FIFO" in w for w in t["rt_warnings"]),
-    }
+    parts = _parts()
+    out: dict = {}
+    if "lockstep" in parts:
+        out["lockstep_cycles_per_s"] = round(lockstep_throughput())
+    if "compute" in parts:
+        samples, kernel_ns = compute_samples()
+        samples14, kernel14_ns = compute_samples(order=14)
+        out.update({
+            "loop_compute_us": _percentiles(samples / 1000.0),
+            "loop_kernel_ns": round(kernel_ns, 1),
+            "loop_compute_us_k14": _percentiles(samples14 / 1000.0),
+            "loop_kernel_ns_k14": round(kernel14_ns, 1),
+        })
+    if "realtime" in parts:
+        t = realtime()
+        out.update({
+            "rt_lateness_us": t["lateness_us"],
+            "rt_compute_us": t["compute_us"],
+            "rt_miss_fraction": t["miss_fraction"],
+            "rt_cycles": t["cycles"],
+            "rt_overruns": t["overruns"],
+            "rt_skipped_periods": t["skipped_periods"],
+            "rt_seconds": RT_SECONDS,
+            "rt_sched_fifo": not any("SCHED_FIFO" in w for w in t["rt_warnings"]),
+        })
+    if "op_change" in parts:
+        out.update(op_change())
+    return out
 
 
 if __name__ == "__main__":

@@ -1,10 +1,10 @@
 """Kernel parameter and state arrays of the simulated plant, built from its options.
 
-:func:`param_block` turns (options, Ω, P_I, f_s) into the active-parameter block of
-:mod:`rigd_drivers.sim_kernel` (exact ZOH/FOH discretisations included);
-:func:`rest_state` gives the plant at rest under a constant drive. The matrix exponentials run
-without the GIL (:mod:`.sim_expm`): an operating-point change is prepared in another thread
-while the loop thread cycles.
+:class:`ParamBlocks` (and :func:`param_block`) turn (options, Ω, P_I, f_s) into the
+active-parameter block of :mod:`rigd_drivers.sim_kernel` (exact ZOH/FOH discretisations
+included); :func:`rest_state` gives the plant at rest under a constant drive. The
+operating-point part is one compiled call without the GIL (:mod:`.sim_opblock`): an
+operating-point change is prepared in another thread while the loop thread cycles.
 """
 
 from __future__ import annotations
@@ -14,10 +14,11 @@ import math
 
 import numpy as np
 
-from rigd.lti import foh, zoh
+from rigd.lti import zoh
 from rigd_drivers import sim_kernel as k
 from rigd_drivers import sim_physics as phys
 from rigd_drivers.sim_expm import expm
+from rigd_drivers.sim_opblock import fill_operating_point
 from rigd_drivers.sim_options import PlantOptions
 
 
@@ -62,64 +63,86 @@ def _valve_block(f_scale: float, T: float) -> tuple[np.ndarray, np.ndarray, np.n
     return vphi, vgam, voff
 
 
+class ParamBlocks:
+    """Parameter blocks of one plant (options, f_s) at any operating point.
+
+    The entries that do not depend on (Ω, P_I) — sensors, valves, effects, noise — are built
+    once, here (the template); each operating point is then one compiled call without the GIL
+    (:func:`rigd_drivers.sim_opblock.fill_operating_point`) on a copy of the template, so an
+    operating-point change prepared while the loop runs barely holds the GIL.
+
+    Parameters
+    ----------
+    opts : PlantOptions
+    fs : float
+        Loop rate, Hz.
+    """
+
+    def __init__(self, opts: PlantOptions, fs: float) -> None:
+        T = 1.0 / fs
+        self.T = T
+        self.n_sub = int(opts.substeps)
+        b = np.zeros(k.NA)
+        # the extra mode's rows and the sensors (the bearing part is written per point)
+        A, B, C = bearing_augmented(opts, 0.0, 3.0)
+        A[:4, :] = 0.0
+        B[:4, :] = 0.0
+        self.A_aug, self.B_aug = A, B
+        b[k.A_C:k.A_C + 2 * k.NX] = C.ravel()
+        b[k.A_NSUB] = self.n_sub
+        vphi, vgam, voff = _valve_block(float(opts.valves.f_scale), T)
+        b[k.A_VPHI:k.A_VPHI + 16] = vphi
+        b[k.A_VGAM:k.A_VGAM + 8] = vgam
+        b[k.A_VOFF:k.A_VOFF + 4] = voff
+        ef = opts.effects
+        self.k3_ratio = ef.cubic_stiffness.ratio_at_gap if ef.cubic_stiffness.enabled else 0.0
+        if ef.delay.enabled:
+            b[k.A_DELAY] = ef.delay.samples
+        if ef.hysteresis.enabled:
+            h = ef.hysteresis
+            b[k.A_HYST_ON] = 1.0
+            b[k.A_HYST_ALPHA] = h.alpha
+            b[k.A_HYST_B] = h.alpha / (2.0 * h.h_max_v)
+            b[k.A_HYST_HMAX] = h.h_max_v
+        if ef.creep.enabled:
+            b[k.A_CREEP_ON] = 1.0
+            for j in range(2):
+                b[k.A_CREEP_A + j] = math.exp(-T / ef.creep.tau_s[j])
+                b[k.A_CREEP_F + j] = ef.creep.fraction[j]
+        self.unbalance_g_mm = 0.0
+        if ef.runout.enabled:
+            r = ef.runout
+            b[k.A_RO_ON] = 1.0
+            b[k.A_RO:k.A_RO + 8] = [r.x_um[0], math.radians(r.x_phase_deg[0]),
+                                    r.x_um[1], math.radians(r.x_phase_deg[1]),
+                                    r.y_um[0], math.radians(r.y_phase_deg[0]),
+                                    r.y_um[1], math.radians(r.y_phase_deg[1])]
+            self.unbalance_g_mm = float(r.unbalance_g_mm)    # force (N) set per Ω
+            b[k.A_UNB + 1] = math.radians(r.unbalance_phase_deg)
+        b[k.A_NOISE_E] = opts.noise.e_um
+        b[k.A_NOISE_Y] = opts.noise.y_p_v
+        b[k.A_SEED] = float(opts.seed)
+        b[k.A_T] = T
+        b[k.A_NX] = 6 if opts.effects.extra_mode.enabled else 4
+        b.flags.writeable = False
+        self.template = b
+
+    def __call__(self, omega_rpm: float, p_inj_bar: float) -> np.ndarray:
+        """The active parameter block (float64[NA], a new array) at (Ω rpm, P_I bar).
+
+        Runs in: the preparing thread; the GIL is held only for the copy and the call.
+        """
+        b = self.template.copy()
+        fill_operating_point(b, self.A_aug, self.B_aug, float(omega_rpm), float(p_inj_bar),
+                             self.T, self.n_sub, self.k3_ratio, self.unbalance_g_mm)
+        return b
+
+
 def param_block(opts: PlantOptions, omega_rpm: float, p_inj_bar: float,
                 fs: float) -> np.ndarray:
-    """The active parameter block (float64[NA]) for the kernel at (Ω, P_I)."""
-    T = 1.0 / fs
-    b = np.zeros(k.NA)
-    A, B, C = bearing_augmented(opts, omega_rpm, p_inj_bar)
-    Phi, G0, G1 = foh(A, B, T, expm=expm)
-    b[k.A_PHI:k.A_PHI + k.NX * k.NX] = Phi.ravel()
-    b[k.A_G0:k.A_G0 + k.NX * k.NW] = G0.ravel()
-    b[k.A_G1:k.A_G1 + k.NX * k.NW] = G1.ravel()
-    n_sub = opts.substeps
-    Phi, G0, G1 = foh(A, B, T / n_sub, expm=expm)
-    b[k.A_SPHI:k.A_SPHI + k.NX * k.NX] = Phi.ravel()
-    b[k.A_SG0:k.A_SG0 + k.NX * k.NW] = G0.ravel()
-    b[k.A_SG1:k.A_SG1 + k.NX * k.NW] = G1.ravel()
-    b[k.A_C:k.A_C + 2 * k.NX] = C.ravel()
-    b[k.A_NSUB] = n_sub
-    vphi, vgam, voff = _valve_block(float(opts.valves.f_scale), T)
-    b[k.A_VPHI:k.A_VPHI + 16] = vphi
-    b[k.A_VGAM:k.A_VGAM + 8] = vgam
-    b[k.A_VOFF:k.A_VOFF + 4] = voff
-    ef = opts.effects
-    if ef.cubic_stiffness.enabled:
-        bm = phys.bearing_matrices(omega_rpm, p_inj_bar)
-        k_mean = 1e-6 * float(np.mean(np.diag(bm.K)))          # N/µm
-        b[k.A_K3] = ef.cubic_stiffness.ratio_at_gap * k_mean / phys.GAP_UM ** 2
-    if ef.delay.enabled:
-        b[k.A_DELAY] = ef.delay.samples
-    if ef.hysteresis.enabled:
-        h = ef.hysteresis
-        b[k.A_HYST_ON] = 1.0
-        b[k.A_HYST_ALPHA] = h.alpha
-        b[k.A_HYST_B] = h.alpha / (2.0 * h.h_max_v)
-        b[k.A_HYST_HMAX] = h.h_max_v
-    if ef.creep.enabled:
-        b[k.A_CREEP_ON] = 1.0
-        for j in range(2):
-            b[k.A_CREEP_A + j] = math.exp(-T / ef.creep.tau_s[j])
-            b[k.A_CREEP_F + j] = ef.creep.fraction[j]
-    if ef.runout.enabled:
-        r = ef.runout
-        b[k.A_RO_ON] = 1.0
-        b[k.A_RO:k.A_RO + 8] = [r.x_um[0], math.radians(r.x_phase_deg[0]),
-                                r.x_um[1], math.radians(r.x_phase_deg[1]),
-                                r.y_um[0], math.radians(r.y_phase_deg[0]),
-                                r.y_um[1], math.radians(r.y_phase_deg[1])]
-        w_rad = omega_rpm * 2 * math.pi / 60.0
-        b[k.A_UNB] = r.unbalance_g_mm * 1e-6 * w_rad ** 2          # N
-        b[k.A_UNB + 1] = math.radians(r.unbalance_phase_deg)
-    b[k.A_NOISE_E] = opts.noise.e_um
-    b[k.A_NOISE_Y] = opts.noise.y_p_v
-    b[k.A_SEED] = float(opts.seed)
-    b[k.A_OMEGA_RAD] = omega_rpm * 2 * math.pi / 60.0
-    b[k.A_OMEGA_RPM] = omega_rpm
-    b[k.A_PINJ] = p_inj_bar
-    b[k.A_T] = T
-    b[k.A_NX] = 6 if opts.effects.extra_mode.enabled else 4
-    return b
+    """The active parameter block (float64[NA]) for the kernel at (Ω, P_I) (see
+    :class:`ParamBlocks`, which a driver keeps to change operating points cheaply)."""
+    return ParamBlocks(opts, fs)(omega_rpm, p_inj_bar)
 
 
 def rest_state(opts: PlantOptions, block: np.ndarray, omega_rpm: float, p_inj_bar: float,

@@ -38,6 +38,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 #: Operating range (paper Sec. 4.3).
 OMEGA_RANGE_RPM = (0.0, 6000.0)
@@ -117,30 +118,41 @@ def zeta_static(p_inj_bar: float) -> float:
     return ZETA_4BAR * (ZETA_7BAR / ZETA_4BAR) ** ((p_inj_bar - 4.0) / 3.0)
 
 
+@njit(cache=True, nogil=True)
+def bearing_core(omega_rpm: float, p_inj_bar: float):
+    """M, D, G, K (kg, N·s/m, kg, N/m) and B_p (µN/V) of Eq. 4 at (Ω rpm, P_I bar), each
+    float64 (2, 2); compiled, runs without the GIL (no range check: see
+    :func:`bearing_matrices`). The one place the bearing's physics is written."""
+    s = omega_rpm / OMEGA_RANGE_RPM[1]                     # 0..1
+    m0, m1 = MASS_KG
+    fx0 = F_X0_3BAR_HZ + F_X0_SLOPE_HZ_PER_BAR * (p_inj_bar - 3.0)
+    w0, w1 = 2 * np.pi * fx0, 2 * np.pi * (F_Y_RATIO * fx0)
+    k0 = m0 * w0 ** 2 * (1.0 + SPEED_STIFFENING * s)
+    k1 = m1 * w1 ** 2 * (1.0 + SPEED_STIFFENING * s)
+    zeta = ZETA_4BAR * (ZETA_7BAR / ZETA_4BAR) ** ((p_inj_bar - 4.0) / 3.0)
+    c0 = 2.0 * zeta * m0 * w0
+    c1 = 2.0 * zeta * m1 * w1
+    kxy = K_CROSS * np.sqrt(k0 * k1)
+    kc = CIRC_AT_6KRPM * s * ((k0 + k1) / 2.0)
+    dxy = D_CROSS * np.sqrt(c0 * c1)
+    g = GYRO_PER_MASS * ((m0 + m1) / 2.0)
+    # B_p: static gain K⁻¹B_p ≈ diag(STATIC_GAIN) at Ω = 0 (p in µm -> forces in µN).
+    b0 = STATIC_GAIN_UM_PER_V[0] * (m0 * w0 ** 2)
+    b1 = STATIC_GAIN_UM_PER_V[1] * (m1 * w1 ** 2)
+    M = np.array([[m0, 0.0], [0.0, m1]])
+    D = np.array([[c0, dxy], [dxy, c1]])
+    G = np.array([[0.0, g], [-g, 0.0]])
+    K = np.array([[k0, kxy + kc], [kxy - kc, k1]])
+    B_p = np.array([[b0, B_CROSS * b0], [-B_CROSS * b1, b1]])
+    return M, D, G, K, B_p
+
+
 def bearing_matrices(omega_rpm: float, p_inj_bar: float) -> BearingMatrices:
     """True bearing matrices of Eq. 4 (and Eq. 6) at speed Ω (rpm) and pressure P_I (bar)."""
     check_operating_point(omega_rpm, p_inj_bar)
     w_rad = omega_rpm * 2.0 * np.pi / 60.0
-    s = omega_rpm / OMEGA_RANGE_RPM[1]                     # 0..1
-    m = np.array(MASS_KG)
-    fx0 = F_X0_3BAR_HZ + F_X0_SLOPE_HZ_PER_BAR * (p_inj_bar - 3.0)
-    f0 = np.array([fx0, F_Y_RATIO * fx0])
-    k_d = m * (2 * np.pi * f0) ** 2 * (1.0 + SPEED_STIFFENING * s)
-    zeta = zeta_static(p_inj_bar)
-    c_d = 2.0 * zeta * m * 2 * np.pi * f0
-    kxy = K_CROSS * np.sqrt(k_d[0] * k_d[1])
-    kc = CIRC_AT_6KRPM * s * k_d.mean()
-    K = np.array([[k_d[0], kxy + kc], [kxy - kc, k_d[1]]])
-    dxy = D_CROSS * np.sqrt(c_d[0] * c_d[1])
-    D = np.array([[c_d[0], dxy], [dxy, c_d[1]]])
-    g = GYRO_PER_MASS * m.mean()
-    G = np.array([[0.0, g], [-g, 0.0]])
-    M = np.diag(m)
-    # B_p: static gain K⁻¹B_p ≈ diag(STATIC_GAIN) at Ω = 0 (p in µm -> forces in µN).
-    k0 = np.diag(m * (2 * np.pi * f0) ** 2)
-    b_d = np.array(STATIC_GAIN_UM_PER_V) * np.diag(k0)
-    B_p = np.array([[b_d[0], B_CROSS * b_d[0]], [-B_CROSS * b_d[1], b_d[1]]])
-    Minv = np.diag(1.0 / m)
+    M, D, G, K, B_p = bearing_core(float(omega_rpm), float(p_inj_bar))
+    Minv = np.diag(1.0 / np.diag(M))
     return BearingMatrices(M=M, D=D, G=G, K=K, B_p=B_p,
                            D_id=Minv @ (D - w_rad * G), K_id=Minv @ K, B_id=Minv @ B_p,
                            F_id=1e6 * Minv, omega_rad_s=w_rad)

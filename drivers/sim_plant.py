@@ -21,7 +21,7 @@ from rigd_drivers import sim_kernel as k
 from rigd_drivers import sim_physics as phys
 from rigd_drivers.sim_base import SimulatedPlantDriver
 from rigd_drivers.sim_options import PlantOptions
-from rigd_drivers.sim_params import param_block, rest_state
+from rigd_drivers.sim_params import ParamBlocks, rest_state
 
 
 class SimPlantDriver(SimulatedPlantDriver):
@@ -56,6 +56,7 @@ class SimPlantDriver(SimulatedPlantDriver):
         self.state = np.zeros(k.N_STATE)
         self._frame_view = self.state[k.S_FRAME:k.S_FRAME + N_IN]
         self._staged_view = self.params[k.STG:k.STG + k.NA]
+        self._blocks = ParamBlocks(self.opts, self.fs)
         self.reset()
 
     # --- plant control ------------------------------------------------------------------
@@ -66,7 +67,7 @@ class SimPlantDriver(SimulatedPlantDriver):
         noise stream restart from zero.
         """
         v0 = self.opts.valves.initial_drive_v if drive_v is None else float(drive_v)
-        block = param_block(self.opts, self._omega, self._p_inj, self.fs)
+        block = self._blocks(self._omega, self._p_inj)
         self.params[:] = 0.0
         self.params[k.ACT:k.ACT + k.NA] = block
         self.params[k.STG:k.STG + k.NA] = block
@@ -74,8 +75,9 @@ class SimPlantDriver(SimulatedPlantDriver):
         k.plant_sense(self.state, self.params, self._out)
 
     def _param_block(self, omega_rpm: float, p_inj_bar: float) -> np.ndarray:
-        """The lumped parameter block of (Ω rpm, P_I bar) (two matrix exponentials)."""
-        return param_block(self.opts, omega_rpm, p_inj_bar, self.fs)
+        """The lumped parameter block of (Ω rpm, P_I bar) (one compiled call without the GIL:
+        two matrix exponentials and their glue)."""
+        return self._blocks(omega_rpm, p_inj_bar)
 
     def describe(self) -> dict[str, Any]:
         """The true parameters at the current operating point (for reports and design)."""

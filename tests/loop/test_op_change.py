@@ -12,20 +12,20 @@ import threading
 import numpy as np
 from loop_helpers import make_plant
 
-import rigd_drivers.sim_plant as sim_plant
+import rigd_drivers.sim_params as sim_params
 from rigd.loop.loop import ControlLoop
 from rigd.rigconfig import default_config
 
 
 def _record_threads(monkeypatch):
     seen: list[str] = []
-    real = sim_plant.param_block
+    real = sim_params.ParamBlocks.__call__
 
-    def param_block(*a, **k):
+    def build(*a, **k):
         seen.append(threading.current_thread().name)
         return real(*a, **k)
 
-    monkeypatch.setattr(sim_plant, "param_block", param_block)
+    monkeypatch.setattr(sim_params.ParamBlocks, "__call__", build)
     return seen
 
 
