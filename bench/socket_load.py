@@ -98,6 +98,8 @@ class _Client(threading.Thread):
         self.rng = random.Random(seed)
         self.served = self.refused = self.errors = 0
         self.latency: list[float] = []
+        #: what each error was (request kind, exception or reply, seconds since the request)
+        self.error_texts: list[str] = []
 
     def _reply(self, s, buf):
         while b"\n" not in buf:
@@ -124,8 +126,11 @@ class _Client(threading.Thread):
                     buf = b""
                 rid += 1
                 r = self.rng.random()
+                kind = "?"
+                rep = None
                 t0 = time.perf_counter()
                 if r < 0.02:  # oversized line: refused, connection closed by the daemon
+                    kind = "oversized"
                     s.sendall(b"x" * (70 * 1024) + b"\n")
                     rep, buf = self._reply(s, buf)
                     ok = rep["ok"] is False and "longer than" in rep["error"]
@@ -134,11 +139,13 @@ class _Client(threading.Thread):
                     self.refused += ok
                 elif r < 0.25:  # malformed / bad request: error reply, connection kept
                     line, needle = self.rng.choice(BAD)
+                    kind = f"bad {line[:40]!r}"
                     s.sendall(line + b"\n")
                     rep, buf = self._reply(s, buf)
                     ok = rep["ok"] is False and needle in rep["error"]
                     self.refused += ok
                 elif r < 0.25 + self.commands:  # a valid command, forwarded to the daemon
+                    kind = "operating_point.set"
                     s.sendall((json.dumps({"id": rid, "cmd": "operating_point.set",
                                            "omega_rpm": 1000.0 + self.rng.random(),
                                            "p_inj_bar": 4.0}) + "\n").encode())
@@ -148,6 +155,7 @@ class _Client(threading.Thread):
                     self.served += ok
                 else:
                     cmd = self.rng.choice(GOOD)
+                    kind = cmd
                     s.sendall((json.dumps({"id": rid, "cmd": cmd}) + "\n").encode())
                     rep, buf = self._reply(s, buf)
                     ok = rep.get("ok") is True and rep.get("id") == rid
@@ -155,8 +163,11 @@ class _Client(threading.Thread):
                 self.latency.append(time.perf_counter() - t0)
                 if not ok:
                     self.errors += 1
-            except (OSError, ValueError, KeyError):
+                    self.error_texts.append(f"{kind}: wrong reply {str(rep)[:200]}")
+            except (OSError, ValueError, KeyError) as exc:
                 self.errors += 1
+                self.error_texts.append(f"{kind}: {type(exc).__name__}: {exc} after "
+                                        f"{time.perf_counter() - t0:.3f} s")
                 if s is not None:
                     s.close()
                 s = None
@@ -187,6 +198,7 @@ def hammer(sock_path: str, *, clients: int = 20, rate: float = 1000.0,
     served = sum(t.served for t in ts)
     refused = sum(t.refused for t in ts)
     return {"served": served, "refused": refused, "errors": sum(t.errors for t in ts),
+            "error_texts": [e for t in ts for e in t.error_texts][:20],
             "requests_per_s": (served + refused) / wall,
             "reply_p99_ms": float(np.percentile(lat, 99) * 1e3) if lat.size else 0.0}
 

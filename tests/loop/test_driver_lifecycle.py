@@ -3,8 +3,10 @@ defaults that keep the two-method (open/close) interface of third-party drivers 
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 from loop_helpers import make_plant
@@ -71,11 +73,17 @@ def test_transitions_are_ordered_and_idempotent():
 def test_serial_deactivate_holds_the_device_and_survives_writes(tmp_path):
     """Deactivated, the serial driver has told the front-end to hold its safe voltage and
     sends no drive, whatever is written; activated again, drives reach the valves."""
-    from rigd_drivers.frontend_emulator import FrontendEmulator
     from rigd_drivers.serial_frame import SerialFrameDriver
 
-    emu = FrontendEmulator(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=5.0,
-                           tx_buffer_s=0.5).start()
+    # the emulator in a process of its own (tests/service/emuproc.py: as a thread of this
+    # process it was starved on a loaded machine); its host timeout (60 s) cannot be what
+    # makes it hold here
+    sys.path.insert(0, str(Path(__file__).parents[1] / "service"))
+    from emuproc import EmulatorProcess
+    from faultkit import wait_for
+
+    emu = EmulatorProcess(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=60.0,
+                          tx_buffer_s=0.5)
     drv = SerialFrameDriver({"port": emu.port, "backlog": 256, "timeout_ms": 50})
     frame = np.zeros(13)
     drive = np.array([9.0, 9.0, 1.0, 1.0])
@@ -94,8 +102,11 @@ def test_serial_deactivate_holds_the_device_and_survives_writes(tmp_path):
         assert not emu.holding and np.allclose(emu.applied, drive)
         drv.deactivate(np.full(4, 5.0))
         exchange(0.2)                          # the loop would go on writing: ignored
-        # the device processes frames in order: its last one is the hold (outputs disabled),
-        # so none of the writes above was sent; holding is not its host timeout (5 s here)
+        # the device processes frames in order: once it has read the hold (outputs disabled)
+        # it holds, and stays so, as none of the writes above was sent (a sent drive frame
+        # would follow the hold and enable the outputs again)
+        assert wait_for(lambda: emu.holding and int(emu.last_drive[1]) & 1 == 0, 30.0)
+        exchange(0.2)
         assert int(emu.last_drive[1]) & 1 == 0
         assert emu.holding and np.all(emu.applied == emu.hold_v)
         drv.activate()

@@ -83,8 +83,38 @@ def _past_startup(drv, frame):
     _run_until(drv, frame, lambda st: drv._delivered > 1.2 * drv.fs)
 
 
+#: SCHED_FIFO priority of this test's host loop: like the daemon's loop thread (clock.priority,
+#: 80 by default) above the machine's ordinary work, here below the rig's and above the
+#: emulator process's (emuproc.EMULATOR_PRIORITY)
+HOST_PRIORITY = 20
+
+
 @pytest.fixture()
-def link(tmp_path):
+def realtime_host():
+    """Run this test's host loop (the calling thread) under SCHED_FIFO, as the daemon runs its
+    loop thread; back to SCHED_OTHER afterwards. Best effort: without the permission it stays
+    an ordinary thread.
+
+    Why (issue 16 item 6): as an ordinary thread on a loaded machine the host loop was
+    starved for more than the driver's FIFO holds (``backlog`` 1024 frames = 0.2 s); the
+    driver then dropped the oldest frames, counted (``overflow_dropped``) and flagged
+    (``DRV_GAP``) as it must — "every frame, in order" failed although nothing was lost
+    silently. The rig's loop never is such a thread."""
+    import os
+
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(HOST_PRIORITY))
+    except (OSError, AttributeError):
+        pass
+    yield
+    try:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (OSError, AttributeError):
+        pass
+
+
+@pytest.fixture()
+def link(tmp_path, realtime_host):
     # Timeouts generous for a shared, loaded test machine (other people's real-time threads
     # preempt even a SCHED_FIFO emulator; this test's host loop is a plain thread): the device
     # holds after 0.5 s of host silence (2 ms on the rig), the driver reports a timeout after
@@ -110,10 +140,16 @@ def test_full_rate_stream_and_drive(link):
     seqs, statuses = _run_until(drv, frame,
                                 lambda st: drv.counters()["frames"] - c0["frames"] >= 10000)
     c = drv.counters()
+    lost = {k: c[k] - c0[k] for k in ("crc_errors", "gaps", "gap_frames", "overflow_dropped",
+                                       "timeouts", "resyncs")}
+    # a frame missing from seqs must show in the counters (nothing lost silently) ...
+    jumps = np.flatnonzero(np.diff(seqs) != 1)
+    assert jumps.size == 0 or any(lost.values()), \
+        f"frames missing without a count: {lost}, at {jumps[:5]}"
+    # ... and none is missing: the host keeps up with the device at 5 kHz
+    assert not any(lost.values()), f"{lost}; device tx_dropped {emu.tx_dropped}"
     assert len(seqs) >= 10000 - 1024      # popped; at most the FIFO's backlog still queued
-    assert np.all(np.diff(seqs) == 1), "every frame, in order"
-    for k in ("crc_errors", "gaps", "overflow_dropped", "timeouts"):
-        assert c[k] == c0[k], k
+    assert jumps.size == 0, "every frame, in order"
     assert c["frames"] - c0["frames"] >= len(seqs)
     # every host cycle writes a drive frame (how many depends on the host's pace; > 100 in 2 s)
     assert emu.drive_frames > 100 and not emu.holding
