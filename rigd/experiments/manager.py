@@ -70,7 +70,7 @@ class ExperimentManager:
                                          runs_root=self.runs_root, stop=self._stop,
                                          log=self.log, on_start=on_start)
                     self._state.update(state=man.status, message=man.message,
-                                       missing=man.missing)
+                                       missing=man.missing, fault=man.fault)
                 except InputError as exc:
                     self._state.update(state="failed", message=str(exc))
                 except Exception as exc:  # noqa: BLE001 - reported through status
@@ -87,7 +87,8 @@ class ExperimentManager:
 
     def status(self) -> dict[str, Any]:
         """State of the current/last experiment (``idle``, ``running``, ``complete``,
-        ``interrupted``, ``failed``) with ``done``/``total`` segments and the run directory."""
+        ``interrupted``, ``failed``) with ``done``/``total`` segments and the run directory;
+        ``fault`` (seq, code, name, text) when a latched fault ended it."""
         return dict(self._state)
 
     def stop(self) -> dict[str, Any]:

@@ -20,7 +20,8 @@ Every experiment run writes into a NEW directory (never reused, nothing overwrit
                  "started", "finished"}],
      "files": [{"path", "point", "kind", "omega_rpm", "p_inj_bar", "n_frames",
                 "controller_on", "repeat", ...}],
-     "missing": [point indices not completed], "message": str}
+     "missing": [point indices not completed], "message": str,
+     "fault": {"seq", "code", "name", "text"} | null}   # the latched fault that ended the run
 """
 
 from __future__ import annotations
@@ -115,6 +116,8 @@ class Manifest:
     started: str = field(default_factory=now_iso)
     finished: str | None = None
     message: str = ""
+    #: the latched fault that ended the run (seq, code, name, text), None otherwise
+    fault: dict[str, Any] | None = None
 
     @property
     def path(self) -> Path:
@@ -154,6 +157,7 @@ class Manifest:
             "files": self.files,
             "missing": self.missing,
             "message": self.message,
+            "fault": self.fault,
         }
 
     def write(self) -> None:

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from rigd.errors import InputError
+from rigd.errors import FaultError, InputError
 from rigd.experiments import signals
 from rigd.experiments.schemas import (
     ChirpSpec,
@@ -23,6 +23,31 @@ from rigd.experiments.schemas import (
     PrbsSpec,
     RunoutSpec,
 )
+
+
+class SegmentFault(FaultError):
+    """A fault latched while the experiment played a segment: the segment ended at that
+    cycle and the experiment ends (``failed``, the fault named).
+
+    Attributes
+    ----------
+    fault : dict
+        ``seq``, ``code``, ``name``, ``text`` of the latched fault.
+    """
+
+    def __init__(self, fault: dict[str, Any], where: str = "") -> None:
+        self.fault = dict(fault)
+        super().__init__(f"fault {fault['name']} latched at cycle {fault['seq']}"
+                         f"{' during ' + where if where else ''}: {fault['text']}")
+
+
+def play(loop: Any, exc: np.ndarray, **kw: Any) -> Any:
+    """``loop.run_segment(exc, stop_on_fault=True, **kw)``; raises :class:`SegmentFault` if a
+    fault ended it (an unrecorded or scratch segment of an experiment)."""
+    res = loop.run_segment(exc, stop_on_fault=True, **kw)
+    if getattr(res, "fault", None):
+        raise SegmentFault(res.fault)
+    return res
 
 
 class PointFailed(Exception):
@@ -145,19 +170,22 @@ class PointRunner:
         part = path.with_name(path.name + ".part")
         self._part = part
         res = self.loop.run_segment(exc, record=RecordSpec(str(part), meta), events=list(events),
-                                    controller_on=controller_on)
+                                    controller_on=controller_on, stop_on_fault=True)
         os.replace(part, path)
         self._part = None
         return res
 
     @staticmethod
     def _check_faults(res: Any, path: Path) -> None:
-        """Fail the point when a fault latched while ``path`` was recorded.
+        """End the experiment (:class:`SegmentFault`) when a fault ended the recording of
+        ``path``; fail the point when one latched during it otherwise.
 
-        The loop went to the safe state during that recording: the file is kept and listed
-        (nothing recorded is lost), but the point is not what was asked for and must never
-        read as ``done``.
+        The loop went to the safe state during that recording: the file, closed after the
+        fault's cycle, is kept and listed (nothing recorded is lost), but the point is not
+        what was asked for and must never read as ``done``.
         """
+        if getattr(res, "fault", None):
+            raise SegmentFault(res.fault, path.name)
         faults = getattr(res, "faults", None) or []
         if faults:
             names = ", ".join(sorted({str(f.get("name", f.get("code"))) for f in faults}))
@@ -182,7 +210,7 @@ class PointRunner:
         self.loop.enable_controller(on)
         ramp = getattr(getattr(getattr(self.loop, "config", None), "loop", None), "k_ramp_s",
                        0.05)
-        self.loop.run_segment(np.zeros((max(1, _n(2 * ramp + 0.02, self.fs)), 2)))
+        play(self.loop, np.zeros((max(1, _n(2 * ramp + 0.02, self.fs)), 2)))
 
     def _meta(self, spec: Any, point: dict[str, Any], **extra: Any) -> dict[str, Any]:
         m = dict(self.base_meta)
@@ -237,7 +265,7 @@ class PointRunner:
                 if self.should_stop():
                     return
                 if spec.spacing_s > 0:  # let the previous response decay, unrecorded
-                    self.loop.run_segment(np.zeros((_n(spec.spacing_s, self.fs), 2)))
+                    play(self.loop, np.zeros((_n(spec.spacing_s, self.fs), 2)))
                 path = rd / f"{stem}_impact_{spec.axis}_k{int(ctrl)}_r{r}.h5"
                 meta = self._meta(spec, point, axis=spec.axis, controller_on=ctrl, repeat=r,
                                   pre_s=spec.pre_s, post_s=spec.post_s,
@@ -251,8 +279,7 @@ class PointRunner:
                                        controller_on=None, events=[(n_pre, hit)])
                     n = self._n_frames(res, n_pre + n_post)
                 else:
-                    res = None
-                    n = self._operator_hit(spec, path, meta, ctrl, n_pre, n_post)
+                    n, res = self._operator_hit(spec, path, meta, ctrl, n_pre, n_post)
                 self.manifest.add_file(point, path, kind="impact", omega_rpm=point["omega_rpm"],
                                        p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
                                        repeat=r, axis=spec.axis, n_frames=n,
@@ -261,15 +288,21 @@ class PointRunner:
                 self.tick(f"impact k={'on' if ctrl else 'off'} #{r + 1}")
 
     def _operator_hit(self, spec: ImpactSpec, path: Path, meta: dict[str, Any], ctrl: bool,
-                      n_pre: int, n_post: int) -> int:
+                      n_pre: int, n_post: int) -> tuple[int, Any]:
         """Record up to ``timeout_s`` while the operator hits; keep the window around the
-        first sample where |f_axis| >= trigger_n."""
+        first sample where |f_axis| >= trigger_n. Returns (frames kept, the wait's result);
+        a fault that ended the wait keeps the whole wait recording."""
         from rigd.data.h5io import read_h5, write_h5
 
         tmp = path.with_name(path.name + ".wait")
         n_wait = _n(spec.timeout_s, self.fs)
         try:
-            self._record(tmp, meta, np.zeros((n_wait, 2)), controller_on=None)
+            res = self._record(tmp, meta, np.zeros((n_wait, 2)), controller_on=None)
+            if getattr(res, "fault", None):
+                # a fault ended the wait: keep all of it as the point's record (the caller
+                # lists it, then ends the experiment)
+                os.replace(tmp, path)
+                return self._n_frames(res, n_wait), res
             rec = read_h5(tmp)
         finally:
             self.discard_partial()
@@ -285,6 +318,6 @@ class PointRunner:
             win = rec.slice(i - n_pre, i + n_post)
             win.meta.update(meta)
             write_h5(path, win)
-            return win.n
+            return win.n, res
         finally:
             tmp.unlink(missing_ok=True)

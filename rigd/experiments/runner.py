@@ -101,12 +101,16 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
     -------
     Manifest
         ``status`` is ``complete``, ``interrupted`` (SIGINT or ``stop``; completed points kept,
-        the others listed in ``missing``) or ``failed`` (a rig fault; ``message`` says which).
+        the others listed in ``missing``) or ``failed`` (a point failed, or a rig fault: a
+        fault latched while a segment played ends the segment at that cycle and the
+        experiment at once; ``fault`` and ``message`` name it, the point is ``failed`` with
+        its record kept up to the fault).
 
     Raises
     ------
     InputError
-        Invalid spec, or a request the loop rate cannot honour (before anything runs).
+        Invalid spec, a request the loop rate cannot honour, or a fault latched already
+        (before anything runs).
     """
     exp = load(spec)
     fs = loop_fs(loop)
@@ -114,6 +118,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
     if wants_controller(exp.point_spec) and controller_loaded(loop) is False:
         raise InputError("K∞ on is requested (controller) but the loop has no controller "
                          "loaded: set 'controller:' in the rig config", exp.source)
+    _refuse_latched_fault(loop, exp.source)
     k_was = controller_enabled(loop)
     src = data_source(loop.fast, getattr(loop, "slow", ()))
     rd = new_run_dir(run_dir, exp.name, runs_root)
@@ -198,7 +203,14 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         _finish(man, "interrupted", current, "interrupted by SIGINT")
         return man
     except FaultError as exc:
+        # a latched fault ends the experiment at once (the segment ended at its cycle, its
+        # record is closed and listed): the point failed, the others are missing
         runner.discard_partial()
+        man.fault = getattr(exc, "fault", None)
+        if current is not None and current["status"] == "running":
+            current.update(status="failed", error=str(exc), finished=now_iso())
+        if log:
+            log.warning("experiment.fault", error=str(exc))
         _restore_controller(loop, k_was)
         _finish(man, "failed", current, f"rig fault: {exc}")
         return man
@@ -214,6 +226,16 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         _finish(man, "complete" if not failed else "failed", None,
                 "" if not failed else f"points {failed} failed")
     return man
+
+
+def _refuse_latched_fault(loop: Any, where: str) -> None:
+    """InputError while a fault is latched: every segment would end at its first cycle."""
+    status = getattr(loop, "status", None)
+    fault = (status() or {}).get("fault") or {} if callable(status) else {}
+    if fault.get("code"):
+        raise InputError(f"fault {fault.get('name')} is latched (cycle {fault.get('seq')}): "
+                         "the rig is in the safe state; reset the fault (rigd ctl reset) "
+                         "before starting an experiment", where)
 
 
 def _restore_controller(loop: Any, was: bool | None) -> None:

@@ -48,6 +48,7 @@ def settle_check(loop: Any, op: OperatingPoint, settle: SettleSpec, fs: float,
         ``{"settled": bool, "omega_rpm": mean, "p_inj_bar": mean, "waited_s": s}``.
     """
     from rigd.data.h5io import read_h5
+    from rigd.experiments.points import SegmentFault
     from rigd.loop.sinks import RecordSpec
 
     n = max(1, int(round(settle.hold_s * fs)))
@@ -56,7 +57,11 @@ def settle_check(loop: Any, op: OperatingPoint, settle: SettleSpec, fs: float,
     result: dict[str, Any] = {"settled": False}
     while True:
         try:
-            loop.run_segment(np.zeros((n, 2)), record=RecordSpec(str(scratch), {"kind": "settle"}))
+            res = loop.run_segment(np.zeros((n, 2)), record=RecordSpec(str(scratch),
+                                                                      {"kind": "settle"}),
+                                   stop_on_fault=True)
+            if getattr(res, "fault", None):
+                raise SegmentFault(res.fault, "the settling check")
             rec = read_h5(scratch)
         finally:
             scratch.unlink(missing_ok=True)

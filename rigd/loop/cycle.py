@@ -446,9 +446,12 @@ def _lockstep_batch(plant_step, pstate, pparams, fin, prm, st, drive, ring, exc,
     """Run up to ``n`` cycles with the plant kernel in the loop; returns the cycles run.
 
     Stops early (never drops) when the ring buffer has no free row: the caller lets the writer
-    thread drain it and calls again. ``exc_i < 0``: no excitation; else row ``exc_i + k``.
+    thread drain it and calls again. Stops after the cycle that latches a fault, so that the
+    caller sees it at once (a segment ends there, faults are reported). ``exc_i < 0``: no
+    excitation; else row ``exc_i + k``.
     """
     ring_n = prm[P_RING_N]
+    nf = st[S_NFAULT]
     done = 0
     for k in range(n):
         if st[S_W] - st[S_RD] >= ring_n:
@@ -459,6 +462,8 @@ def _lockstep_batch(plant_step, pstate, pparams, fin, prm, st, drive, ring, exc,
             cycle(fin, prm, st, drive, ring, 0.0, 0.0)
         plant_step(pstate, pparams, drive, fin)
         done += 1
+        if st[S_NFAULT] != nf:
+            break
     return done
 
 

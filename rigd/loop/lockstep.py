@@ -5,7 +5,8 @@ With the simulated plant (a fast driver exposing its compiled ``kernel``, ``stat
 step (:func:`rigd.loop.cycle.lockstep_batch`, without the GIL); with any other driver the
 cycles run one by one with ``read``/``write``. Commands, segment events and fault polling are
 handled between batches, so a batch stops at the next event, at a controller swap's blend-out,
-and whenever the recorder ring is full (lock-step never drops a frame: it waits for the writer).
+at the cycle a fault is latched in, and whenever the recorder ring is full (lock-step never
+drops a frame: it waits for the writer).
 """
 
 from __future__ import annotations
@@ -94,7 +95,9 @@ class LockstepClock:
                 seg = p.player.current
                 if seg is not None:
                     self.run(seg.n, seg, stop)
-                    if seg.i >= seg.n:
+                    if seg.fault_code:
+                        p.player.current = None       # its caller finishes it
+                    elif seg.i >= seg.n:
                         p.player.finished(seg, p.commands)
                     else:
                         p.player.abort("loop stopped during the segment")
@@ -132,11 +135,14 @@ class LockstepClock:
             seg.begin(st, commands)
         done = 0
         t0 = time.perf_counter()
+        halt = seg is not None and seg.stop_on_fault
         while done < n and not stop.is_set():
             if seg is not None:
                 seg.fire_events()
             commands.apply()
             m = min(n - done, batch)
+            if halt and st[L.S_FAULT] != 0.0:    # latched before: play one cycle, stop below
+                m = 1
             if commands.swap is not None:   # blending out for a swap: stop when at 0
                 m = min(m, int(st[L.S_RAMP] / ramp_step) + 1)
             exc, ei = NO_EXCITATION, -1
@@ -153,6 +159,9 @@ class LockstepClock:
             rec.publish(int(st[L.S_W]))
             if sup.unseen:
                 sup.poll()
+            if halt and st[L.S_FAULT] != 0.0:    # the batch ends at the latching cycle
+                seg.stop_for_fault(st)
+                break
         self.cycles += done
         self.wall_s += time.perf_counter() - t0
         return done
@@ -169,7 +178,10 @@ class LockstepClock:
         read, write, failed = p.fast.read, p.fast.write, p.supervisor.driver_failed
         ring_n = p.recorder.n
         cycle = C.cycle
+        nf = st[L.S_NFAULT]
         for k in range(m):
+            if st[L.S_NFAULT] != nf:               # a fault latched: end the batch there
+                return k
             if st[L.S_W] - st[L.S_RD] >= ring_n:
                 return k
             try:

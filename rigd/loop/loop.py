@@ -351,7 +351,7 @@ class ControlLoop:
 
     def run_segment(self, excitation, *, record=None, events: Sequence = (),
                     controller_on: bool | None = None, pre: int = 0,
-                    post: int = 0) -> SegmentResult:
+                    post: int = 0, stop_on_fault: bool = False) -> SegmentResult:
         """Play ``excitation`` (float64 (n, 2), V added to r_x, r_y) from the next cycle.
 
         Parameters
@@ -366,6 +366,11 @@ class ControlLoop:
             Enable/disable K∞ at the segment's first cycle; restored afterwards.
         pre, post : int
             Cycles of zero excitation before and after.
+        stop_on_fault : bool
+            End the segment at the cycle a fault is latched in (at its first cycle if one is
+            latched already): the recording is closed after that cycle and the result's
+            ``fault`` names it (experiments). Without it the segment plays to its end in the
+            safe state.
         """
         full, evs = segment_inputs(excitation, events, pre, post)
         self._check_alive()
@@ -374,7 +379,7 @@ class ControlLoop:
         if self.clock == "realtime" and not self.rt.started:
             self.start()      # before the sink exists: it is made once, below
         sink = None if record is None else self._make_sink(record, len(full))
-        seg = Segment(full, evs, sink, controller_on)
+        seg = Segment(full, evs, sink, controller_on, stop_on_fault)
         if sink is not None:
             self.recorder.add_sink(sink)
         n_fault0 = len(self.faults())
@@ -383,14 +388,17 @@ class ControlLoop:
             if runner.started:
                 if not self.player.offer(seg):
                     raise InputError("another segment is playing")
-                while not seg.done.wait(0.05):
+                # the loop thread only flags a segment a fault ended: finished here
+                while not seg.done.wait(0.02) and not seg.fault_code:
                     if not runner.alive:
                         self.player.abort("the loop thread stopped during the segment")
             else:
                 with self.lockstep.lock:
                     self.lockstep.run(seg.n, seg, self._stop)
-                    if seg.i >= seg.n:
+                    if seg.i >= seg.n and not seg.fault_code:
                         seg.finish(self.commands)
+            if seg.fault_code:
+                seg.finish_faulted(self.commands)
             if seg.error is not None:
                 raise seg.error
         finally:
@@ -399,10 +407,11 @@ class ControlLoop:
                     seg.last_seq = max(seg.first_seq + seg.i - 1, -1)
                 self.supervisor.poll()
                 self.recorder.finish(sink, seg.last_seq)
+        faults = self.faults()
         return SegmentResult(seg.first_seq, seg.last_seq, seg.last_seq - seg.first_seq + 1,
                              str(sink.path) if isinstance(sink, H5Sink) else None,
                              sink.frames if isinstance(sink, MemorySink) else None,
-                             self.faults()[n_fault0:])
+                             faults[n_fault0:], seg.fault_event(faults, self.state.st))
 
     def close(self) -> None:
         """Stop the loop, put safe outputs on the valves, flush and close recordings, release

@@ -3,7 +3,8 @@
 The loop thread sets itself up (SCHED_FIFO, mlockall, CPU pinning, gc frozen; see
 :mod:`rigd.loop.clock`), then per period: wait for the deadline (sleep, then spin) → fast
 driver ``read`` → segment bookkeeping and queued commands → :func:`rigd.loop.cycle.rt_cycle`
-→ fast driver ``write`` → publish the frame to the recorder → overrun accounting (skip or
+(a segment played with ``stop_on_fault`` is flagged as ended when a fault is latched) → fast
+driver ``write`` → publish the frame to the recorder → overrun accounting (skip or
 catch up; an overrun storm requests the safe state).
 
 If anything in the loop thread raises, the supervisor puts the outputs in the safe state at
@@ -117,7 +118,7 @@ class RealTimeClock:
         skip = cfg.overrun == "skip"
         storm: collections.deque = collections.deque(maxlen=sup.overrun_storm_count)
         storm_ns = int(sup.overrun_storm_window_s * 1e9)
-        S_W = L.S_W
+        S_W, S_FAULT = L.S_W, L.S_FAULT
         prev = -1
         nxt = perf() + period
         self._started.set()
@@ -140,7 +141,9 @@ class RealTimeClock:
             else:
                 rt_cycle(fin, prm, st, drive, ring, seg.exc, seg.i, hist, wake - nxt, prev)
                 seg.i += 1
-                if seg.i >= seg.n:
+                if seg.stop_on_fault and st[S_FAULT] != 0.0:
+                    player.stopped_for_fault(seg, st)     # flag only: the caller finishes it
+                elif seg.i >= seg.n:
                     player.finished(seg, commands)
             try:
                 write(drive)

@@ -4,6 +4,11 @@ A :class:`Segment` is built and validated in the caller's thread (excitation arr
 events, sink); the :class:`SegmentPlayer` hands it to whichever thread runs the cycles, which
 begins it at the next cycle boundary, fires its events, advances it and finishes it. The caller
 waits on ``Segment.done``.
+
+A segment played with ``stop_on_fault`` (experiments) ends at the cycle a fault is latched in
+(or at its first cycle if one is latched already): the thread running the cycles only flags it
+(:meth:`Segment.stop_for_fault`, O(1)) and frees the player's slot; the caller, waiting for it,
+finishes it (:meth:`Segment.finish_faulted`) and closes its recording after that cycle.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rigd.errors import InputError
+from rigd.loop import faults as FC
 from rigd.loop import layout as L
 
 #: the excitation of "no segment" (exc_i = -1)
@@ -35,6 +41,9 @@ class SegmentResult:
     path: str | None = None
     frames: np.ndarray | None = None
     faults: list | None = None
+    #: the latched fault that ended the segment early (``stop_on_fault``): seq, code, name,
+    #: text; None when it played to its end
+    fault: dict | None = None
 
 
 class Segment:
@@ -48,9 +57,12 @@ class Segment:
     sink : rigd.loop.sinks.Sink or None
     controller_on : bool or None
         Enable/disable K∞ at the first cycle, restored after the last.
+    stop_on_fault : bool
+        End at the cycle a fault is latched in (see module docstring).
     """
 
-    def __init__(self, exc: np.ndarray, events, sink, controller_on) -> None:
+    def __init__(self, exc: np.ndarray, events, sink, controller_on,
+                 stop_on_fault: bool = False) -> None:
         self.exc = exc
         self.n = len(exc)
         self.i = 0
@@ -62,6 +74,10 @@ class Segment:
         self.last_seq = -1
         self.done = threading.Event()
         self.error: BaseException | None = None
+        self.stop_on_fault = bool(stop_on_fault)
+        #: code and cycle of the latched fault that ended it (0 / -1: none)
+        self.fault_code = 0
+        self.fault_seq = -1
 
     # --- the thread running the cycles ----------------------------------------------------
     def begin(self, st: np.ndarray, commands) -> None:
@@ -70,8 +86,9 @@ class Segment:
         Runs in: loop thread — O(1), allocation-free, non-blocking.
         """
         self.first_seq = int(st[L.S_SEQ])
-        if self.sink is not None:
+        if self.sink is not None:         # the writer never writes past the planned end
             self.sink.first_seq = self.first_seq
+            self.sink.last_seq = self.first_seq + self.n - 1
         if self.controller_on is not None:
             self.prev_target = float(st[L.S_K_TARGET])
             commands.enable(self.controller_on)
@@ -101,6 +118,39 @@ class Segment:
             commands.enable(bool(self.prev_target))
         self.done.set()
 
+    def stop_for_fault(self, st: np.ndarray) -> None:
+        """A fault is latched (``st[S_FAULT] != 0``) after cycle ``i - 1``: end the segment
+        there. Only flags it; the waiting caller finishes it (:meth:`finish_faulted`).
+
+        Runs in: loop thread — O(1), no array allocation, non-blocking (no event set).
+        """
+        self.last_seq = self.first_seq + self.i - 1
+        if self.sink is not None:         # before the next frame is published
+            self.sink.last_seq = self.last_seq
+        self.fault_seq = int(st[L.S_FAULT_SEQ])
+        self.fault_code = int(st[L.S_FAULT])
+
+    def finish_faulted(self, commands) -> None:
+        """The caller's side of :meth:`stop_for_fault`: restore K∞ as :meth:`finish` does,
+        mark the segment done (any thread, after the loop flagged it)."""
+        if self.prev_target is not None:
+            commands.enable(bool(self.prev_target))
+        self.done.set()
+
+    def fault_event(self, history: list[dict], st: np.ndarray) -> dict | None:
+        """The fault (seq, code, name, text) that ended this segment, None if none did.
+
+        ``history``: the loop's fault events (``ControlLoop.faults()``); any thread.
+        """
+        if not self.fault_code:
+            return None
+        for ev in reversed(history):
+            if ev["code"] == self.fault_code and ev["seq"] == self.fault_seq:
+                return {k: ev[k] for k in ("seq", "code", "name", "text")}
+        return {"seq": self.fault_seq, "code": self.fault_code,
+                "name": FC.fault_name(self.fault_code),
+                "text": FC.describe(self.fault_code, int(st[L.S_FAULT_DETAIL]))}
+
     def abort(self, why: str) -> None:
         """The loop stopped before the last cycle (any thread, after the cycles stopped)."""
         self.error = RuntimeError(why)
@@ -129,6 +179,15 @@ class SegmentPlayer:
         """
         self.current = None
         seg.finish(commands)
+
+    def stopped_for_fault(self, seg: Segment, st: np.ndarray) -> None:
+        """A fault latched while ``seg`` played: free the slot, flag the segment (its caller
+        finishes it).
+
+        Runs in: loop thread — O(1), no array allocation, non-blocking.
+        """
+        self.current = None
+        seg.stop_for_fault(st)
 
     def abort(self, why: str) -> None:
         """Abort the current segment, if any (after the cycles stopped)."""
