@@ -64,6 +64,8 @@ class SerialFrameOptions(StrictModel):
     timeout_ms: float = Field(5.0, gt=0, description="no frame this long -> timeout fault, ms")
     reconnect_s: float = Field(0.5, gt=0, description="retry period after a disconnect, s")
     backlog: int = Field(8, ge=2, le=1024, description="decoded frames buffered, frames")
+    first_frame_s: float = Field(2.0, gt=0, description="open/reconnect: wait this long for "
+                                 "the device's first frame (a silent device is refused), s")
     fault_on_crc: bool = Field(True, description="a CRC error sets DRV_CRC (-> fault)")
     fault_on_gap: bool = Field(True, description="a sequence gap sets DRV_GAP (-> fault)")
 
@@ -125,21 +127,36 @@ class SerialFrameDriver(FastDriver):
         return ser
 
     def open(self) -> None:
-        """Open the port; :class:`FaultError` if it cannot be opened."""
+        """Open the port and wait for the device's first frame; :class:`FaultError` if it
+        cannot be opened or the device sends nothing within ``first_frame_s``."""
         try:
             ser = self._open_port()
         except Exception as exc:  # serial.SerialException, OSError
             raise FaultError(f"serial driver: cannot open {self.opts.port}: {exc}") from None
         self._closed = False
-        self._attach(ser)
+        if not self._attach(ser):
+            self._closed = True
+            ser.close()
+            raise FaultError(f"serial driver: no frame from the front-end on {self.opts.port} "
+                             f"within {self.opts.first_frame_s:g} s (first_frame_s): is it "
+                             "powered and streaming?")
         # warm the compiled kernels outside the cycle
         sp.ingest_sensor(self._rx, self._state, self._fifo)
         sp.encode_drive(self._tx, 0, False, np.zeros(4))
 
-    def _attach(self, ser) -> None:
-        # Frames the device sent before we listened are history, not samples of this run:
-        # drain them (until the port is quiet for 1 ms, at most 0.2 s) and start counting
-        # sequence gaps from the first live frame.
+    def _attach(self, ser) -> bool:
+        """Take ``ser`` into use once the device streams; False if it sent no frame within
+        ``first_frame_s`` (the port is then not used).
+
+        Frames the device sent before we listened are history, not samples of this run:
+        drain them (until the port is quiet for 1 ms, at most 0.2 s) and start counting
+        sequence gaps from the first live frame. Then wait for that first frame: the frame
+        timeout (``timeout_ms``) runs from a frame the device sent, never from the moment the
+        port opened — a device that starts streaming some time after the port opens (a
+        front-end booting, a firmware that starts on DTR, the emulator process starting up:
+        0.24–0.35 s measured at load 10) otherwise latched a ``driver_status`` timeout in
+        the loop's first cycles (issue 16 item 6).
+        """
         fd = ser.fileno()
         end = time.monotonic() + 0.2
         quiet = 0
@@ -153,12 +170,37 @@ class SerialFrameDriver(FastDriver):
             quiet = quiet + 1 if n < sp.SENSOR_FRAME else 0
             time.sleep(0.0005)
         self._reset_rx()
+        if not self._first_frame(fd):
+            return False
         self._dev_status = 0
         self._delivered = 0
         self._ser = ser
         self._last_rx = time.monotonic()
         self._in_timeout = False
         self._fd = ser.fileno()  # published last: read()/write() start using the port now
+        return True
+
+    def _first_frame(self, fd: int) -> bool:
+        """Read until the first complete, CRC-valid sensor frame is in the FIFO (kept there);
+        False after ``first_frame_s`` or if the port fails."""
+        st = self._state
+        end = time.monotonic() + self.opts.first_frame_s
+        while True:
+            try:
+                n = os.readv(fd, (self._rxmv[st[sp.C_RXLEN]:],))
+            except (BlockingIOError, InterruptedError):
+                n = 0
+            except OSError:
+                return False
+            if n:
+                st[sp.C_RXLEN] += n
+                sp.ingest_sensor(self._rx, st, self._fifo)
+                if st[sp.C_COUNT] > 0:
+                    st[sp.C_EVENTS] = 0   # the bytes before the first frame: not a fault
+                    return True
+            if time.monotonic() >= end:
+                return False
+            time.sleep(0.0005)
 
     # --- lifecycle (rigd.driver): configure = open, cleanup = close ------------------------
     def on_activate(self) -> None:
@@ -222,7 +264,9 @@ class SerialFrameDriver(FastDriver):
                 if self._closed:
                     ser.close()
                     return
-                self._attach(ser)
+                if not self._attach(ser):   # there, but not streaming (yet): try again
+                    ser.close()
+                    continue
                 self.n_reconnects += 1
                 return
         finally:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import threading
+import time
 
 #: SCHED_FIFO priority of the emulator process (the loop thread runs at clock.priority, higher)
 EMULATOR_PRIORITY = 10
@@ -36,6 +37,11 @@ def _child(conn, args, kwargs) -> None:
     from rigd_drivers.frontend_emulator import FrontendEmulator
 
     emu = FrontendEmulator(*args, **kwargs).start()
+    # a powered front-end streams: ready once its first frame is out (the first iteration
+    # loads the compiled codec, 0.05-0.35 s measured at load 10; the host's frame timeout
+    # must not run during that)
+    while emu.sent == 0 and emu._thread.is_alive():
+        time.sleep(0.001)
     conn.send(("ok", None))
     while True:
         try:

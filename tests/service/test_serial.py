@@ -62,14 +62,16 @@ def _run(drv, frame, seconds, drive=None):
     return seqs, statuses
 
 
-def _run_until(drv, frame, pred, timeout=20.0, drive=None):
-    """Run host cycles until ``pred(statuses)`` holds (False after ``timeout`` s)."""
+def _run_until(drv, frame, pred, timeout=20.0, drive=None, write=True):
+    """Run host cycles until ``pred(statuses)`` holds (False after ``timeout`` s); with
+    ``write=False`` the host only reads (it sends the device no drive frame)."""
     seqs, statuses = [], []
     drive = np.array([5.0, 6.0, 5.0, 4.0]) if drive is None else drive
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         _drain(drv, frame, seqs, statuses)
-        drv.write(drive)
+        if write:
+            drv.write(drive)
         if pred(statuses):
             return seqs, statuses
         time.sleep(0.0003)
@@ -219,12 +221,61 @@ def test_device_holds_when_host_goes_silent(link):
     # the host goes silent (no read, no write) until the device has noticed
     assert wait_for(lambda: emu.holding, 20)
     assert np.all(emu.applied == 5.0)
-    seqs, st = [], []
-    _drain(drv, frame, seqs, st)
-    assert any(s & sp.DEV_HOST_TIMEOUT for s in st)
+    # the host reads again (still sending nothing): the frames queued since it went silent
+    # come first, then those that carry the device's host-timeout bit. Read until one is
+    # there — a single drain stopped at the first empty read while the device still had
+    # them queued (E-1 of the under-load runs, once the host loop ran SCHED_FIFO)
+    _run_until(drv, frame, lambda st: any(s & sp.DEV_HOST_TIMEOUT for s in st), write=False)
+    assert emu.holding
 
 
 def test_open_missing_port_is_a_fault(tmp_path):
     drv = SerialFrameDriver({"port": str(tmp_path / "nope")})
     with pytest.raises(FaultError, match="cannot open"):
         drv.open()
+
+
+
+def test_open_waits_for_the_first_frame(realtime_host):
+    """A front-end that starts streaming only after the port is open (booting, starting on
+    DTR): ``open()`` returns once its first frame is there, so the frame timeout runs from a
+    frame the device sent and the first read flags no timeout. One that never streams is
+    refused at open with one clear line (issue 16 item 6: the timeout ran from the open, and
+    the loop's first cycles latched driver_status). The device here is the test itself on the
+    master side of a pty pair: it sends exactly when it is told to."""
+    import os
+    import threading
+    import tty
+
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    port = os.ttyname(slave)
+    try:
+        silent = SerialFrameDriver({"port": port, "first_frame_s": 0.3})
+        with pytest.raises(FaultError, match="no frame from the front-end on .* within 0.3 s"):
+            silent.open()
+        assert not silent.connected
+        # it starts streaming 0.3 s after the open: longer than the 50 ms frame timeout
+        frames = np.zeros(10 * sp.SENSOR_FRAME, np.uint8)
+        for k in range(10):
+            sp.encode_sensor(frames[k * sp.SENSOR_FRAME:], k, 0, 1.0, 2.0, 5.0, 5.0, 5.0, 5.0,
+                             0.5, 0.0, 0.0)
+        sent = threading.Event()
+        starts = threading.Timer(0.3, lambda: (os.write(master, frames.tobytes()), sent.set()))
+        drv = SerialFrameDriver({"port": port, "timeout_ms": 50, "first_frame_s": 600})
+        starts.start()
+        try:
+            drv.open()
+            assert sent.is_set(), "open() returned before the device streamed"
+            frame = np.full(N_IN, np.nan)
+            drv.read(frame)
+            assert frame[IN_SEQ] == 9, "the first read hands over the newest frame"
+            assert not int(frame[IN_STATUS]) & DRV_TIMEOUT
+            assert drv.counters()["timeouts"] == 0
+        finally:
+            starts.join()
+            drv.close()
+    finally:
+        os.close(master)
+        os.close(slave)
