@@ -7,7 +7,8 @@ only those parts: ``lockstep``, ``compute``, ``realtime``, ``op_change``):
   10^6 cycles, wall time until the file is closed.
 * ``loop_compute_us`` {p50, p99, p999}: one real-time cycle call (``kernels.rt_cycle``: Eq. 1, a
   4th-order K∞, four PD loops, supervisor, frame into the ring) timed from Python around each
-  call, dispatch included, plant excluded. ``loop_compute_us_k14``: the same with the 14-state
+  call, dispatch included, plant excluded; the ring populated first, as the real-time loop's
+  ``mlockall`` does (docs/loop.md). ``loop_compute_us_k14``: the same with the 14-state
   K∞ that ``make demo`` deploys (docs/design.md: order 4 does not stabilise).
 * ``loop_kernel_ns`` (``loop_kernel_ns_k14``): the same cycle's cost inside a compiled batch (no
   dispatch), mean.
@@ -82,6 +83,9 @@ def compute_samples(n: int = 200_000, order: int = 4):
     plant = _plant()
     cfg = default_config(clock={"mode": "lockstep"}, recorder={"ring_frames": 1 << 18})
     loop = ControlLoop(cfg, plant, controller=_controller(order))
+    # the real-time loop thread runs with its memory locked and populated (mlockall): the
+    # shared-memory ring's first-touch page faults (one per ~16 frames) are not part of a cycle
+    loop.recorder.shared.populate()
     s = loop.state
     s.st[L.S_K_TARGET] = 1.0
     fin = np.zeros(13)

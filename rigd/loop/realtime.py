@@ -78,6 +78,8 @@ class RealTimeClock:
             helpers = [p.recorder.native_id, p.supervisor.native_id,
                        *p.slow_pollers.native_ids]
             CLK.boost_threads([t for t in helpers if t is not None], max(1, cfg.priority - 1))
+        if any(x.startswith("mlockall") for x in problems):
+            p.recorder.shared.populate()          # else mlockall has faulted the ring in
         if problems:
             self.rt_warnings = problems
             p.log.warning("real-time scheduling not fully available, running best-effort",

@@ -92,6 +92,22 @@ class SharedRing:
         self.hdr[H_MAGIC] = MAGIC
         self._time_ns = time.time_ns
 
+    def populate(self) -> None:
+        """Fault every page of the ring in now, writable, contents unchanged (before the
+        cycles start: never while the kernel writes).
+
+        The ring is shared memory (4 KiB pages, no transparent huge pages for shmem by
+        default): untouched, the kernel's first write to each page is a page fault, one
+        every ~16 frames for the first pass through the ring (the ``loop_compute_us`` p99
+        went from 0.7 to 3.2 µs with them). The real-time loop thread's ``mlockall``
+        populates it; this does the same where that is not available.
+        """
+        try:
+            self._mm.madvise(getattr(mmap, "MADV_POPULATE_WRITE", 23))   # Linux >= 5.14
+        except (OSError, ValueError):
+            flat = self.ring.reshape(-1)
+            flat[::512] += 0.0                   # one write per 4 KiB page
+
     def set_ahead(self, frames: int) -> None:
         """The kernel may write up to ``frames`` beyond the published count (lock-step batch)."""
         self.hdr[H_AHEAD] = max(1, int(frames))
