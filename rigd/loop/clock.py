@@ -7,6 +7,7 @@ The lock-step (virtual) clock needs none of this: it runs compiled batches back 
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import ctypes.util
 import gc
@@ -50,6 +51,34 @@ def boost_threads(native_ids, priority: int) -> None:
         try:
             os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
         except (OSError, AttributeError):
+            pass
+
+
+@contextlib.contextmanager
+def boosted(priority: int | None):
+    """Run the block at SCHED_FIFO ``priority`` in the *calling thread*, then restore its
+    policy (best effort; None: unchanged).
+
+    For short preparations in another thread while the real-time loop runs (an operating
+    point's parameter block): holding the GIL, an ordinary thread preempted by another process
+    stalls the loop thread until it runs again (priority inversion); boosted just below the
+    loop it is not preempted by ordinary processes.
+    """
+    if priority is None:
+        yield
+        return
+    try:
+        old_policy, old_param = os.sched_getscheduler(0), os.sched_getparam(0)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (OSError, AttributeError):
+        yield
+        return
+    try:
+        yield
+    finally:
+        try:
+            os.sched_setscheduler(0, old_policy, old_param)
+        except OSError:
             pass
 
 

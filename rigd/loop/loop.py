@@ -36,6 +36,7 @@ from rigd.log import get_logger
 from rigd.loop import faults as FC
 from rigd.loop import layout as L
 from rigd.loop import requests as RQ
+from rigd.loop.clock import boosted
 from rigd.loop.commands import CommandQueue
 from rigd.loop.cycle import cycle, hist_new, rt_cycle
 from rigd.loop.lockstep import LockstepClock
@@ -189,7 +190,11 @@ class ControlLoop:
         OperatingPoint(omega_rpm=omega_rpm, p_inj_bar=p_inj_bar)   # range check
         om, pi = float(omega_rpm), float(p_inj_bar)
         prepare = getattr(self.fast, "prepare_operating_point", None)
-        swap = prepare(om, pi) if prepare is not None else None
+        swap = None
+        if prepare is not None:
+            # just below the loop thread while it runs real-time: never preempted holding GIL
+            with boosted(self.rt.helper_priority if self.rt.alive else None):
+                swap = prepare(om, pi)
         if swap is not None:
             self.commands.call(swap)
         elif hasattr(self.fast, "set_operating_point"):

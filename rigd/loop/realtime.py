@@ -45,6 +45,9 @@ class RealTimeClock:
         self.skipped = 0
         self.rt_warnings: list[str] = []
         self.setup_s = 0.0
+        #: SCHED_FIFO priority of the helper threads while the loop runs with SCHED_FIFO
+        #: (None: not real-time), for threads preparing work for the loop (clock.boosted)
+        self.helper_priority: int | None = None
         self._thread: threading.Thread | None = None
         self._started = threading.Event()
 
@@ -77,7 +80,8 @@ class RealTimeClock:
             # preempted helper holding the GIL would stall the loop (priority inversion)
             helpers = [p.recorder.native_id, p.supervisor.native_id,
                        *p.slow_pollers.native_ids]
-            CLK.boost_threads([t for t in helpers if t is not None], max(1, cfg.priority - 1))
+            self.helper_priority = max(1, cfg.priority - 1)
+            CLK.boost_threads([t for t in helpers if t is not None], self.helper_priority)
         if any(x.startswith("mlockall") for x in problems):
             p.recorder.shared.populate()          # else mlockall has faulted the ring in
         if problems:
@@ -93,6 +97,7 @@ class RealTimeClock:
         except BaseException as exc:  # noqa: BLE001 - never die silently: safe state, latch
             p.supervisor.loop_died(exc, p.fast, stop)
         finally:
+            self.helper_priority = None
             self._started.set()
             p.player.abort("loop stopped during the segment")
             CLK.thaw_gc()

@@ -67,3 +67,32 @@ def test_lockstep_change_applies_at_the_next_batch_boundary(monkeypatch, sim_con
     om = res.frames[:, REC["omega_rpm"]]
     assert om[0] == 0.0 and np.all(om[1:] == 3000.0)
     assert set(seen) == {threading.current_thread().name}     # plant build + the change
+
+
+def test_preparation_runs_just_below_the_loop_and_the_caller_is_restored(monkeypatch):
+    """While the loop thread runs SCHED_FIFO, the caller prepares at the helpers' priority (an
+    ordinary thread preempted while it holds the GIL stalls the loop thread: overruns)."""
+    import os
+
+    seen = []
+    real = sim_params.ParamBlocks.__call__
+
+    def build(*a, **k):
+        seen.append((os.sched_getscheduler(0), os.sched_getparam(0).sched_priority))
+        return real(*a, **k)
+
+    cfg = default_config(clock={"mode": "realtime", "spin_us": 0.0, "priority": 50},
+                         supervisor={"overrun_storm_count": 10**9})
+    before = os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0)
+    with ControlLoop(cfg, make_plant()) as loop:
+        loop.start()
+        monkeypatch.setattr(sim_params.ParamBlocks, "__call__", build)
+        loop.set_operating_point(2000.0, 5.0)
+        fifo = loop.rt.helper_priority is not None
+    loop.set_operating_point(3000.0, 5.0)                # loop closed: not boosted
+    if not fifo:
+        import pytest
+
+        pytest.skip(f"SCHED_FIFO not permitted here: {loop.rt_warnings}")
+    assert seen == [(os.SCHED_FIFO, 49), (before[0], 0)]
+    assert (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0)) == before
