@@ -29,6 +29,12 @@ def _rss_kib(addr: int) -> int:
 
 
 def test_populate_faults_every_page_in_and_keeps_the_frames():
+    # a real-time loop earlier in this process left mlockall(MCL_FUTURE) in force, under
+    # which a new mapping is populated at once: undo it, this test is about populate()
+    import ctypes
+    import ctypes.util
+
+    ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").munlockall()
     n = 1 << 14                                            # 4 MiB of frames
     ring = SharedRing(n, N_REC, 5000.0)
     ring.ring[:3] = np.arange(3 * N_REC).reshape(3, N_REC)
