@@ -178,9 +178,40 @@ class Context:
     def through_model(self, v: np.ndarray, channel: int | None = None) -> np.ndarray:
         """Response (n, ny) of the fitted base model to ``v`` fed in place of its inputs.
 
-        ``v`` is (n, nu), or (n,) fed into input ``channel`` only. The free response (initial
-        state) is removed, so the result is linear in ``v``: the model-filtered regressor of
-        an effect acting where the input acts (force, valve position).
+        The model-filtered regressor of an effect acting where the input acts (force, valve
+        position): ``v`` is simulated at the record's own input amplitude and the result
+        scaled back, so ``c·v`` (c > 0) gives ``c`` times the result whatever the model,
+        and for a linear model it is exactly the (linear) response to ``v``.
+
+        Parameters
+        ----------
+        v : ndarray (n, nu) or (n,)
+            Signal in the units of the model inputs (V, N, ...; a derivative in input
+            units/s), fed into every input, or (n,) into input ``channel`` only.
+        channel : int, optional
+            Input fed by a 1-D ``v`` (default 0).
+
+        Returns
+        -------
+        ndarray (n, ny)
+            ``(M(s·v) − M(0)) / s`` in output units per unit of ``v``: ``M(x)`` is the model
+            simulated with inputs ``x``, ``M(0)`` its free response (initial state).
+
+        Notes
+        -----
+        The scale ``s`` is one positive scalar per call: each fed input channel j (a column
+        of ``v`` not identically zero) has the ratio r_j = rms(u_j) / rms(v_j) of the
+        record's input to the signal replacing it, and s = min_j r_j, so that ``s·v`` is
+        at most the record's own amplitude on every input and at it on one (the operating
+        range the model was fitted on). One scalar, so a linear model's response is
+        unchanged (``M(s·v) − M(0) = s·(M(v) − M(0))``); per-channel ratios, so inputs
+        in different units are not mixed (an rms over all inputs fed would be set by the
+        one in the smallest unit). For a nonlinear model (cubic stiffness, restoring-force
+        hysteresis) the regressor is its response at the record's operating amplitude,
+        the same whatever the units of ``v``: fed at its own size, the input derivative
+        of ``actuator_dynamics`` (input units/s, × fs) drove a Duffing model far past its
+        fitted range at fs = 1 kHz and not at 1 Hz (docs/diagnose.md, "Invariance"). A
+        channel whose input is identically zero gives no ratio; when none does, s = 1.
         """
         v = np.asarray(v, dtype=float)
         if v.ndim == 1:
@@ -190,8 +221,9 @@ class Context:
         if self._zero_response is None:
             zero = replace_inputs(self.data, np.zeros_like(self.u))
             self._zero_response = np.asarray(self.structure.simulate(self.theta, zero))
-        out = np.asarray(self.structure.simulate(self.theta, replace_inputs(self.data, v)))
-        return out - self._zero_response
+        s = input_scale(self.u, v)
+        out = np.asarray(self.structure.simulate(self.theta, replace_inputs(self.data, s * v)))
+        return (out - self._zero_response) / s
 
     def through_force(self, v: np.ndarray, axis: int) -> np.ndarray:
         """Response (n, ny) of the fitted mechanical model to ``v`` (n,) added to the
@@ -214,3 +246,16 @@ class Context:
     def label(self, i: int, kind: str = "out") -> str:
         names = self.output_names if kind == "out" else self.input_names
         return names[i] if i < len(names) else f"{kind}{i + 1}"
+
+
+def input_scale(u: np.ndarray, v: np.ndarray) -> float:
+    """Scale s that brings ``v`` (n, nu) to the amplitude of the inputs ``u`` (n, nu) it
+    replaces: min over the channels fed (v_j not all zero, u_j not all zero) of
+    rms(u_j) / rms(v_j); 1 when no channel gives a finite positive ratio. Dimensionless
+    when ``v`` is in the inputs' units (see :meth:`Context.through_model`)."""
+    ru = np.sqrt(np.mean(np.square(u), axis=0))
+    rv = np.sqrt(np.mean(np.square(v), axis=0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = ru / rv
+    r = r[(rv > 0) & np.isfinite(r) & (r > 0)]
+    return float(np.min(r)) if r.size else 1.0

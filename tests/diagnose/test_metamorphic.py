@@ -34,13 +34,6 @@ from rigd.ident.mechanical import structure_for
 SILVERBOX = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
 SILVERBOX_FS = 610.3515625
 
-# At fs × 1e-3 the Duffing record's findings, steps and fits now match the reference (creep
-# relative to the record, actuator_dynamics' half-sample rule), but its unexplained list does
-# not: the residual's entries come in another order / one 'samples' entry less (measured by
-# the detect change, not investigated). Drop the mark when they agree.
-UNEXPLAINED_PENDING = pytest.mark.xfail(strict=True, reason="at fs x 1e-3 the unexplained "
-                                        "list differs (steps and fits agree)")
-
 # (input scale, output scale, rate scale)
 CHANNELS = [(1.0, 1e-6, 1.0), (1e3, 1.0, 1.0), (1e-6, 1e3, 1.0)]
 RATES = [(1.0, 1.0, 1e-3), (1.0, 1.0, 1e3)]
@@ -111,9 +104,7 @@ def duffing():
 
 
 # (every default effect screened, hysteresis in the restoring force included: a few cases)
-@pytest.mark.parametrize("su,sy,sr", [CHANNELS[2],
-    pytest.param(*RATES[0], marks=UNEXPLAINED_PENDING), RATES[1],
-    pytest.param(*MIXED[0], marks=UNEXPLAINED_PENDING)])
+@pytest.mark.parametrize("su,sy,sr", [CHANNELS[2], *RATES, *MIXED])
 def test_duffing_rescaled_same_diagnosis(duffing, su, sy, sr):
     rec, ref = duffing
     _same(ref, _digest(diagnose_record(_variant(rec, su, sy, sr)), sr))
