@@ -37,7 +37,7 @@ class SegmentFault(FaultError):
 
     def __init__(self, fault: dict[str, Any], where: str = "") -> None:
         self.fault = dict(fault)
-        super().__init__(f"fault {fault['name']} latched at cycle {fault['seq']}"
+        super().__init__(f"{fault['name']} latched at cycle {fault['seq']}"
                          f"{' during ' + where if where else ''}: {fault['text']}")
 
 
