@@ -27,8 +27,26 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
 
+# `make test`: lint, then pytest in two parts; both always run, one exit status (fails if either
+# fails). 1. Everything but the timing-sensitive tests, on PYTEST_WORKERS processes
+# (pytest-xdist; worksteal: the long diagnosis tests do not leave one worker idle at the end),
+# BLAS pinned to one thread per worker so that two workers do not fight over the 2 cores.
+# 2. The timing-sensitive tests (real-time daemons, sockets, the browser console) alone and
+# serially, as before. Each test is in exactly one part: part 1 ignores what part 2 runs.
+# Plain `python -m pytest` still runs the whole suite serially.
+REALTIME_TESTS := tests/service tests/loop tests/web tests/browser \
+                  tests/experiments/test_daemon_experiment.py
+PYTEST_WORKERS ?= 2
+ONE_BLAS_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
+
 test: lint
-	$(BIN)/python -m pytest -q
+	@rc=0; \
+	echo "make test [1/2]: compute tests, $(PYTEST_WORKERS) workers"; \
+	$(ONE_BLAS_THREAD) $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist worksteal \
+	    $(addprefix --ignore=,$(REALTIME_TESTS)) tests || rc=1; \
+	echo "make test [2/2]: timing-sensitive tests, serially: $(REALTIME_TESTS)"; \
+	$(BIN)/python -m pytest -q $(REALTIME_TESTS) || rc=1; \
+	exit $$rc
 
 bench: $(STAMP)
 	@$(BIN)/python -m bench
