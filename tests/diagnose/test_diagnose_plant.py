@@ -77,15 +77,17 @@ def test_plant_hidden_effect_ranked_first_and_error_falls(effect):
     assert [s.added for s in sd.steps] == [None, effect]
 
 
+# 5 seeds x 3 operating points, one test each (a seed per test: each is a whole diagnosis of
+# ~10 s, so `make test`'s two workers share them out evenly and a failure names its seed)
+@pytest.mark.parametrize("seed", range(5))
 @pytest.mark.parametrize("omega,p_inj", [(0.0, 3.0), (1500.0, 5.0), (3000.0, 7.0)])
-def test_plant_no_hidden_effect_nothing_significant(omega, p_inj):
-    for seed in range(5):
-        rec = record(None, seed=10 + seed, omega=omega, p_inj=p_inj, seconds=1.6)
-        d = diagnose_record(rec)
-        assert [p.submodel for p in d.parts] == ["actuator", "bearing"]
-        found = [(f.submodel, f.effect) for p in d.parts for f in p.findings if f.significant]
-        assert not found, (seed, omega, p_inj, found)
-        assert all(len(p.steps) == 1 for p in d.parts)
+def test_plant_no_hidden_effect_nothing_significant(omega, p_inj, seed):
+    rec = record(None, seed=10 + seed, omega=omega, p_inj=p_inj, seconds=1.6)
+    d = diagnose_record(rec)
+    assert [p.submodel for p in d.parts] == ["actuator", "bearing"]
+    found = [(f.submodel, f.effect) for p in d.parts for f in p.findings if f.significant]
+    assert not found, (seed, omega, p_inj, found)
+    assert all(len(p.steps) == 1 for p in d.parts)
 
 
 @pytest.mark.parametrize("pair,omega", [(("cubic_stiffness", "extra_mode"), 0.0),
@@ -119,16 +121,17 @@ def test_plant_valve_effect_ranked_first_and_error_falls(effect, seed):
     assert not any(c.effect == other for c in sd.cannot_reveal)  # both were tested
 
 
+@pytest.mark.parametrize("seed", range(5))
 @pytest.mark.parametrize("omega,p_inj", [(0.0, 3.0), (1500.0, 5.0), (3000.0, 7.0)])
-def test_plant_slow_excitation_no_hidden_effect_nothing_significant(omega, p_inj):
+def test_plant_slow_excitation_no_hidden_effect_nothing_significant(omega, p_inj, seed):
     """No valve effect hidden: on the slow multi-level records (where hysteresis and creep
-    are both revealable and refitted) nothing is significant, 5 seeds per point."""
-    for seed in range(5):
-        sd = diagnose_record(slow_record(None, seed=20 + seed, omega=omega, p_inj=p_inj,
-                                         seconds=3.0), submodels=["actuator"]).parts[0]
-        assert not sd.cannot_reveal, sd.cannot_reveal
-        found = [f.effect for f in sd.findings if f.significant]
-        assert not found, (seed, omega, p_inj, found)
+    are both revealable and refitted) nothing is significant, 5 seeds per point (one test
+    each, as above)."""
+    sd = diagnose_record(slow_record(None, seed=20 + seed, omega=omega, p_inj=p_inj,
+                                     seconds=3.0), submodels=["actuator"]).parts[0]
+    assert not sd.cannot_reveal, sd.cannot_reveal
+    found = [f.effect for f in sd.findings if f.significant]
+    assert not found, (seed, omega, p_inj, found)
 
 
 def test_plant_fast_excitation_cannot_reveal_creep():
