@@ -32,6 +32,7 @@ makes it *correct* when the reader is starved (a busy machine) rather than *prob
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import mmap
 import os
@@ -71,17 +72,24 @@ class SharedRing:
 
     def __init__(self, n: int, cols: int, fs: float = 0.0) -> None:
         self.n, self.cols = int(n), int(cols)
-        self.fd = os.memfd_create("rigd-ring", os.MFD_CLOEXEC | os.MFD_ALLOW_SEALING)
         size = _size(self.n, self.cols)
-        os.ftruncate(self.fd, size)
-        # the size is final: a reader can never truncate it under the loop (SIGBUS)
-        seals = getattr(fcntl, "F_SEAL_SHRINK", 2) | getattr(fcntl, "F_SEAL_GROW", 4)
+        #: why the ring could not be shared (None when it is): the loop and the recorder work
+        #: the same on a private ring, only the live stream is then unavailable
+        self.unshared: str | None = None
+        self.fd = -1
         try:
-            fcntl.fcntl(self.fd, getattr(fcntl, "F_ADD_SEALS", 1033), seals)
-        except OSError:
-            pass
-        self._mm = mmap.mmap(self.fd, size, flags=mmap.MAP_SHARED,
-                             prot=mmap.PROT_READ | mmap.PROT_WRITE)
+            self._mm = self._shared_map(size)
+        except OSError as exc:
+            # e.g. RLIMIT_FSIZE below the ring's size (memfd is a file: EFBIG), no memfd
+            # (seccomp, old kernel): record and control anyway, refuse only the stream
+            why = exc.strerror or str(exc)
+            if exc.errno == errno.EFBIG:
+                why += " (the process's file-size limit RLIMIT_FSIZE, systemd LimitFSIZE=)"
+            self.unshared = f"cannot create the shared ring ({size / 2**20:.1f} MiB): {why}"
+            if self.fd >= 0:
+                os.close(self.fd)
+                self.fd = -1
+            self._mm = mmap.mmap(-1, size)           # anonymous, this process only
         self.hdr = np.ndarray((HDR_SLOTS,), dtype=np.int64, buffer=self._mm)
         self.ring = np.ndarray((self.n, self.cols), dtype=np.float64, buffer=self._mm,
                                offset=8 * HDR_SLOTS)
@@ -91,6 +99,18 @@ class SharedRing:
         self.hdr[H_FS] = int(round(fs * 1000))      # mHz, integer slot
         self.hdr[H_MAGIC] = MAGIC
         self._time_ns = time.time_ns
+
+    def _shared_map(self, size: int) -> mmap.mmap:
+        self.fd = os.memfd_create("rigd-ring", os.MFD_CLOEXEC | os.MFD_ALLOW_SEALING)
+        os.ftruncate(self.fd, size)
+        # the size is final: a reader can never truncate it under the loop (SIGBUS)
+        seals = getattr(fcntl, "F_SEAL_SHRINK", 2) | getattr(fcntl, "F_SEAL_GROW", 4)
+        try:
+            fcntl.fcntl(self.fd, getattr(fcntl, "F_ADD_SEALS", 1033), seals)
+        except OSError:
+            pass
+        return mmap.mmap(self.fd, size, flags=mmap.MAP_SHARED,
+                         prot=mmap.PROT_READ | mmap.PROT_WRITE)
 
     def populate(self) -> None:
         """Fault every page of the ring in now, writable, contents unchanged (before the
@@ -125,8 +145,11 @@ class SharedRing:
         hdr[H_WALL] = self._time_ns()
         hdr[H_W] = w
 
-    def handle(self) -> RingHandle:
-        """A picklable handle for a spawned process (the file descriptor travels with it)."""
+    def handle(self) -> RingHandle | None:
+        """A picklable handle for a spawned process (the file descriptor travels with it);
+        None when the ring is not shared (:attr:`unshared` says why)."""
+        if self.fd < 0:
+            return None
         return RingHandle(self.fd, self.n, self.cols)
 
 

@@ -166,7 +166,12 @@ class Daemon:
     def _ring(self):
         """The recorder's shared ring for the live stream (None for a loop without one)."""
         shared = getattr(getattr(self.loop, "recorder", None), "shared", None)
-        return shared.handle() if shared is not None else None
+        if shared is None:
+            return None
+        if shared.unshared:
+            self.log.warning("live stream unavailable (stream.subscribe refused); control and "
+                             "recording unaffected", reason=shared.unshared)
+        return shared.handle()
 
     def _helper_priority(self) -> int | None:
         """SCHED_FIFO priority for the service's threads on a real-time loop: just below it."""

@@ -169,7 +169,8 @@ class StreamHub:
                   channels: list[str] | None) -> tuple[dict, Subscription]:
         """A new subscription and the ``result`` of the ok reply."""
         if self.reader is None:
-            raise LookupError("stream.subscribe: this daemon shares no recording ring")
+            raise LookupError("stream.subscribe: this daemon shares no recording ring "
+                              "(its log at start says why)")
         names = list(channels) if channels else list(RECORD_NAMES)
         sub = Subscription(self.reader, rate_hz, points, names, self.status)
         return {"fs_hz": self.reader.fs, "rate_hz": float(rate_hz), "points": int(points),

@@ -48,7 +48,8 @@ def _ignore_sigxfsz():
 
 
 class Daemon:
-    def __init__(self, tmp_path, config, *extra, watchdog_usec=400000, fsize_limit=False):
+    def __init__(self, tmp_path, config, *extra, watchdog_usec=400000, fsize_limit=False,
+                 preexec=None):
         self.tmp = Path(tmp_path)
         self.sock = str(self.tmp / "rigd.sock")
         self.notify_path = str(self.tmp / "notify.sock")
@@ -67,7 +68,7 @@ class Daemon:
             [RIGD, "run", "--config", str(config), "--socket", self.sock,
              "--runs-dir", str(self.tmp / "runs"), *extra],
             stdout=subprocess.PIPE, stderr=self.stderr, text=True, env=env, cwd=str(self.tmp),
-            preexec_fn=_ignore_sigxfsz if fsize_limit else None)
+            preexec_fn=preexec or (_ignore_sigxfsz if fsize_limit else None))
 
     def limit_fsize(self, nbytes):
         """From now on no file of the daemon may grow beyond ``nbytes`` (RLIMIT_FSIZE set on
