@@ -22,6 +22,7 @@ completed points are kept and the missing ones listed (exit status 130). The wor
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import sys
 import threading
@@ -99,12 +100,18 @@ class _SigintStop(threading.Event):
     (``__del__``, a weakref callback — Python prints "Exception ignored" and carries on), and
     the sweep would then run to its end. The flag makes the runner stop at its next check
     (between segments) even then: the result is "interrupted", exit 130, either way.
+
+    Inside :meth:`deferring` (a finished record being renamed into place and listed in the
+    manifest) SIGINT only sets the flag: the runner stops at its next check, right after, with
+    that record kept and listed — never a complete file on disk that the manifest does not
+    name.
     """
 
     reason = "interrupted by SIGINT"
 
     def __enter__(self):
         self._old = None
+        self._defer = 0
         if threading.current_thread() is threading.main_thread():
             self._old = signal.signal(signal.SIGINT, self._on_sigint)
         return self
@@ -113,9 +120,19 @@ class _SigintStop(threading.Event):
         if self._old is not None:
             signal.signal(signal.SIGINT, self._old)
 
+    @contextlib.contextmanager
+    def deferring(self):
+        """SIGINT sets the flag but raises nothing inside this block."""
+        self._defer = getattr(self, "_defer", 0) + 1
+        try:
+            yield
+        finally:
+            self._defer -= 1
+
     def _on_sigint(self, signum, frame):
         self.set()
-        raise KeyboardInterrupt
+        if not getattr(self, "_defer", 0):
+            raise KeyboardInterrupt
 
 
 def _in_process(exp, args) -> int:

@@ -6,6 +6,7 @@ only when the segment completed: an interrupted point leaves no file behind.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -153,26 +154,37 @@ class PointRunner:
     """Runs one point spec on ``loop`` and registers its files in the manifest."""
 
     def __init__(self, loop: Any, manifest: Any, fs: float, base_meta: dict[str, Any],
-                 tick: Callable[[str], None], should_stop: Callable[[], bool]):
+                 tick: Callable[[str], None], should_stop: Callable[[], bool],
+                 critical: Callable[[], Any] = contextlib.nullcontext):
         self.loop = loop
         self.manifest = manifest
         self.fs = fs
         self.base_meta = base_meta
         self.tick = tick
         self.should_stop = should_stop
+        self.critical = critical
         self._part: Path | None = None
 
     # -- recording with .part + rename ---------------------------------------------------
     def _record(self, path: Path, meta: dict[str, Any], exc: np.ndarray, *, controller_on: bool,
-                events=()) -> Any:
+                events=(), keep: Callable[[Any], None] | None = None) -> Any:
+        """Record ``exc`` into ``path`` (via ``.part``); ``keep(result)`` lists it.
+
+        The rename and ``keep`` run inside ``critical()`` (the stop flag's ``deferring``: a
+        SIGINT there only sets the flag), so an interrupt leaves either a ``.part`` that is
+        discarded or a complete file that the manifest lists — never a complete, unlisted one.
+        """
         from rigd.loop.sinks import RecordSpec
 
         part = path.with_name(path.name + ".part")
         self._part = part
         res = self.loop.run_segment(exc, record=RecordSpec(str(part), meta), events=list(events),
                                     controller_on=controller_on, stop_on_fault=True)
-        os.replace(part, path)
-        self._part = None
+        with self.critical():
+            os.replace(part, path)
+            self._part = None
+            if keep is not None:
+                keep(res)
         return res
 
     @staticmethod
@@ -223,11 +235,11 @@ class PointRunner:
         n = getattr(res, "n_frames", None)
         return int(n) if n is not None else default
 
-    def run(self, spec: Any, point: dict[str, Any], stem: str) -> None:
+    def run(self, spec: Any, point: dict[str, Any], stem: str) -> bool:
+        """Record ``point``; False when a stop request ended it before all its records."""
         rd = self.manifest.run_dir
         if isinstance(spec, ImpactSpec):
-            self._impact(spec, point, stem)
-            return
+            return self._impact(spec, point, stem)
         if isinstance(spec, RunoutSpec):
             omega = point["omega_rpm"]
             if not omega or omega <= 0:
@@ -244,15 +256,17 @@ class PointRunner:
                      "lead_in_samples": _n(spec.lead_in_s, self.fs), "controller_on": ctrl}
         path = rd / f"{stem}_{spec.kind}.h5"
         self.controller(ctrl)
-        res = self._record(path, self._meta(spec, point, **extra), exc, controller_on=None)
-        self.manifest.add_file(point, path, kind=spec.kind, omega_rpm=point["omega_rpm"],
+        res = self._record(path, self._meta(spec, point, **extra), exc, controller_on=None,
+                           keep=lambda res: self.manifest.add_file(
+                               point, path, kind=spec.kind, omega_rpm=point["omega_rpm"],
                                p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
-                               n_frames=self._n_frames(res, len(exc)))
+                               n_frames=self._n_frames(res, len(exc))))
         self._check_faults(res, path)
         self.tick(f"{spec.kind} point {point['index']}")
+        return True
 
     # -- impacts ---------------------------------------------------------------------------
-    def _impact(self, spec: ImpactSpec, point: dict[str, Any], stem: str) -> None:
+    def _impact(self, spec: ImpactSpec, point: dict[str, Any], stem: str) -> bool:
         rd = self.manifest.run_dir
         n_pre, n_post = _n(spec.pre_s, self.fs), _n(spec.post_s, self.fs)
         plant = sim_plant(self.loop) if spec.trigger == "sim" else None
@@ -263,7 +277,7 @@ class PointRunner:
             self.controller(ctrl)
             for r in range(spec.repeats):
                 if self.should_stop():
-                    return
+                    return False
                 if spec.spacing_s > 0:  # let the previous response decay, unrecorded
                     play(self.loop, np.zeros((_n(spec.spacing_s, self.fs), 2)))
                 path = rd / f"{stem}_impact_{spec.axis}_k{int(ctrl)}_r{r}.h5"
@@ -275,17 +289,24 @@ class PointRunner:
                     def hit(a=spec.axis, f=spec.peak_n, d=spec.pulse_s):
                         plant.impact(a, f, d)
 
+                def keep(n, ctrl=ctrl, r=r, path=path):
+                    self.manifest.add_file(point, path, kind="impact",
+                                           omega_rpm=point["omega_rpm"],
+                                           p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
+                                           repeat=r, axis=spec.axis, n_frames=n,
+                                           trigger_index=n_pre)
+
+                if spec.trigger == "sim":
                     res = self._record(path, meta, np.zeros((n_pre + n_post, 2)),
-                                       controller_on=None, events=[(n_pre, hit)])
-                    n = self._n_frames(res, n_pre + n_post)
+                                       controller_on=None, events=[(n_pre, hit)],
+                                       keep=lambda res: keep(self._n_frames(res,
+                                                                            n_pre + n_post)))
                 else:
                     n, res = self._operator_hit(spec, path, meta, ctrl, n_pre, n_post)
-                self.manifest.add_file(point, path, kind="impact", omega_rpm=point["omega_rpm"],
-                                       p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
-                                       repeat=r, axis=spec.axis, n_frames=n,
-                                       trigger_index=n_pre)
+                    keep(n)
                 self._check_faults(res, path)
                 self.tick(f"impact k={'on' if ctrl else 'off'} #{r + 1}")
+        return True
 
     def _operator_hit(self, spec: ImpactSpec, path: Path, meta: dict[str, Any], ctrl: bool,
                       n_pre: int, n_post: int) -> tuple[int, Any]:

@@ -9,6 +9,7 @@ ones.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -156,7 +157,8 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         return stop is not None and stop.is_set()
 
     base_meta = {"experiment": exp.name, "run_dir": rd.name, **src}
-    runner = PointRunner(loop, man, fs, base_meta, tick, should_stop)
+    runner = PointRunner(loop, man, fs, base_meta, tick, should_stop,
+                         critical=getattr(stop, "deferring", None) or contextlib.nullcontext)
     current: dict[str, Any] | None = None
     try:
         for op, pt in zip(ops, man.points):
@@ -183,7 +185,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
                     pt["omega_rpm"] = _finite(last.get("omega_rpm"))
                     pt["p_inj_bar"] = _finite(last.get("p_inj_bar"))
                 stem = f"p{pt['index']:03d}_w{_fmt(pt['omega_rpm'])}_p{_fmt(pt['p_inj_bar'])}"
-                runner.run(exp.point_spec, pt, stem)
+                complete = runner.run(exp.point_spec, pt, stem)
             except PointFailed as exc:
                 pt.update(status="not_settled" if "not reached" in str(exc) else "failed",
                           error=str(exc), finished=now_iso())
@@ -191,9 +193,11 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
                 if log:
                     log.warning("experiment.point_failed", index=pt["index"], error=str(exc))
                 continue
-            if should_stop():
+            if not complete:             # a stop request ended it between its records
                 runner.discard_partial()
                 break
+            # all its records are complete, renamed and listed: done, even when a stop was
+            # requested meanwhile (the loop's next check stops before the next point)
             pt.update(status="done", finished=now_iso())
             current = None
             man.write()

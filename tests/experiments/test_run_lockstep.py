@@ -223,3 +223,68 @@ def test_fault_during_a_recording_fails_the_point_and_keeps_the_file(tmp_path):
     assert len(data["files"]) == 1                       # listed, and readable
     rec = load_record(tmp_path / "run" / data["files"][0]["path"])
     assert rec.n == data["files"][0]["n_frames"] > 0
+
+
+class _StopInsideTheRename:
+    """A stop flag whose request arrives exactly while a finished record is renamed into
+    place (the window in which a SIGINT once left a complete file the manifest did not list:
+    tests/experiments/test_cli_experiment.py::test_sweep_sigint_keeps_completed_points)."""
+
+    reason = "interrupted by SIGINT"
+
+    def __init__(self, at_entry):
+        self.at_entry, self.entries, self._set = at_entry, 0, False
+
+    def is_set(self):
+        return self._set
+
+    def deferring(self):
+        import contextlib
+
+        @contextlib.contextmanager
+        def cm():
+            self.entries += 1
+            if self.entries == self.at_entry:
+                self._set = True          # what _SigintStop._on_sigint does inside the block
+            yield
+        return cm()
+
+
+@pytest.mark.parametrize("at_entry", [1, 2])
+def test_a_stop_during_the_rename_keeps_the_record_listed_and_its_point_done(loop, tmp_path,
+                                                                           at_entry):
+    stop = _StopInsideTheRename(at_entry)
+    spec = {"kind": "sweep", "grid": {"omega_rpm": [0, 1000], "p_inj_bar": [3.0, 5.0]},
+            "settle": {"hold_s": 0.02}, "at_each": {"kind": "prbs", "amplitude_v": 1.0,
+                                                    "duration_s": 0.05, "lead_in_s": 0.01}}
+    man, data = _run(loop, tmp_path, spec, stop=stop)
+    assert man.status == "interrupted"
+    done = [p for p in data["points"] if p["status"] == "done"]
+    assert [p["index"] for p in done] == list(range(at_entry))   # the renamed one is done
+    assert data["missing"] == list(range(at_entry, 4))
+    listed = sorted(f["path"] for f in data["files"])
+    assert listed == sorted(p["files"][0] for p in done)
+    assert sorted(x.name for x in (tmp_path / "run").iterdir()) == ["manifest.json", *listed]
+    for p in done:
+        assert load_record(tmp_path / "run" / p["files"][0]).n > 0
+
+
+def test_sigint_inside_deferring_only_sets_the_flag():
+    import os
+    import signal
+
+    from rigd.cli.experiment import _SigintStop
+
+    with _SigintStop() as stop:
+        with stop.deferring():
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):         # the handler runs between bytecodes: give it some
+                if stop.is_set():
+                    break
+        assert stop.is_set()
+        stop.clear()
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(10**6):
+                pass
+        assert stop.is_set()
