@@ -170,8 +170,8 @@ def test_ctl_safe_latches_operator_safe_with_the_excitation_playing(daemon):
     d = daemon
     d.ctl("enable")
     # the shipped PRBS, 20 s long: still playing when `safe` lands on a slow machine. The
-    # experiment stops after its current segment (the rest of it is recorded in the safe
-    # state), so the wait for it below is bounded by PROCESS_S, not by a guess of the machine
+    # latched fault ends the experiment at the fault's cycle (its record closed there); the
+    # wait for it below is bounded by PROCESS_S, not by a guess of the machine
     spec = yaml.safe_load((ROOT_EXP / "prbs.yaml").read_text())
     spec["duration_s"] = 20.0
     exp = d.tmp / "prbs20.yaml"
