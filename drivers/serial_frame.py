@@ -170,7 +170,7 @@ class SerialFrameDriver(FastDriver):
             quiet = quiet + 1 if n < sp.SENSOR_FRAME else 0
             time.sleep(0.0005)
         self._reset_rx()
-        if not self._first_frame(fd):
+        if not self._first_frame(fd) or self._closed:   # closed meanwhile: not taken
             return False
         self._dev_status = 0
         self._delivered = 0
@@ -198,7 +198,7 @@ class SerialFrameDriver(FastDriver):
                 if st[sp.C_COUNT] > 0:
                     st[sp.C_EVENTS] = 0   # the bytes before the first frame: not a fault
                     return True
-            if time.monotonic() >= end:
+            if time.monotonic() >= end or self._closed:
                 return False
             time.sleep(0.0005)
 
@@ -264,7 +264,7 @@ class SerialFrameDriver(FastDriver):
                 if self._closed:
                     ser.close()
                     return
-                if not self._attach(ser):   # there, but not streaming (yet): try again
+                if not self._attach(ser):   # not streaming (yet): try again; or closed
                     ser.close()
                     continue
                 self.n_reconnects += 1
