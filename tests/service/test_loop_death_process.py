@@ -75,7 +75,7 @@ def test_loop_death_in_the_daemon(tmp_path, monkeypatch, emulator):
         st = _poll(lambda: client.status(), lambda st: st["fault"]["name"] == "loop_died")
         assert st["running"] is False and "injected" in st["loop_error"], st
         client.close()
-        code = d.proc.wait(60)
+        code = d.proc.wait(daemon_helpers.PROCESS_S)   # the hang bound of every process wait
     finally:
         code, _ = d.stop()
     log = d.log()
