@@ -12,7 +12,10 @@ of the effects and the engine is relative to the record, and the discretisation 
   shaft speed Ω × s (the shaft angle per sample is the record's). Then the physical
   parameters scale (natural frequencies × s, stiffness K × s²) and findings and fits are
   identical;
-* Silverbox (measured by others, ../shared/data): a 6000-sample slice of the multisine part.
+* Silverbox (measured by others, ../shared/data): a 6000-sample slice of the multisine part;
+* every catalogue effect on its own: hysteresis and creep on the valve drive, delay, extra
+  mode, actuator dynamics, cross-coupling hidden in the private rig, run-out (rotor), cubic
+  stiffness (Duffing, Silverbox), Bouc–Wen restoring-force hysteresis (generic benchmark).
 
 Each for channels rescaled (×1e-6 … ×1e3) and rates rescaled (×1e-3 … ×1e3), a few factors
 across the range, not every combination (the suite stays fast).
@@ -250,3 +253,31 @@ def test_identify_with_effects_rescaled_same_fit_parameters_scale(su, sy, sr):
     assert p1["k3_1"] * sy ** 2 / sr ** 2 == pytest.approx(p0["k3_1"], rel=0.01)
     # (delay and lag time constants are not compared: this record has neither, they sit
     # near 0 where the fit cannot tell values apart — docs/diagnose.md, Invariance)
+
+
+# --------------------------------------------------------------------------------------
+# the last two catalogue effects: creep on the valve drive (rotor, actuator sub-model) and a
+# Bouc–Wen restoring force (generic record, published benchmark structure)
+# --------------------------------------------------------------------------------------
+def test_valve_creep_rescaled_same_diagnosis():
+    """Creep's time constants are bounded per record duration and sample time: with the drive
+    in mV, the position in Mm and the rate × 1e-3 the same step, fit and unexplained band."""
+    d = plant.actuator(["creep"], seed=0, seconds=1.6)
+
+    def digest(x, sr=1.0):
+        return _sub_digest(diagnose_data(x, "actuator",
+                                         structure=structure_for("actuator", x, hold="zoh")),
+                           sr)
+
+    ref = digest(d)
+    assert [s for s, _ in ref[1]] == [None, "creep"], ref
+    su, sy, sr = MIXED[0]
+    _same(ref, digest(dataclasses.replace(d, u=d.u * su, y=d.y * sy, fs=d.fs * sr), sr))
+
+
+def test_bouc_wen_restoring_force_rescaled_same_diagnosis():
+    rec = B.bouc_wen(seed=0, variant=0)
+    ref = _digest(diagnose_record(rec))
+    assert [s for s, _ in ref[1]] == [None, "hysteresis_restoring"], ref
+    su, sy, sr = CHANNELS[2][0], CHANNELS[2][1], RATES[1][2]         # 1e-6, 1e3, rate × 1e3
+    _same(ref, _digest(diagnose_record(_variant(rec, su, sy, sr)), sr))
