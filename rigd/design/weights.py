@@ -97,7 +97,10 @@ class Structured(StrictModel):
                                      "it (by γ/|W_p|)")
     screen_iters: int = Field(25, ge=1, le=1000)
     n_polished: int = Field(3, ge=1, le=64, description="best screened starts polished")
-    polish_iters: int = Field(40, ge=1, le=1000)
+    polish_iters: int = Field(200, ge=1, le=1000, description="cap per smoothing stage; a "
+                              "stage ends when 4 iterations gain < 1e-5 (relative) — 40 "
+                              "stopped before that, and γ then moved with rounding-level "
+                              "changes of the data")
 
 
 class Discretization(StrictModel):
