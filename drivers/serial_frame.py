@@ -342,7 +342,11 @@ class SerialFrameDriver(FastDriver):
         the loop) and what queued up meanwhile is history. Drain the port (at most 50 ms), keep
         the newest frame and start gap counting afresh; counted in ``resyncs``. Only during
         the first second of frames after (re)connecting: later, a host stall that loses frames
-        is a gap fault (and the loop's overrun supervision reports the stall itself)."""
+        is a gap fault (and the loop's overrun supervision reports the stall itself).
+
+        Once the loop has taken a frame from this port the queued frames are part of its
+        stream: discarding them is a loss, never silent — counted in ``overflow_dropped`` and
+        flagged like a FIFO overflow (``DRV_GAP`` with ``fault_on_gap``)."""
         st = self._state
         end = time.monotonic() + 0.05
         while time.monotonic() < end:
@@ -356,9 +360,15 @@ class SerialFrameDriver(FastDriver):
                 break
             st[sp.C_RXLEN] += n
             sp.ingest_sensor(self._rx, st, self._fifo)
+        discarded = 0
         while st[sp.C_COUNT] > 1:
             sp.pop_sensor(st, self._fifo, self._row)
-        st[sp.C_EVENTS] = 0
+            discarded += 1
+        if self._delivered == 0:
+            st[sp.C_EVENTS] = 0               # history: the loop never saw this stream
+        elif discarded:
+            st[sp.C_OVERFLOW] += discarded    # a loss in the loop's stream: counted, flagged
+            st[sp.C_EVENTS] |= sp.EV_OVERFLOW
         self.n_resyncs += 1
 
     def write(self, drive: np.ndarray) -> None:

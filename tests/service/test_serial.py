@@ -279,3 +279,21 @@ def test_open_waits_for_the_first_frame(realtime_host):
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_a_host_pause_after_the_first_frames_is_a_counted_flagged_loss(link):
+    """In the first second after (re)connecting a host pause longer than ``timeout_ms`` makes
+    the driver drain the port and keep only the newest frame. Before the loop has taken a
+    frame that backlog is history; after it, those frames were the loop's stream: the loss is
+    counted (``overflow_dropped``) and flagged (``DRV_GAP``) — it was only a ``resyncs`` count."""
+    emu, drv, frame = link
+    _run_until(drv, frame, lambda st: drv._delivered >= 20)
+    assert drv._delivered < drv.fs                  # still inside the first second of frames
+    c0 = drv.counters()
+    time.sleep(0.3)     # the injected host stall: > timeout_ms (250), < the device hold (0.5 s)
+    seqs, statuses = _run_until(drv, frame, lambda st: any(s & DRV_GAP for s in st))
+    c = drv.counters()
+    assert c["resyncs"] - c0["resyncs"] == 1
+    dropped = c["overflow_dropped"] - c0["overflow_dropped"]
+    assert dropped > 100                            # ~1500 frames queued in 0.3 s at 5 kHz
+    assert len(seqs) >= 2 and seqs[1] - seqs[0] == 1   # after the jump: contiguous again
