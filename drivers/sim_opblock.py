@@ -15,7 +15,7 @@ held it; here all of it runs in one compiled call with the GIL released:
   stiffness (its ratio to the mean film stiffness), the unbalance force, Ω and P_I.
 
 Everything else in the block does not depend on the operating point and comes from a
-template built once per driver (:func:`rigd_drivers.sim_params.param_block`).
+template built once per driver (:class:`rigd_drivers.sim_params.ParamBlocks`).
 """
 
 from __future__ import annotations

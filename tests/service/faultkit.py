@@ -3,7 +3,6 @@ checks every fault must pass in the recording (safe state within one cycle, latc
 no frame lost before the fault)."""
 
 import contextlib
-import os
 import time
 
 import numpy as np
@@ -13,6 +12,7 @@ from rigd.controller import save_controller
 from rigd.driver import FastDriver
 from rigd.frame import REC
 from rigd.loop.app import build_drivers
+from rigd.loop.clock import boosted
 from rigd.loop.loop import ControlLoop
 from rigd.loop.sinks import open_recording
 from rigd.rigconfig import load_config
@@ -71,17 +71,8 @@ def loop_caller(config):
     cycles late by the dozen at the start of a segment (``overrun_storm`` latched at seq
     ~800, before the injection) and could hold the loop longer than the front-end's host
     timeout (``driver_status``)."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO,
-                              os.sched_param(max(1, int(config.clock.priority) - 1)))
-        boosted = True
-    except (OSError, AttributeError):
-        boosted = False
-    try:
+    with boosted(max(1, int(config.clock.priority) - 1)):
         yield
-    finally:
-        if boosted:
-            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
 
 
 def controller_file(tmp_path):

@@ -102,17 +102,10 @@ def realtime_host():
     driver then dropped the oldest frames, counted (``overflow_dropped``) and flagged
     (``DRV_GAP``) as it must — "every frame, in order" failed although nothing was lost
     silently. The rig's loop never is such a thread."""
-    import os
+    from rigd.loop.clock import boosted
 
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(HOST_PRIORITY))
-    except (OSError, AttributeError):
-        pass
-    yield
-    try:
-        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-    except (OSError, AttributeError):
-        pass
+    with boosted(HOST_PRIORITY):
+        yield
 
 
 @pytest.fixture()
