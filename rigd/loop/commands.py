@@ -9,11 +9,17 @@ loop and the loop never blocks producers.
 
 A controller swap while K∞ is (being) blended in is done bumplessly: blend out, swap at
 ``ramp == 0``, blend back in (:attr:`CommandQueue.swap`).
+
+Every post returns a *ticket*; :meth:`CommandQueue.applied` says whether the loop has applied
+it (a deferred controller swap counts once it is swapped in, or once a later load supersedes
+it). A caller that answers an operator (the daemon's ``load``, ``enable``, ``op``, ``reset``)
+waits on it, so that the ``status`` read after the reply shows the change.
 """
 
 from __future__ import annotations
 
 import collections
+import itertools
 
 from rigd.loop import layout as L
 
@@ -33,35 +39,59 @@ class CommandQueue:
         #: the queued commands (read by the loop thread to skip :meth:`apply` when empty)
         self.queue: collections.deque = collections.deque()
         self._state = state
-        #: a controller swap waiting for K∞ to blend out: (PackedController, re-enable after)
+        #: a controller swap waiting for K∞ to blend out: (PackedController, re-enable after,
+        #: ticket)
         self.swap = None
+        self._tickets = itertools.count(1)   # next() is atomic under the GIL: any producer
+        #: the ticket of the last command taken off the queue (written by the loop thread only)
+        self.done = 0
 
     # --- producers (any thread) ------------------------------------------------------
-    def enable(self, on: bool) -> None:
-        """Post: blend K∞ in (on) or out.
+    def _post(self, kind: int, arg) -> int:
+        t = next(self._tickets)
+        self.queue.append((kind, arg, t))
+        return t
+
+    def enable(self, on: bool) -> int:
+        """Post: blend K∞ in (on) or out; returns the ticket.
 
         Runs in: any thread, the loop thread too (segments) — O(1), non-blocking.
         """
-        self.queue.append((ENABLE, bool(on)))
+        return self._post(ENABLE, bool(on))
 
-    def controller(self, packed) -> None:
-        """Post: switch to an already validated and packed controller (bumplessly).
+    def controller(self, packed) -> int:
+        """Post: switch to an already validated and packed controller (bumplessly); returns
+        the ticket.
 
         Runs in: any thread — O(1), non-blocking (the validation and packing are done).
         """
-        self.queue.append((CONTROLLER, packed))
+        return self._post(CONTROLLER, packed)
 
-    def reset(self) -> None:
-        """Post: clear the latched fault. Runs in: any thread — O(1), non-blocking."""
-        self.queue.append((RESET, None))
+    def reset(self) -> int:
+        """Post: clear the latched fault; returns the ticket.
 
-    def call(self, fn) -> None:
-        """Post: run ``fn()`` at the next cycle boundary in the loop thread.
+        Runs in: any thread — O(1), non-blocking.
+        """
+        return self._post(RESET, None)
+
+    def call(self, fn) -> int:
+        """Post: run ``fn()`` at the next cycle boundary in the loop thread; returns the ticket.
 
         ``fn`` must itself honour the loop-thread contract (O(1), allocation-free,
         non-blocking), e.g. a driver's prepared operating-point swap.
         """
-        self.queue.append((CALL, fn))
+        return self._post(CALL, fn)
+
+    def applied(self, ticket: int) -> bool:
+        """Has the loop applied the command with this ticket?
+
+        Runs in: any thread — O(1), non-blocking (reads two attributes the loop writes; the
+        loop sets a deferred :attr:`swap` before it advances :attr:`done`).
+        """
+        if self.done < ticket:
+            return False
+        sw = self.swap
+        return sw is None or sw[2] > ticket
 
     def __bool__(self) -> bool:
         return bool(self.queue) or self.swap is not None
@@ -76,24 +106,29 @@ class CommandQueue:
         st = self._state.st
         q = self.queue
         while q:
-            kind, arg = q.popleft()
+            kind, arg, ticket = q.popleft()
             if kind == ENABLE:
-                if self.swap is not None:
-                    self.swap = (self.swap[0], arg)
+                sw = self.swap
+                if sw is not None:
+                    self.swap = (sw[0], arg, sw[2])
                 else:
                     st[L.S_K_TARGET] = 1.0 if arg else 0.0
             elif kind == CONTROLLER:
-                if st[L.S_RAMP] == 0.0 and st[L.S_K_TARGET] == 0.0:
+                sw = self.swap
+                if sw is not None:      # a newer load replaces the waiting one (same re-enable)
+                    self.swap = (arg, sw[1], ticket)
+                elif st[L.S_RAMP] == 0.0 and st[L.S_K_TARGET] == 0.0:
                     self._state.swap_controller(arg)
                 else:  # blend out, swap, blend back in
-                    self.swap = (arg, st[L.S_K_TARGET] != 0.0)
+                    self.swap = (arg, st[L.S_K_TARGET] != 0.0, ticket)
                     st[L.S_K_TARGET] = 0.0
             elif kind == RESET:
                 self._state.reset_fault()
             else:
                 arg()
+            self.done = ticket
         if self.swap is not None and st[L.S_RAMP] == 0.0:
-            packed, back_on = self.swap
-            self.swap = None
+            packed, back_on, _ = self.swap
             self._state.swap_controller(packed)
             st[L.S_K_TARGET] = 1.0 if back_on else 0.0
+            self.swap = None

@@ -163,27 +163,67 @@ class ControlLoop:
         self.close()
 
     # --- commands (any thread) -------------------------------------------------------
-    def enable_controller(self, on: bool = True) -> None:
+    # Each command returns its ticket: ``wait_applied(ticket)`` waits until the loop has
+    # applied it (the daemon does, so that ``status`` after the reply shows the change).
+    def enable_controller(self, on: bool = True) -> int:
         """Blend K∞ in (on) or out over ``loop.k_ramp_s``; p_eq is frozen while on."""
-        self.commands.enable(on)
+        return self.commands.enable(on)
 
-    def load_controller(self, path_or_controller) -> None:
-        """Validate a controller now (raises InputError), switch to it bumplessly."""
-        self.commands.controller(PackedController(self._as_controller(path_or_controller)))
+    def load_controller(self, path_or_controller) -> int:
+        """Validate a controller now (raises InputError), switch to it bumplessly (once K∞
+        has blended out, if it is in)."""
+        return self.commands.controller(
+            PackedController(self._as_controller(path_or_controller)))
 
-    def reset_fault(self) -> None:
+    def reset_fault(self) -> int:
         """Clear the latched fault (it latches again next cycle if the cause persists)."""
-        self.commands.reset()
+        return self.commands.reset()
+
+    def applied(self, ticket: int) -> bool:
+        """Has the loop applied the command that returned ``ticket``?"""
+        return self.commands.applied(ticket)
+
+    def wait_applied(self, ticket: int | None, timeout_s: float | None = None) -> bool:
+        """Wait until the loop has applied the command that returned ``ticket``.
+
+        Parameters
+        ----------
+        ticket : int or None
+            From ``enable_controller``, ``load_controller``, ``reset_fault`` or
+            ``set_operating_point`` (None: nothing to wait for, True at once).
+        timeout_s : float, optional
+            Bound on the wait, s; default 2 s plus two blend times (a controller swap waits
+            for K∞ to blend out).
+
+        Returns
+        -------
+        bool
+            True once applied; False at once when no cycles are being run (the command stays
+            queued for the next run), or when the bound passed.
+        """
+        if ticket is None or self.commands.applied(ticket):
+            return True
+        if timeout_s is None:
+            timeout_s = 2.0 + 2.0 * self.config.loop.k_ramp_s
+        end = time.monotonic() + timeout_s
+        while self.running:
+            if self.commands.applied(ticket):
+                return True
+            if time.monotonic() > end:
+                return False
+            time.sleep(0.001)
+        return self.commands.applied(ticket)
 
     def trip(self, code: int = FC.OPERATOR_STOP) -> None:
         """Put the loop into the safe state with ``code`` latched (operator / service)."""
         self.requests.post(RQ.OPERATOR, int(code))
 
-    def set_operating_point(self, omega_rpm: float, p_inj_bar: float) -> None:
+    def set_operating_point(self, omega_rpm: float, p_inj_bar: float) -> int | None:
         """Sim: plant operating point (at a cycle boundary); rig: slow-driver setpoints.
 
         The slow preparation (the plant's parameter block) runs here, in the caller's thread;
-        the loop thread only swaps the prepared block in (O(1)).
+        the loop thread only swaps the prepared block in (O(1)). Returns the swap's ticket
+        (None when nothing is queued to the loop).
         """
         from rigd.rigconfig import OperatingPoint
 
@@ -196,11 +236,12 @@ class ControlLoop:
             with boosted(self.rt.helper_priority if self.rt.alive else None):
                 swap = prepare(om, pi)
         if swap is not None:
-            self.commands.call(swap)
-        elif hasattr(self.fast, "set_operating_point"):
+            return self.commands.call(swap)
+        if hasattr(self.fast, "set_operating_point"):
             self.fast.set_operating_point(om, pi)    # its own thread-safe staging, here
         else:
             self.slow_pollers.set_points(om, pi)
+        return None
 
     def stop(self) -> None:
         """Ask the running loop to stop (returns at once; ``close()`` waits and cleans up)."""

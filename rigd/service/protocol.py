@@ -227,18 +227,18 @@ class Dispatcher:
         if cmd == "safe":
             return self._safe()
         if cmd == "fault.reset":
-            loop.reset_fault()
+            self._applied(cmd, loop.reset_fault())
             return {"reset": True}
         if cmd in ("controller.enable", "controller.disable"):
-            loop.enable_controller(cmd == "controller.enable")
+            self._applied(cmd, loop.enable_controller(cmd == "controller.enable"))
             return {"enabled": cmd == "controller.enable"}
         check_paths(cmd, args)
         if cmd == "controller.load":
             path = args.path
-            loop.load_controller(path)
+            self._applied(cmd, loop.load_controller(path))
             return {"loaded": path}
         if cmd == "operating_point.set":
-            loop.set_operating_point(args.omega_rpm, args.p_inj_bar)
+            self._applied(cmd, loop.set_operating_point(args.omega_rpm, args.p_inj_bar))
             return {"omega_rpm": args.omega_rpm, "p_inj_bar": args.p_inj_bar}
         if self.experiments is None:
             raise RequestError(f"{cmd}: experiments are not available in this daemon")
@@ -250,6 +250,18 @@ class Dispatcher:
             return self.experiments.stop()
         raise RequestError(f"unknown command {cmd!r}")  # pragma: no cover - table-driven
 
+
+    def _applied(self, cmd: str, ticket: Any) -> None:
+        """Reply only once the loop has applied the command (its ``status`` shows it then);
+        a loop that runs cycles but does not apply it in time is an error reply. A loop
+        double without tickets (``None``) or a loop not running cycles replies at once."""
+        wait = getattr(self.loop, "wait_applied", None)
+        if wait is None or not isinstance(ticket, int):
+            return
+        if not wait(ticket) and self.loop.running:
+            raise RequestError(f"{cmd}: queued, but the loop has not applied it yet (is it "
+                               f"running? `status` shows when it does)")
+        self._cache.clear()   # a query answered while we waited must not outlive the change
 
     def _safe(self, confirm_s: float = 2.0) -> dict[str, Any]:
         """Latch ``operator_safe`` (the loop's safe state from its next cycle), stop the

@@ -30,6 +30,15 @@ def test_daemon_lifecycle(tmp_path):
         assert st["running"] and st["fault"]["code"] == 0 and st["controller"]["loaded"]
         assert "lateness_us" in d.ctl_json("timing")
         d.ctl("enable")
+        # a command's reply comes once the loop applied it: the next status shows it, no wait
+        assert d.ctl_json("status")["controller"]["requested"]
+        ctrl2 = tmp_path / "k2.yaml"
+        save_controller(ctrl2, [[0.98]], [[0.0, 0.001]], [[0.0], [1.0]],
+                        [[0.0, 0.0], [0.0, 0.0]], fs_hz=5000.0)
+        for k in (ctrl2, ctrl, ctrl2, ctrl):   # K∞ on: each load blends out, swaps, blends in
+            d.ctl("load", str(k))
+            st = d.ctl_json("status")["controller"]
+            assert st["source"] == str(k) and st["requested"], st
         assert d.ctl("op", "2000", "5.0").returncode == 0
         # the new operating point is swapped in at a cycle boundary and shows in the next
         # status snapshot (25 Hz): waited for, not a fixed 0.3 s (an idle machine's figure)
