@@ -11,11 +11,15 @@ export MPLBACKEND ?= Agg
 venv: $(STAMP)
 
 # recipes that precede `bench` print nothing on stdout: `make bench` stdout is one JSON object
-$(STAMP): pyproject.toml
+# constraints.txt pins every package to the versions the README's figures were made with: the
+# structured H∞ design has near-equal optima, and a fresh install that took newer numpy/scipy
+# releases moved the demo's damping figures by 10-20 % (regenerate both together when you
+# upgrade: `pip freeze`, `make demo`, tools/readme_demo_table.py, `make bench`)
+$(STAMP): pyproject.toml constraints.txt
 	@echo "make: creating $(VENV) and installing rigd into it" >&2
 	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	@$(BIN)/python -m pip install -q --upgrade pip setuptools wheel >&2
-	@$(BIN)/python -m pip install -q -e '.[test]' >&2
+	@$(BIN)/python -m pip install -q -c constraints.txt -e '.[test]' >&2
 	@touch $(STAMP)
 
 demo: $(STAMP)
