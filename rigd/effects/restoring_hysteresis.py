@@ -22,6 +22,8 @@ refit starts from the best, with the redundant loop scale c kept there
 
 from __future__ import annotations
 
+import dataclasses
+
 import numba
 import numpy as np
 
@@ -171,6 +173,10 @@ class RestoringExtended(ExtendedStructure):
         k3 = np.zeros(m) if hooks.k3 is None else np.asarray(hooks.k3, float)
         if hasattr(base, "_with_modes"):  # parallel modes and their free response
             hooks = base._with_modes(th, hooks, data)
+        off = base.output_offset(th) if hasattr(base, "output_offset") else None
+        if off is not None:   # the outputs' zero (generic): y = p + y_off
+            hooks = dataclasses.replace(
+                hooks, output_add=off if hooks.output_add is None else hooks.output_add + off)
         u = hooks.transform_input(np.ascontiguousarray(data.inputs, float))
         a, c, be, ga = (np.ascontiguousarray(te[i * m:(i + 1) * m]) for i in range(4))
         y = bw_kernel(np.ascontiguousarray(K), np.ascontiguousarray(D), np.ascontiguousarray(B),

@@ -10,10 +10,16 @@ They differ only in which entries are free:
 * :func:`bearing_structure` — 𝔐_b, all of D, K, B, B_d (2×2) and x0 (4): 20 parameters;
 * :func:`actuator_structure` — 𝔐_a, diagonal (decoupled second-order valves, Eq. 8):
   k_a, b_a, d_a, b_{d,a} per axis and x_{a0} (4): 12 parameters (Eq. 10);
-* :func:`generic_structure` — any n outputs, nu inputs (records from other rigs).
+* :func:`generic_structure` — any n outputs, nu inputs (records from other rigs), with a
+  constant offset per output (``yoff_i``, y = p + y_off): a record from elsewhere rarely starts
+  at rest at its own zero, so the output's zero is estimated with the model rather than taken
+  from the record's first samples (which, on a slow process that starts away from equilibrium,
+  leaves a bias no stable model can fit). Like x0, it is re-estimated on a record compared.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -42,7 +48,7 @@ class MechanicalStructure(Structure):
 
     def __init__(self, kind, mask_K, mask_D, mask_B, mask_Bd, prefix="", out_labels=None,
                  in_labels=None, input_names=None, output_names=None, x0_name="x0_",
-                 hold="zoh"):
+                 hold="zoh", output_offsets=False):
         if hold not in ("zoh", "foh"):
             raise ValueError(f"hold must be 'zoh' or 'foh', got {hold!r}")
         self.hold = hold
@@ -67,8 +73,13 @@ class MechanicalStructure(Structure):
                       else f"{grp}_{prefix}{ol[i]}_{cl[j]}" for i, j in zip(ii, jj)]
         self._x0 = len(names)
         names += [f"{x0_name}{i + 1}" for i in range(2 * self.n)]
+        self._off = len(names)
+        self.output_offsets = bool(output_offsets)
+        if self.output_offsets:
+            names += [f"yoff_{i + 1}" for i in range(self.n)]
         self.names = names
         self.x0_index = list(range(self._x0, self._x0 + 2 * self.n))
+        self.offset_index = list(range(self._off, len(names)))
         self.effects = []
 
     # --- packing -------------------------------------------------------------------
@@ -93,14 +104,22 @@ class MechanicalStructure(Structure):
         for grp, M in (("d", D), ("k", K), ("b", B), ("bd", Bd)):
             s, ii, jj = self._idx[grp]
             theta[s:s + len(ii)] = np.asarray(M, float)[ii, jj]
-        theta[self._x0:] = x0
+        theta[self._x0:self._x0 + 2 * n] = x0
         return theta
 
     def group_slices(self):
         """name -> (start, stop) of each parameter group in theta."""
         out = {g: (s, s + len(ii)) for g, (s, ii, _) in self._idx.items()}
         out["x0"] = (self._x0, self._x0 + 2 * self.n)
+        if self.output_offsets:
+            out["yoff"] = (self._off, self._off + self.n)
         return out
+
+    def output_offset(self, theta) -> np.ndarray | None:
+        """The constant output offsets y_off (output units), None without them."""
+        if not self.output_offsets:
+            return None
+        return np.asarray(theta, float)[self._off:self._off + self.n].copy()
 
     # --- Structure API ---------------------------------------------------------------
     def theta0(self, data: IdData) -> np.ndarray:
@@ -121,21 +140,27 @@ class MechanicalStructure(Structure):
         sc[slice(*g["bd"])] = max(np.max(np.abs(Bd)), wmax)
         xs = max(np.max(np.abs(x0[:self.n])), 1e-9)
         sc[self._x0:self._x0 + self.n] = xs
-        sc[self._x0 + self.n:] = xs * wmax
+        sc[self._x0 + self.n:self._x0 + 2 * self.n] = xs * wmax
+        if self.output_offsets:
+            sc[self._off:self._off + self.n] = xs
         return sc
 
-    def _hooks(self, hooks):
+    def _hooks(self, hooks, theta=None):
         hooks = hooks or Hooks()
         hooks.hold = self.hold
+        off = None if theta is None else self.output_offset(theta)
+        if off is not None:   # a copy: the caller's hooks may be used again
+            add = off if hooks.output_add is None else hooks.output_add + off
+            hooks = dataclasses.replace(hooks, output_add=add)
         return hooks
 
     def simulate(self, theta, data, hooks: Hooks | None = None):
-        hooks = self._hooks(hooks)
+        hooks = self._hooks(hooks, theta)
         K, D, B, Bd, x0 = self.unpack(theta)
         return simulate_mechanical(K, D, B, x0, data.u, data.fs, hooks)
 
     def predict(self, theta, data, hooks: Hooks | None = None):
-        hooks = self._hooks(hooks)
+        hooks = self._hooks(hooks, theta)
         K, D, B, Bd, x0 = self.unpack(theta)
         return predict_mechanical(K, D, B, Bd, x0, data.u, data.y, data.fs, hooks)
 
@@ -181,8 +206,11 @@ class MechanicalStructure(Structure):
             G0 = np.linalg.solve(K, B)
         except np.linalg.LinAlgError:
             G0 = np.full((self.n, self.nu), np.nan)
-        return {"modes": self.modes(theta),
-                "static_gain": G0.tolist()}
+        out = {"modes": self.modes(theta), "static_gain": G0.tolist()}
+        off = self.output_offset(theta)
+        if off is not None:
+            out["output_offset"] = off.tolist()
+        return out
 
     def spec(self):
         d = {"kind": self.kind, "inputs": self.input_names, "outputs": self.output_names,
@@ -190,6 +218,7 @@ class MechanicalStructure(Structure):
         if self.kind == "generic":
             d["n"] = self.n
             d["nu"] = self.nu
+            d["output_offsets"] = self.output_offsets
         return d
 
 
@@ -241,17 +270,20 @@ def actuator_structure(hold: str = "zoh") -> ActuatorStructure:
                              ["r_x", "r_y"], ["u_x", "u_y"], x0_name="xa0_", hold=hold)
 
 
-def generic_structure(inputs: list[str], outputs: list[str],
-                      hold: str = "zoh") -> MechanicalStructure:
-    """n-DOF M p̈ + D ṗ + K p = B u (mass-normalised) for records from other rigs.
+def generic_structure(inputs: list[str], outputs: list[str], hold: str = "zoh",
+                      output_offsets: bool = True) -> MechanicalStructure:
+    """n-DOF M p̈ + D ṗ + K p = B u (mass-normalised), y = p + y_off, for records from
+    other rigs.
 
     The inputs of other rigs are usually measured, smooth signals: ``rigd identify`` takes
-    them as linear between samples (``hold="foh"``, :data:`DEFAULT_HOLD`).
+    them as linear between samples (``hold="foh"``, :data:`DEFAULT_HOLD`). ``output_offsets``:
+    estimate the outputs' zero with the model (module docstring); False only for model files
+    written before it existed.
     """
     n, nu = len(outputs), len(inputs)
     return MechanicalStructure("generic", np.ones((n, n), bool), np.ones((n, n), bool),
                                np.ones((n, nu), bool), np.ones((n, n), bool), "", None, None,
-                               inputs, outputs, hold=hold)
+                               inputs, outputs, hold=hold, output_offsets=output_offsets)
 
 
 #: Input hold per sub-model used by ``rigd identify``: commanded references are held (ZOH),
@@ -273,6 +305,7 @@ def structure_for(submodel: str, data: IdData | None = None, spec: dict | None =
         return bearing_structure(hold)
     if submodel == "generic":
         if spec is not None:
-            return generic_structure(list(spec["inputs"]), list(spec["outputs"]), hold)
+            return generic_structure(list(spec["inputs"]), list(spec["outputs"]), hold,
+                                     bool(spec.get("output_offsets", False)))
         return generic_structure(data.input_names, data.output_names, hold)
     raise ValueError(f"unknown sub-model {submodel!r}")

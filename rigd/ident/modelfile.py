@@ -70,6 +70,9 @@ class StructureSpec(StrictModel):
     effects: list[str] = Field(default_factory=list)
     #: parallel modes beyond one per output (generic, rigd.ident.order.ModalStructure)
     extra_modes: int = Field(0, ge=0)
+    #: generic: a constant offset per output is a parameter (``yoff_i``; absent in files
+    #: written before it existed, which rebuild without it)
+    output_offsets: bool = False
 
 
 class SubmodelEntry(StrictModel):

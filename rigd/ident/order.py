@@ -62,6 +62,7 @@ class ModalStructure(Structure):
         self.names = names
         # initial states: the base's and the free response of each parallel mode
         self.x0_index = x0
+        self.offset_index = list(base.offset_index)
         self.effects = []
         self._per = 2 + self.nu * self.n + 2 * self.n
         self._fs: float | None = None
@@ -157,6 +158,10 @@ class ModalStructure(Structure):
     def predict(self, theta, data, hooks: Hooks | None = None):
         th = np.asarray(theta, float)
         return self.base.predict(th[:self.nb], data, self._with_modes(th, hooks, data))
+
+    def output_offset(self, theta):
+        """The base's constant output offsets (None without them)."""
+        return self.base.output_offset(np.asarray(theta, float)[:self.nb])
 
     def continuous(self, theta):
         """The base's (A, B, C, D, x0) (states [p, ṗ], for state-level effects)."""

@@ -177,6 +177,11 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
     if method == "oe":  # the disturbance gain plays no role in a simulation
         free &= np.array([not n.startswith("bd_") for n in structure.names])
     scale = _scale(structure, th0)
+    off = list(getattr(structure, "offset_index", []))
+    if off:   # output offsets (generic): at the outputs' own scale, whatever the start value
+        ys = np.maximum(data.y.std(axis=0), np.abs(data.y.mean(axis=0)))
+        for k, i in enumerate(off):
+            scale[i] = max(scale[i], float(ys[k]) or 1e-300)
     lo, hi = _bounds(structure, npar)
     wy = 1.0 / np.maximum(data.y[skip:].std(axis=0), 1e-300)
     fun = _residual_fn(structure, data, method, scale, free, th0, wy, skip)

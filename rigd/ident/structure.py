@@ -35,6 +35,8 @@ class Structure:
     names: list[str] = []
     #: indices into theta of the initial-state parameters (re-estimated on new data)
     x0_index: list[int] = []
+    #: indices into theta of constant output offsets (re-estimated on new data like x0)
+    offset_index: list[int] = []
     #: names of the extensions applied (empty for a base structure)
     effects: list[str] = []
 
@@ -129,6 +131,7 @@ class HookedStructure(Structure):
             self._slices.append(slice(len(self.names), len(self.names) + len(ext.names)))
             self.names += list(ext.names)
         self.x0_index = list(base.x0_index)
+        self.offset_index = list(base.offset_index)
         self.effects = [e.name for e in self.extensions]
 
     def split(self, theta: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:

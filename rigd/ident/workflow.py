@@ -75,7 +75,8 @@ def prepare(record: Record, submodel: str, options: PrefilterOptions | None = No
 
 
 def estimate_x0(structure, theta: np.ndarray, data: IdData) -> np.ndarray:
-    """theta with the initial-state entries re-estimated on ``data`` by least squares.
+    """theta with the initial-state entries (and constant output offsets, where the structure
+    has them: the record's own zero) re-estimated on ``data`` by least squares.
 
     The free response is linear in x0 for the mechanical structures, so one simulation per
     state gives the regressors.
@@ -83,7 +84,7 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData) -> np.ndarray:
     base = structure
     while hasattr(base, "effect"):  # effect wrappers (their parameters come last)
         base = base.base
-    idx = list(getattr(base, "x0_index", []))
+    idx = list(getattr(base, "x0_index", [])) + list(getattr(base, "offset_index", []))
     if not idx:
         return np.asarray(theta, float)
     th = np.array(theta, float)
