@@ -10,7 +10,7 @@ least squares on the equation error (Levy's method)::
 weighted by the multiple coherence, followed by a few Sanathanan-Koerner re-weightings
 (divide by |det(K + jωD - ω²I)| of the previous estimate) that remove Levy's high-frequency
 bias. Fixed-zero entries (decoupled actuator, Eqs. 8-10) are simply left out of the fit.
-A result with unstable poles is made stable by adding damping.
+A result with unstable poles is made stable (negative stiffness reflected, damping added).
 """
 
 from __future__ import annotations
@@ -71,17 +71,39 @@ def frf(u: np.ndarray, y: np.ndarray, fs: float, nperseg: int | None = None):
     return f, H, coh, suu
 
 
-def stabilise(K: np.ndarray, D: np.ndarray) -> np.ndarray:
-    """Return D with extra diagonal damping so that p̈ + D ṗ + K p = 0 is stable."""
+def _damped(K: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, bool]:
+    """D with extra diagonal damping until p̈ + D ṗ + K p = 0 is stable (60 steps at most);
+    and whether it is."""
     n = K.shape[0]
     D = np.array(D, float)
     scale = np.sqrt(max(np.max(np.abs(np.diag(K))), 1e-12))
     for _ in range(60):
         A = np.block([[np.zeros((n, n)), np.eye(n)], [-K, -D]])
         if np.max(np.linalg.eigvals(A).real) < 0:
-            return D
+            return D, True
         D = D + np.eye(n) * 0.02 * scale
-    return D
+    return D, False
+
+
+def stabilise(K: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(K, D) of a stable p̈ + D ṗ + K p = 0 near the given one.
+
+    Diagonal damping is added until the system is stable. A negative stiffness (a real pole in
+    the right half plane, which no damping moves) is then reflected, λ(K) → |Re λ| (as the
+    pole reflection of MATLAB's initial estimates), and damping added again. A free mass with
+    friction measured in a position loop gave K ≈ −250 s⁻² from the frequency response; the
+    OE fit never left that unstable start (the fit diverged).
+    """
+    K = np.array(K, float)
+    D2, ok = _damped(K, D)
+    if ok:
+        return K, D2
+    lam, V = np.linalg.eig(K)
+    try:
+        K = np.real(V @ np.diag(np.abs(lam.real) + 1j * lam.imag) @ np.linalg.inv(V))
+    except np.linalg.LinAlgError:
+        K = K + np.eye(K.shape[0]) * 2.0 * max(-float(np.min(lam.real)), 0.0)
+    return K, _damped(K, D)[0]
 
 
 def levy_fit(f, H, coh, suu, fs, mask_K, mask_D, mask_B, iters: int = 4, hold: str = "zoh"):
@@ -133,7 +155,8 @@ def levy_fit(f, H, coh, suu, fs, mask_K, mask_D, mask_B, iters: int = 4, hold: s
                             for wk in w])
             sk = 1.0 / np.maximum(det, 1e-12 * max(det.max(), 1e-300)) ** (1.0 / ny)
             sk /= sk[band].max() if band.any() else 1.0
-    return K, stabilise(K, D), B
+    K, D = stabilise(K, D)
+    return K, D, B
 
 
 def mechanical_initial(u, y, fs, mask_K, mask_D, mask_B, hold: str = "zoh"):

@@ -323,21 +323,40 @@ def test_hdf5_nan_only_refused_in_a_used_channel(tmp_path, capsys):
     assert err.count("\n") == 1 and "bad.h5: NaN in column 'y_mm' at sample 1500" in err, err
 
 
-def test_a_diverged_fit_is_flagged_not_just_printed_as_nan(tmp_path, capsys):
-    """Data no oscillator explains (a response that is a short moving average of white noise):
-    the OE fit diverges; identify says so in a WARNING and in the model file, besides the
-    'nan %' fit."""
-    import yaml
-
+def _ma_noise_csv(tmp_path):
     rng = np.random.default_rng(0)
     u = rng.standard_normal(800)
     y = np.convolve(u, [0.5, 0.3, 0.1])[:800]
     np.savetxt(tmp_path / "f.csv", np.column_stack([u, y]), delimiter=",", header="u,y",
                comments="")
-    assert main(["identify", str(tmp_path / "f.csv"), "--fs", "100", "--inputs", "u",
-                 "--outputs", "y", "--order", "1", "--method", "oe",
-                 "-o", str(tmp_path / "m.yaml")]) == 0
+    return ["identify", str(tmp_path / "f.csv"), "--fs", "100", "--inputs", "u",
+            "--outputs", "y", "--order", "1", "--method", "oe", "-o", str(tmp_path / "m.yaml")]
+
+
+def test_a_diverged_fit_is_flagged_not_just_printed_as_nan(tmp_path, capsys, monkeypatch):
+    """Data no oscillator explains (a response that is a short moving average of white noise),
+    fitted from an unstable start (the frequency-response estimate with a negative stiffness,
+    left unstable as ``stabilise`` once did): the OE fit diverges; identify says so in a
+    WARNING and in the model file, besides the 'nan %' fit."""
+    import yaml
+
+    from rigd.ident import initial
+
+    monkeypatch.setattr(initial, "stabilise", lambda K, D: (K, D))
+    assert main(_ma_noise_csv(tmp_path)) == 0
     out = capsys.readouterr().out
     assert "y nan %" in out and "WARNING: the model's simulated response is not finite" in out
     stored = yaml.safe_load((tmp_path / "m.yaml").read_text())["submodels"]["generic"]
     assert any("not finite" in w for w in stored["readouts"]["warnings"])
+
+
+def test_a_negative_stiffness_start_is_reflected_and_the_fit_stays_finite(tmp_path, capsys):
+    """The same record from the start ``stabilise`` makes (negative stiffness reflected, then
+    damped): a finite fit, no divergence."""
+    from rigd.ident.initial import stabilise
+
+    K, D = stabilise(np.array([[-250.0]]), np.array([[15.0]]))
+    assert K[0, 0] == pytest.approx(250.0) and D[0, 0] > 0
+    assert main(_ma_noise_csv(tmp_path)) == 0
+    out = capsys.readouterr().out
+    assert "nan %" not in out and "not finite" not in out, out
