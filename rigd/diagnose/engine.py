@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from rigd.diagnose import probes as P
 from rigd.diagnose import residual as R
 from rigd.diagnose import unexplained as U
 from rigd.effects import REGISTRY
@@ -165,7 +166,12 @@ def _refit(eff, ctx: Context, sig, data_est, max_nfev) -> Refit:
         th = best.theta if best is not None else th0
         yw = np.asarray(ext.simulate(th, data), float)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError):
-        th, yw = th0, np.asarray(ext.simulate(th0, data), float)
+        try:
+            th, yw = th0, np.asarray(ext.simulate(th0, data), float)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+            # the extension cannot be simulated on this model at all (restoring-force
+            # hysteresis below an input-level effect): it gains nothing, nothing crashes
+            th, yw = th0, ctx.yhat
     if not np.all(np.isfinite(yw)):
         th, yw = th0, ctx.yhat
     fw = float(np.mean(fit_percent(ctx.y[ctx.val], yw[ctx.val])))
@@ -417,6 +423,10 @@ def _tests_and_unexplained(sd: SubDiagnosis, offsets: dict[str, float] | None = 
                            ctx.output_names or [ctx.label(i) for i in range(ctx.ny)],
                            ctx.input_names or [ctx.label(j, "in") for j in range(ctx.nu)],
                            skip_hz=skip, offsets=offsets, start=start + (v.start or 0))
+    if unexplained and not sig:   # structured, no effect found: a force outside the
+        fr = P.dry_friction(ctx, P_LEVEL)   # catalogue? (rigd.diagnose.probes)
+        if fr is not None:
+            unexplained.insert(1, fr)
     err_final = max(100.0 - sd.final.fit_percent, 1e-12)
     for f in sd.findings:
         why_not = f.evidence.get("implausible")

@@ -85,3 +85,25 @@ def test_input_scale_per_channel_not_mixing_units():
     u0[:, 0] = 0.0
     assert input_scale(u0, v) == pytest.approx(ratios[1])
     assert input_scale(u, np.zeros_like(v)) == 1.0
+
+
+def test_an_extension_that_cannot_be_simulated_on_the_model_gains_nothing_and_never_crashes():
+    """Restoring-force hysteresis cannot sit above an input-level effect (its kernel takes
+    the mechanical model only). The diagnosis tried it on a model with ``delay`` during the
+    forward selection on a friction stage and died with a ValueError; now the refit reports
+    no gain."""
+    from rigd.diagnose.engine import _refit
+    from rigd.effects import REGISTRY
+
+    rec = B.duffing(seed=0, n=3000)
+    data = from_record(rec, "generic")
+    sub = identify_record(rec, "generic", method="oe", effects=resolve(["delay"]),
+                          order=1).submodels["generic"]
+    th = np.asarray(sub.theta, float)
+    yhat = np.asarray(sub.structure.simulate(th, data), float)
+    ctx = Context("generic", data, sub.structure, th, yhat, slice(0, 2000), slice(2000, 3000))
+    eff = REGISTRY["hysteresis_restoring"]
+    with pytest.raises(ValueError, match="cannot be combined"):
+        eff.extend(sub.structure).simulate(np.concatenate([th, np.zeros(4)]), data)
+    r = _refit(eff, ctx, eff.signature(ctx), data.slice(0, 2000), 50)
+    assert np.array_equal(r.yhat, yhat)
