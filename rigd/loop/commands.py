@@ -10,20 +10,30 @@ loop and the loop never blocks producers.
 A controller swap while K∞ is (being) blended in is done bumplessly: blend out, swap at
 ``ramp == 0``, blend back in (:attr:`CommandQueue.swap`).
 
-Every post returns a *ticket*; :meth:`CommandQueue.applied` says whether the loop has applied
-it (a deferred controller swap counts once it is swapped in, or once a later load supersedes
-it). A caller that answers an operator (the daemon's ``load``, ``enable``, ``op``, ``reset``)
+Every post returns a :class:`Ticket` that the loop marks once it has applied the command (a
+deferred controller swap once it is swapped in, or once a later load supersedes it). The mark
+travels with the command, so a ticket is exact whatever order producers in several threads
+append in. A caller that answers an operator (the daemon's ``load``, ``enable``, ``op``, ``reset``)
 waits on it, so that the ``status`` read after the reply shows the change.
 """
 
 from __future__ import annotations
 
 import collections
-import itertools
 
 from rigd.loop import layout as L
 
 ENABLE, CONTROLLER, RESET, CALL = range(4)
+
+
+class Ticket:
+    """One posted command: :attr:`applied` is set True by the loop thread once it acted on it
+    (attribute assignment: no allocation, no lock)."""
+
+    __slots__ = ("applied",)
+
+    def __init__(self) -> None:
+        self.applied = False
 
 
 class CommandQueue:
@@ -40,26 +50,23 @@ class CommandQueue:
         self.queue: collections.deque = collections.deque()
         self._state = state
         #: a controller swap waiting for K∞ to blend out: (PackedController, re-enable after,
-        #: ticket)
+        #: Ticket)
         self.swap = None
-        self._tickets = itertools.count(1)   # next() is atomic under the GIL: any producer
-        #: the ticket of the last command taken off the queue (written by the loop thread only)
-        self.done = 0
 
     # --- producers (any thread) ------------------------------------------------------
-    def _post(self, kind: int, arg) -> int:
-        t = next(self._tickets)
+    def _post(self, kind: int, arg) -> Ticket:
+        t = Ticket()
         self.queue.append((kind, arg, t))
         return t
 
-    def enable(self, on: bool) -> int:
+    def enable(self, on: bool) -> Ticket:
         """Post: blend K∞ in (on) or out; returns the ticket.
 
         Runs in: any thread, the loop thread too (segments) — O(1), non-blocking.
         """
         return self._post(ENABLE, bool(on))
 
-    def controller(self, packed) -> int:
+    def controller(self, packed) -> Ticket:
         """Post: switch to an already validated and packed controller (bumplessly); returns
         the ticket.
 
@@ -67,14 +74,14 @@ class CommandQueue:
         """
         return self._post(CONTROLLER, packed)
 
-    def reset(self) -> int:
+    def reset(self) -> Ticket:
         """Post: clear the latched fault; returns the ticket.
 
         Runs in: any thread — O(1), non-blocking.
         """
         return self._post(RESET, None)
 
-    def call(self, fn) -> int:
+    def call(self, fn) -> Ticket:
         """Post: run ``fn()`` at the next cycle boundary in the loop thread; returns the ticket.
 
         ``fn`` must itself honour the loop-thread contract (O(1), allocation-free,
@@ -82,16 +89,10 @@ class CommandQueue:
         """
         return self._post(CALL, fn)
 
-    def applied(self, ticket: int) -> bool:
-        """Has the loop applied the command with this ticket?
-
-        Runs in: any thread — O(1), non-blocking (reads two attributes the loop writes; the
-        loop sets a deferred :attr:`swap` before it advances :attr:`done`).
-        """
-        if self.done < ticket:
-            return False
-        sw = self.swap
-        return sw is None or sw[2] > ticket
+    @staticmethod
+    def applied(ticket: Ticket) -> bool:
+        """Has the loop applied the command with this ticket? Runs in: any thread — O(1)."""
+        return ticket.applied
 
     def __bool__(self) -> bool:
         return bool(self.queue) or self.swap is not None
@@ -117,18 +118,21 @@ class CommandQueue:
                 sw = self.swap
                 if sw is not None:      # a newer load replaces the waiting one (same re-enable)
                     self.swap = (arg, sw[1], ticket)
-                elif st[L.S_RAMP] == 0.0 and st[L.S_K_TARGET] == 0.0:
-                    self._state.swap_controller(arg)
-                else:  # blend out, swap, blend back in
-                    self.swap = (arg, st[L.S_K_TARGET] != 0.0, ticket)
+                    sw[2].applied = True          # superseded: done with it
+                    continue
+                if st[L.S_RAMP] != 0.0 or st[L.S_K_TARGET] != 0.0:
+                    self.swap = (arg, st[L.S_K_TARGET] != 0.0, ticket)   # blend out first
                     st[L.S_K_TARGET] = 0.0
+                    continue
+                self._state.swap_controller(arg)
             elif kind == RESET:
                 self._state.reset_fault()
             else:
                 arg()
-            self.done = ticket
+            ticket.applied = True
         if self.swap is not None and st[L.S_RAMP] == 0.0:
-            packed, back_on, _ = self.swap
+            packed, back_on, ticket = self.swap
             self._state.swap_controller(packed)
             st[L.S_K_TARGET] = 1.0 if back_on else 0.0
             self.swap = None
+            ticket.applied = True

@@ -37,7 +37,7 @@ from rigd.loop import faults as FC
 from rigd.loop import layout as L
 from rigd.loop import requests as RQ
 from rigd.loop.clock import boosted
-from rigd.loop.commands import CommandQueue
+from rigd.loop.commands import CommandQueue, Ticket
 from rigd.loop.cycle import cycle, hist_new, rt_cycle
 from rigd.loop.lockstep import LockstepClock
 from rigd.loop.realtime import RealTimeClock
@@ -165,30 +165,30 @@ class ControlLoop:
     # --- commands (any thread) -------------------------------------------------------
     # Each command returns its ticket: ``wait_applied(ticket)`` waits until the loop has
     # applied it (the daemon does, so that ``status`` after the reply shows the change).
-    def enable_controller(self, on: bool = True) -> int:
+    def enable_controller(self, on: bool = True) -> Ticket:
         """Blend K∞ in (on) or out over ``loop.k_ramp_s``; p_eq is frozen while on."""
         return self.commands.enable(on)
 
-    def load_controller(self, path_or_controller) -> int:
+    def load_controller(self, path_or_controller) -> Ticket:
         """Validate a controller now (raises InputError), switch to it bumplessly (once K∞
         has blended out, if it is in)."""
         return self.commands.controller(
             PackedController(self._as_controller(path_or_controller)))
 
-    def reset_fault(self) -> int:
+    def reset_fault(self) -> Ticket:
         """Clear the latched fault (it latches again next cycle if the cause persists)."""
         return self.commands.reset()
 
-    def applied(self, ticket: int) -> bool:
+    def applied(self, ticket: Ticket) -> bool:
         """Has the loop applied the command that returned ``ticket``?"""
         return self.commands.applied(ticket)
 
-    def wait_applied(self, ticket: int | None, timeout_s: float | None = None) -> bool:
+    def wait_applied(self, ticket: Ticket | None, timeout_s: float | None = None) -> bool:
         """Wait until the loop has applied the command that returned ``ticket``.
 
         Parameters
         ----------
-        ticket : int or None
+        ticket : rigd.loop.commands.Ticket or None
             From ``enable_controller``, ``load_controller``, ``reset_fault`` or
             ``set_operating_point`` (None: nothing to wait for, True at once).
         timeout_s : float, optional
@@ -218,7 +218,7 @@ class ControlLoop:
         """Put the loop into the safe state with ``code`` latched (operator / service)."""
         self.requests.post(RQ.OPERATOR, int(code))
 
-    def set_operating_point(self, omega_rpm: float, p_inj_bar: float) -> int | None:
+    def set_operating_point(self, omega_rpm: float, p_inj_bar: float) -> Ticket | None:
         """Sim: plant operating point (at a cycle boundary); rig: slow-driver setpoints.
 
         The slow preparation (the plant's parameter block) runs here, in the caller's thread;

@@ -256,7 +256,7 @@ class Dispatcher:
         a loop that runs cycles but does not apply it in time is an error reply. A loop
         double without tickets (``None``) or a loop not running cycles replies at once."""
         wait = getattr(self.loop, "wait_applied", None)
-        if wait is None or not isinstance(ticket, int):
+        if wait is None or ticket is None:
             return
         if not wait(ticket) and self.loop.running:
             raise RequestError(f"{cmd}: queued, but the loop has not applied it yet (is it "

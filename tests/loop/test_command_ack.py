@@ -31,11 +31,25 @@ def test_a_ticket_is_applied_only_after_the_loop_took_it():
     state, q = _queue()
     t1 = q.reset()
     t2 = q.enable(True)
-    assert t2 > t1
     assert not q.applied(t1) and not q.applied(t2)
     q.apply()
     assert q.applied(t1) and q.applied(t2)
     assert state.st[L.S_K_TARGET] == 1.0
+
+
+def test_tickets_hold_whatever_order_producers_append_in():
+    """Two producer threads: one took its ticket, the other's command reached the queue and
+    the loop first. The later command being applied says nothing of the earlier one (a
+    counter of the last ticket taken off the queue once said it did)."""
+    _, q = _queue()
+    t1 = q.reset()
+    t2 = q.enable(True)
+    late = q.queue.popleft()                    # t1's producer has not appended yet
+    q.apply()
+    assert q.applied(t2) and not q.applied(t1)
+    q.queue.append(late)
+    q.apply()
+    assert q.applied(t1)
 
 
 def test_a_deferred_swap_is_applied_when_swapped_in_not_when_queued():
