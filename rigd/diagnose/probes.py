@@ -31,13 +31,12 @@ import numpy as np
 
 from rigd.effects import numbers as N
 from rigd.effects.context import Context
+from rigd.effects.detectability import parameter_responses
 
 #: least share of the final residual a probe must explain to be reported
 MIN_SHARE = 0.10
 #: sgn(v) is smoothed as tanh(v / v_ε), v_ε this fraction of the rms velocity
 SMOOTH = 0.05
-#: finite-difference step of the sensitivities, relative to the parameter's scale
-STEP = 1e-4
 
 
 def _velocity_sign(p: np.ndarray, fs: float) -> np.ndarray | None:
@@ -48,28 +47,15 @@ def _velocity_sign(p: np.ndarray, fs: float) -> np.ndarray | None:
     return np.tanh(v / (SMOOTH * rms))
 
 
-def sensitivities(ctx: Context) -> np.ndarray | None:
-    """(n, ny, p + ny) of ∂ŷ/∂θ of the base model over the whole record (finite differences
-    at the fit's parameter scale) and one constant column per output; None if a simulation
-    fails. Cached in ``ctx.cache``."""
-    if "probe_sensitivities" in ctx.cache:
-        return ctx.cache["probe_sensitivities"]
-    from rigd.ident.pem import _scale
-
-    theta = np.asarray(ctx.theta, float)
+def sensitivities(ctx: Context) -> tuple[np.ndarray, list[int]] | None:
+    """(J, parameters): ∂ŷ/∂θ of the base model over the whole record, (n, ny, q), from the
+    stepped simulations of :func:`rigd.effects.detectability.parameter_responses` (the
+    parameters that move the output, their indices in ``parameters``) and one constant column
+    per output; None if a stepped simulation failed."""
     y0 = np.asarray(ctx.yhat, float)
-    try:
-        scale = np.asarray(_scale(ctx.structure, theta), float)
-    except Exception:  # noqa: BLE001 - a foreign structure: relative steps
-        scale = np.maximum(np.abs(theta), 1e-6)
     cols, which = [], []
-    for i in range(theta.size):
-        h = STEP * max(abs(theta[i]), scale[i], 1e-12)
-        th = theta.copy()
-        th[i] += h
-        try:
-            yi = np.asarray(ctx.structure.simulate(th, ctx.data), float)
-        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+    for i, h, yi in parameter_responses(ctx):
+        if yi is None:
             return None
         d = (yi - y0) / h
         if np.all(np.isfinite(d)) and np.any(d):
@@ -79,44 +65,37 @@ def sensitivities(ctx: Context) -> np.ndarray | None:
         c = np.zeros_like(y0)
         c[:, i] = 1.0
         cols.append(c)
-    J = np.stack(cols, axis=-1)
-    ctx.cache["probe_sensitivities"] = J
-    ctx.cache["probe_parameters"] = which     # the parameter of each column (then constants)
-    return J
+    return np.stack(cols, axis=-1), which
 
 
-def joint_share(ctx: Context, g: np.ndarray, J: np.ndarray) -> tuple[float, float, float]:
-    """(validation share, estimation share, F-test p) that the regressor ``g`` (n, ny) adds
-    to the sensitivities ``J`` (n, ny, q) in explaining the base residual (weighted per
-    output as the fit)."""
+def joint_share(ctx: Context, g: np.ndarray, J: np.ndarray) -> tuple[float, float, np.ndarray]:
+    """(share, F-test p, coefficients): the share of the base residual's energy (estimation
+    part, weighted per output as the fit) that the regressor ``g`` (n, ny) adds to the
+    sensitivities ``J`` (n, ny, q), and the joint least-squares coefficients [g, J...]."""
     from scipy import stats
 
     from rigd.effects.signature import effective_n
 
     w = 1.0 / np.maximum(np.std(ctx.y[ctx.est], axis=0), 1e-300)
-    r = ctx.residual * w
-    X = np.concatenate([np.asarray(g, float)[..., None], J], axis=-1) * w[None, :, None]
+    re = (ctx.residual[ctx.est] * w).reshape(-1)
+    X = np.concatenate([np.asarray(g, float)[..., None], J], axis=-1)[ctx.est] * w[None, :, None]
     q = X.shape[-1]
-    re, rv = r[ctx.est].reshape(-1), r[ctx.val].reshape(-1)
-    Xe, Xv = X[ctx.est].reshape(-1, q), X[ctx.val].reshape(-1, q)
-    if not (np.all(np.isfinite(Xe)) and np.all(np.isfinite(Xv))):
-        return 0.0, 0.0, 1.0
+    Xe = X.reshape(-1, q)
+    if not np.all(np.isfinite(Xe)):
+        return 0.0, 1.0, np.zeros(q)
     nrm = np.linalg.norm(Xe, axis=0)
     nrm[nrm == 0] = 1.0
-    out = []
+    fits = []
     for cols in (slice(0, q), slice(1, q)):        # with the force, and without
-        A = Xe[:, cols] / nrm[cols]
-        b = np.linalg.lstsq(A, re, rcond=None)[0] / nrm[cols]
-        out.append((re - Xe[:, cols] @ b, rv - Xv[:, cols] @ b))
-    (ee1, ev1), (ee0, ev0) = out
-    s0v, s0e = float(rv @ rv) or 1e-300, float(re @ re) or 1e-300
-    share_v = max(0.0, (float(ev0 @ ev0) - float(ev1 @ ev1)) / s0v)
-    share_e = max(0.0, (float(ee0 @ ee0) - float(ee1 @ ee1)) / s0e)
+        b = np.linalg.lstsq(Xe[:, cols] / nrm[cols], re, rcond=None)[0] / nrm[cols]
+        e = re - Xe[:, cols] @ b
+        fits.append((float(e @ e), b))
+    (sse1, beta), (sse0, _) = fits
+    share = max(0.0, (sse0 - sse1) / (float(re @ re) or 1e-300))
     neff = min(effective_n(ctx.residual[ctx.est, i]) for i in range(ctx.ny)) * ctx.ny
     dof = max(neff - q, 1.0)
-    sse1 = max(float(ee1 @ ee1), 1e-300)
-    F = (float(ee0 @ ee0) - sse1) / (sse1 / dof)
-    return share_v, share_e, float(stats.f.sf(max(F, 0.0), 1, dof))
+    F = (sse0 - max(sse1, 1e-300)) / (max(sse1, 1e-300) / dof)
+    return share, float(stats.f.sf(max(F, 0.0), 1, dof)), beta
 
 
 def _gain_row(ctx: Context, theta: np.ndarray, i: int) -> np.ndarray:
@@ -144,9 +123,10 @@ def dry_friction(ctx: Context, p_level: float) -> dict[str, Any] | None:
     """
     if N.is_rotor(ctx) or not callable(getattr(ctx.structure, "continuous", None)):
         return None
-    J = sensitivities(ctx)
-    if J is None:
+    sens = sensitivities(ctx)
+    if sens is None:
         return None
+    J, which = sens
     best = None
     for i in range(ctx.ny):
         s = _velocity_sign(ctx.yhat[:, i], ctx.fs)
@@ -155,26 +135,20 @@ def dry_friction(ctx: Context, p_level: float) -> dict[str, Any] | None:
         # a motion that never reverses cannot tell a friction force from an offset
         if min(np.mean(s > 0.5), np.mean(s < -0.5)) < 0.1:
             continue
-        g = ctx.through_force(s, i)
-        _, share, p = joint_share(ctx, g, J)
+        share, p, beta = joint_share(ctx, ctx.through_force(s, i), J)
         if share >= MIN_SHARE and p < p_level and (best is None or share > best[1]):
-            best = (i, share, g, s)
+            best = (i, share, beta)
     if best is None:
         return None
-    i, share, g, s = best
-    # its size: the force alone on the residual with the parameters re-adjusted (the
-    # coefficient of g in the joint fit, acceleration units), in units of the input that
-    # drives output i most
-    w = 1.0 / np.maximum(np.std(ctx.y[ctx.est], axis=0), 1e-300)
-    X = np.concatenate([g[..., None], J], axis=-1)[ctx.est] * w[None, :, None]
-    beta = np.linalg.lstsq(X.reshape(-1, X.shape[-1]),
-                           (ctx.residual[ctx.est] * w).reshape(-1), rcond=None)[0]
+    i, share, beta = best
+    # its size: the coefficient of the force in the joint fit (acceleration units), in units
+    # of the input that drives output i most
     fc = -float(beta[0])              # > 0: opposes the motion
     out = ctx.label(i)
     # the input gain after the same joint step (the base's own gain is biased by the force
     # it absorbed: on the stage, 30 % low)
     theta = np.array(ctx.theta, float)
-    for col, k in enumerate(ctx.cache.get("probe_parameters", [])):
+    for col, k in enumerate(which):
         theta[k] += beta[1 + col]
     b = _gain_row(ctx, theta, i)
     b0 = _gain_row(ctx, ctx.theta, i)

@@ -98,30 +98,47 @@ def _weights(ctx: Context) -> np.ndarray:
     return 1.0 / s
 
 
+def parameter_responses(ctx: Context) -> list[tuple[int, float, np.ndarray | None]]:
+    """The base model simulated over the whole record with each parameter stepped in turn:
+    [(index, step h, output (n, ny) or None if that simulation failed)] (cached; shared by
+    :func:`tangent` and the probes of rigd.diagnose.probes)."""
+    cache = ctx.cache
+    if "parameter_responses" in cache:
+        return cache["parameter_responses"]
+    from rigd.ident.pem import _scale  # typical parameter sizes of the structure
+
+    theta = np.asarray(ctx.theta, float)
+    try:
+        scale = np.asarray(_scale(ctx.structure, theta), float)
+    except Exception:  # noqa: BLE001 - a foreign structure: relative steps
+        scale = np.maximum(np.abs(theta), 1e-6)
+    out = []
+    for i in range(theta.size):
+        h = _STEP * max(abs(theta[i]), scale[i], 1e-12)
+        th = theta.copy()
+        th[i] += h
+        try:
+            yi = np.asarray(ctx.structure.simulate(th, ctx.data), float)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+            yi = None
+        out.append((i, h, yi))
+    cache["parameter_responses"] = out
+    return out
+
+
 def tangent(ctx: Context) -> np.ndarray:
     """(n_est·ny, p + ny) weighted sensitivities of the base model's simulation to its
     parameters on the estimation part, plus one constant column per output (cached)."""
     cache = ctx.cache
     if "tangent" in cache:
         return cache["tangent"]
-    from rigd.ident.pem import _scale  # typical parameter sizes of the structure
-
-    theta = np.asarray(ctx.theta, float)
     w = _weights(ctx)
     y0 = np.asarray(ctx.yhat, float)[ctx.est] * w
-    try:
-        scale = np.asarray(_scale(ctx.structure, theta), float)
-    except Exception:  # noqa: BLE001 - a foreign structure: relative steps
-        scale = np.maximum(np.abs(theta), 1e-6)
     cols = []
-    for i in range(theta.size):
-        h = _STEP * max(abs(theta[i]), scale[i], 1e-12)
-        th = theta.copy()
-        th[i] += h
-        try:
-            yi = np.asarray(ctx.structure.simulate(th, ctx.data), float)[ctx.est] * w
-        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+    for _, h, yfull in parameter_responses(ctx):
+        if yfull is None:
             continue
+        yi = yfull[ctx.est] * w
         d = (yi - y0) / h
         if np.all(np.isfinite(d)) and np.any(d):
             cols.append(d.reshape(-1))

@@ -22,8 +22,6 @@ refit starts from the best, with the redundant loop scale c kept there
 
 from __future__ import annotations
 
-import dataclasses
-
 import numba
 import numpy as np
 
@@ -175,8 +173,7 @@ class RestoringExtended(ExtendedStructure):
             hooks = base._with_modes(th, hooks, data)
         off = base.output_offset(th) if hasattr(base, "output_offset") else None
         if off is not None:   # the outputs' zero (generic): y = p + y_off
-            hooks = dataclasses.replace(
-                hooks, output_add=off if hooks.output_add is None else hooks.output_add + off)
+            hooks = hooks.plus_output(off)
         u = hooks.transform_input(np.ascontiguousarray(data.inputs, float))
         a, c, be, ga = (np.ascontiguousarray(te[i * m:(i + 1) * m]) for i in range(4))
         y = bw_kernel(np.ascontiguousarray(K), np.ascontiguousarray(D), np.ascontiguousarray(B),

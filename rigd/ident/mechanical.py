@@ -19,8 +19,6 @@ They differ only in which entries are free:
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from rigd.ident.iddata import IdData
@@ -149,10 +147,7 @@ class MechanicalStructure(Structure):
         hooks = hooks or Hooks()
         hooks.hold = self.hold
         off = None if theta is None else self.output_offset(theta)
-        if off is not None:   # a copy: the caller's hooks may be used again
-            add = off if hooks.output_add is None else hooks.output_add + off
-            hooks = dataclasses.replace(hooks, output_add=add)
-        return hooks
+        return hooks if off is None else hooks.plus_output(off)
 
     def simulate(self, theta, data, hooks: Hooks | None = None):
         hooks = self._hooks(hooks, theta)

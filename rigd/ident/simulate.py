@@ -19,6 +19,7 @@ The compiled kernels live in :mod:`rigd.ident.sim_kernels`.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -123,6 +124,12 @@ class Hooks:
         """(k3, k3_cross) as float arrays of length m (zeros where unset)."""
         return tuple(np.zeros(m) if k is None else np.ascontiguousarray(k, dtype=float)
                      for k in (self.k3, self.k3_cross))
+
+    def plus_output(self, add: np.ndarray) -> Hooks:
+        """A copy with ``add`` added to :attr:`output_add` (the caller's hooks unchanged: they
+        may be used for another simulation)."""
+        return dataclasses.replace(
+            self, output_add=add if self.output_add is None else self.output_add + add)
 
     def transform_input(self, u: np.ndarray) -> np.ndarray:
         if self.delay > 0:
