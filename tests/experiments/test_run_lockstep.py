@@ -288,3 +288,26 @@ def test_sigint_inside_deferring_only_sets_the_flag():
             for _ in range(10**6):
                 pass
         assert stop.is_set()
+
+
+def test_sigint_inside_a_finaliser_only_sets_the_flag():
+    """A KeyboardInterrupt raised inside a weakref callback or ``__del__`` is printed as a
+    traceback and dropped by Python (a `rigd experiment` run once printed one): there the
+    handler only sets the flag."""
+    import types
+    import weakref
+
+    from rigd.cli.experiment import _SigintStop
+
+    def frame_of(filename, name):
+        code = compile("pass", filename, "exec").replace(co_name=name)
+        return types.SimpleNamespace(f_code=code)
+
+    with _SigintStop() as stop:
+        for frame in (frame_of(weakref.__file__, "remove"), frame_of("/x/thing.py", "__del__")):
+            stop._on_sigint(2, frame)            # no KeyboardInterrupt
+            assert stop.is_set()
+            stop.clear()
+        with pytest.raises(KeyboardInterrupt):
+            stop._on_sigint(2, frame_of("/x/runner.py", "run"))
+        assert stop.is_set()
