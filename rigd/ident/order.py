@@ -10,7 +10,7 @@ each ω²/(s² + 2ζω s + ω²) from every input to every output with its own g
 :func:`choose_order` picks the number of modes from the data:
 
 1. fit the base (one mode per output) by output error on the estimation part;
-2. repeat: a subspace estimate (N4SID, :mod:`rigd.ident.subspace`) of the dynamics left in
+2. repeat: a subspace estimate (:mod:`rigd.ident.lti.subspace`) of the dynamics left in
    the residual u → y − ŷ gives the candidate mode(s) away from the model's modes; their
    gains by linear least squares; the whole model refined by output error;
 3. keep the mode when it raises the *validation* fit by at least ``MIN_GAIN`` points — the
@@ -243,14 +243,14 @@ def candidate_mode(u, r, fs, exclude_hz, hold="foh"):
     """(f_hz, zeta, g (nu, ny)) of the mode that explains most of the residual ``r`` (n, ny)
     given the inputs ``u`` (n, nu): subspace estimates of orders 2..6 of u → r, modes away
     from ``exclude_hz``, gains by least squares; None when none is found."""
-    from rigd.ident.subspace import continuous_modes, n4sid_a
+    from rigd.ident.lti.subspace import continuous_modes, n4sid
     from rigd.lti import resonator
 
     cands = []
     for order in (2, 4, 6):
         for hz in (None, 4 * order + 10):
             try:
-                A, _, _ = n4sid_a(u, r, order, horizon=hz)
+                A = n4sid(u, r, order, horizon=hz).model.A
             except (ValueError, np.linalg.LinAlgError):
                 continue
             for f, z in continuous_modes(A, fs):

@@ -1,4 +1,4 @@
-"""Base model of the right order (rigd.ident.order, rigd.ident.subspace): subspace estimate,
+"""Base model of the right order (rigd.ident.order, rigd.ident.lti.subspace): subspace estimate,
 output-error refinement, number of modes by validation fit; model files and compare."""
 
 import json
@@ -9,7 +9,7 @@ import pytest
 from scipy import signal
 
 from rigd.cli import main
-from rigd.ident.subspace import continuous_modes, n4sid_a
+from rigd.ident.lti.subspace import continuous_modes, n4sid
 
 
 def test_n4sid_recovers_two_modes_of_a_known_system():
@@ -24,7 +24,7 @@ def test_n4sid_recovers_two_modes_of_a_known_system():
     u = rng.standard_normal(6000)
     _, y = signal.dlsim(signal.cont2discrete((num, den), 1 / fs, "zoh"), u)
     y = y[:, 0] + 0.01 * np.std(y) * rng.standard_normal(len(u))
-    A, _, _ = n4sid_a(u[:, None], y[:, None], 4, horizon=20)
+    A = n4sid(u, y, 4, horizon=20).model.A
     got = continuous_modes(A, fs)
     assert len(got) == 2
     for (f, z), (ft, zt) in zip(got, modes):

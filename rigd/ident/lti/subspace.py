@@ -1,0 +1,260 @@
+"""Subspace identification (PO-MOESP with a state-sequence regression, Verhaegen 1994 /
+Van Overschee & De Moor 1996): a non-iterative discrete-time model of any order, any number
+of inputs and outputs, in innovation form (A, B, C, D, K, x0) — a black-box reference.
+
+Steps, on channels scaled to zero mean and unit standard deviation (the result does not
+depend on units; it is returned in the record's units):
+
+1. the block-Hankel data [U_f; U_p; Y_p; Y_f] (``horizon`` block rows each) enter an LQ
+   decomposition accumulated chunk by chunk (:func:`~rigd.ident.lti.lsq.stacked_r`): memory
+   (2·horizon·(nu + ny))², never an N × N matrix;
+2. the SVD of L₃₂ (future outputs given the past, the future inputs' part removed) gives the
+   extended observability matrix Γ and the singular values from which the order is read;
+3. the state sequence X = Γ⁺ L₃₂ L₂₂⁺ W_p (W_p the past data) is regressed:
+   [x(t+1); y(t)] = [A B; C D] [x(t); u(t)]; the residuals give K (least squares, or the
+   Kalman gain from their covariances when that predictor would be unstable);
+4. with A stable, B, D and x0 are re-estimated by least squares on the simulated output
+   (MOESP's output-error step) when that fits the data better.
+
+It supersedes the former ``rigd.ident.subspace.n4sid_a`` (A and C only).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from rigd.ident.lti.linear import LinearModel, as_2d
+from rigd.ident.lti.lsq import solve_r, stacked_r
+from rigd.ident.pem import fit_percent
+
+#: largest order considered by ``order="auto"``
+MAX_ORDER = 30
+#: ``order="auto"``: a singular value counts as a state above this multiple of the noise floor
+SV_FLOOR_RATIO = 10.0
+
+
+@dataclass
+class SubspaceResult:
+    """Result of :func:`n4sid`.
+
+    Attributes
+    ----------
+    model : LinearModel
+        A, B, C, D, K, x0 (state at the first sample), operating point (the data's means).
+    sv : ndarray
+        Singular values of L₃₂ (scaled data), largest first: the order selection aid.
+    order : int
+        Number of states of ``model``.
+    horizon : int
+        Block rows used.
+    """
+
+    model: LinearModel
+    sv: np.ndarray
+    order: int
+    horizon: int
+
+
+def default_horizon(n: int, nu: int, ny: int, order: int) -> int:
+    """Block rows for an estimate up to ``order`` states from n samples: 2·(order + 1)/ny
+    (at least 20), fewer when the record is short (at least ⌊order/ny⌋ + 1)."""
+    want = max(20, -(-2 * (order + 1) // ny))
+    room = (n + 1) // (2 + 4 * (nu + ny))
+    return int(max(order // ny + 1, min(want, room)))
+
+
+def order_from_sv(sv: np.ndarray, max_order: int) -> int:
+    """Number of singular values above :data:`SV_FLOOR_RATIO` × the noise floor (the median
+    of those from ``max_order``/2 to ``max_order``), at most ``max_order``, at least 1."""
+    s = np.asarray(sv, float)
+    tail = s[max_order // 2:max(max_order, max_order // 2 + 2)]
+    floor = float(np.median(tail)) if tail.size else 0.0
+    return int(min(max_order, max(1, np.count_nonzero(s[:max_order] > SV_FLOOR_RATIO * floor))))
+
+
+def _hankel_rows(signals, horizon):
+    """rows(c0, c1): per column c of the block-Hankel data, the samples c … c + horizon − 1
+    of each (n, m) signal (offset) in ``signals``, side by side (time-major)."""
+    def rows(c0, c1):
+        out = []
+        for s, off in signals:
+            out += [s[c0 + off + k:c1 + off + k] for k in range(horizon)]
+        return np.hstack(out)
+    return rows
+
+
+def _kalman_gain(A, C, W, V):
+    """Innovation gain from the state and output residuals (rows: samples)."""
+    n = len(W)
+    K = np.linalg.lstsq(V, W, rcond=None)[0].T if A.size else np.zeros((0, V.shape[1]))
+    if A.size == 0 or np.max(np.abs(np.linalg.eigvals(A - K @ C))) < 1.0:
+        return K
+    cov = np.cov(np.hstack([W, V]).T) if n > 1 else None
+    nx = A.shape[0]
+    Q, S, R = cov[:nx, :nx], cov[:nx, nx:], cov[nx:, nx:]
+    try:
+        P = scipy.linalg.solve_discrete_are(A.T, C.T, Q, R, s=S)
+        return (A @ P @ C.T + S) @ np.linalg.inv(C @ P @ C.T + R)
+    except (np.linalg.LinAlgError, ValueError):
+        return np.zeros_like(K)
+
+
+def _refine_bd(A, C, du, dy):
+    """B, D, x0 by least squares on the free-run output, given A and C (scaled data)."""
+    from rigd.ident.sim_kernels import lsim_kernel
+
+    n, nu = du.shape
+    ny, nx = C.shape
+    # resp[b, a]: output (n, ny) of input b entering state a alone (B = e_a)
+    resp = np.empty((nu, nx, n, ny))
+    zero = np.zeros(nx)
+    for b in range(nu):
+        ub = np.ascontiguousarray(du[:, b:b + 1])
+        for a in range(nx):
+            e = np.zeros((nx, 1))
+            e[a] = 1.0
+            lsim_kernel(A, e, C, zero, ub, resp[b, a])
+    G = np.zeros((n, ny, nx))   # C A^t: free response of each initial state
+    G[0] = C
+    for k in range(1, n):
+        G[k] = G[k - 1] @ A
+        if np.abs(G[k]).max() < 1e-12 * max(np.abs(C).max(), 1e-300):
+            break
+    d = nx * nu + ny * nu + nx
+
+    def rows(t0, t1):
+        m = t1 - t0
+        reg = np.zeros((m, ny, d))
+        for b in range(nu):
+            reg[:, :, b * nx:(b + 1) * nx] = np.moveaxis(resp[b, :, t0:t1], 0, 2)
+            for ch in range(ny):
+                reg[:, ch, nx * nu + ch * nu + b] = du[t0:t1, b]
+        reg[:, :, nx * nu + ny * nu:] = G[t0:t1]
+        return np.hstack([reg.reshape(m * ny, d), dy[t0:t1].reshape(m * ny, 1)])
+
+    theta = solve_r(stacked_r(rows, n, d + 1, chunk=max(256, 8192 // ny)), d)[:, 0]
+    B = theta[:nx * nu].reshape(nu, nx).T
+    D = theta[nx * nu:nx * nu + ny * nu].reshape(ny, nu)
+    return B, D, theta[nx * nu + ny * nu:]
+
+
+def n4sid(u: np.ndarray, y: np.ndarray, order: int | str = "auto",
+          horizon: int | None = None, max_order: int = MAX_ORDER, fs: float | None = None,
+          feedthrough: bool = True) -> SubspaceResult:
+    """Subspace estimate of a discrete-time model of u → y (module docstring).
+
+    Parameters
+    ----------
+    u, y : ndarray (n,) or (n, nu), (n,) or (n, ny)
+        Estimation data, any units.
+    order : int or "auto"
+        Number of states, or ``"auto"``: :func:`order_from_sv` up to ``max_order``.
+    horizon : int, optional
+        Block rows (default: enough for ``max_order`` or ``order``, ≥ 10).
+    fs : float, optional
+        Sample rate (Hz), kept for readouts.
+    feedthrough : bool
+        Estimate D (else D = 0).
+    """
+    u, y = as_2d(u), as_2d(y)
+    n, nu = u.shape
+    ny = y.shape[1]
+    top = max_order if order == "auto" else int(order)
+    if top < 1:
+        raise ValueError(f"order must be >= 1, got {order}")
+    i = int(horizon or default_horizon(n, nu, ny, top))
+    u0, y0 = u.mean(0), y.mean(0)
+    su, sy = np.maximum(u.std(0), 1e-300), np.maximum(y.std(0), 1e-300)
+    du, dy = (u - u0) / su, (y - y0) / sy
+    j = n - 2 * i + 1
+    r1, r2, r3 = i * nu, i * (nu + ny), i * ny
+    if j < 2 * (r1 + r2 + r3):
+        raise ValueError(f"record too short for a subspace estimate with horizon {i} "
+                         f"({n} samples)")
+    R = stacked_r(_hankel_rows([(du, i), (du, 0), (dy, 0), (dy, i)], i), j, r1 + r2 + r3)
+    L = R.T
+    L22 = L[r1:r1 + r2, r1:r1 + r2]
+    L32 = L[r1 + r2:, r1:r1 + r2]
+    U1, sv, _ = np.linalg.svd(L32, full_matrices=False)
+    nx = order_from_sv(sv, min(max_order, len(sv) - 1)) if order == "auto" else int(order)
+    if nx >= r3:
+        raise ValueError(f"order {nx} needs a horizon above {nx // ny} (is {i})")
+    s_half = np.sqrt(sv[:nx])
+    Gam = U1[:, :nx] * s_half                    # extended observability (scaled data)
+    A = np.linalg.lstsq(Gam[:-ny], Gam[ny:], rcond=None)[0]   # shift invariance
+    C = Gam[:ny]
+    Mx = np.linalg.pinv(Gam) @ L32 @ np.linalg.pinv(L22, rcond=1e-10)   # X = Mx W_p
+    past = _hankel_rows([(du, 0), (dy, 0)], i)
+    X = past(0, j) @ Mx.T                       # (j, nx): state at t = i + c
+    t = np.arange(i, i + j - 1)
+    # B, D (A and C fixed) from [x(t+1) − A x(t); y(t) − C x(t)] = [B; D] u(t)
+    T = np.hstack([X[1:] - X[:-1] @ A.T, dy[t] - X[:-1] @ C.T])
+    BD = np.linalg.lstsq(du[t], T, rcond=None)[0].T
+    B, D = BD[:nx], BD[nx:] if feedthrough else np.zeros((ny, nu))
+    res = T - du[t] @ np.vstack([B, D]).T
+    K = _kalman_gain(A, C, res[:, :nx], res[:, nx:])
+    scaled = LinearModel(A, B, C, D, K, np.zeros(nx), np.zeros(nu), np.zeros(ny), fs)
+    scaled.fit_x0(du, dy)
+    if nx and np.max(np.abs(np.linalg.eigvals(A))) < 1.0:
+        try:
+            B2, D2, x02 = _refine_bd(A, C, du, dy)
+            if not feedthrough:
+                D2 = np.zeros_like(D2)
+            alt = LinearModel(A, B2, C, D2, K, x02, scaled.u0, scaled.y0, fs)
+            if np.mean(fit_percent(dy, alt.simulate(du))) > \
+                    np.mean(fit_percent(dy, scaled.simulate(du))):
+                scaled = alt
+        except (np.linalg.LinAlgError, ValueError):
+            pass
+    m = scaled   # back to the record's units
+    model = LinearModel(m.A, m.B / su, m.C * sy[:, None], m.D * sy[:, None] / su,
+                        m.K / sy, m.x0, u0, y0, fs)
+    return SubspaceResult(model, sv, nx, i)
+
+
+def select_subspace(u: np.ndarray, y: np.ndarray, orders=tuple(range(1, 21)),
+                    fs: float | None = None) -> tuple[SubspaceResult, dict[int, float]]:
+    """Subspace model with the order chosen on the estimation data (u, y) alone: each order
+    is fitted on the first two thirds and scored by the free-run fit on the last third
+    (:func:`~rigd.ident.lti.linear.heldout`); the best is refitted on all of (u, y).
+
+    Returns the result and the check fit (%) of every order tried (−inf: diverged).
+    """
+    from rigd.ident.lti.linear import heldout
+
+    u, y = as_2d(u), as_2d(y)
+    cut = (2 * len(u)) // 3
+    top = max(orders)
+    scores: dict[int, float] = {}
+    for nx in orders:
+        try:
+            r = n4sid(u[:cut], y[:cut], nx, fs=fs,
+                      horizon=default_horizon(cut, u.shape[1], y.shape[1], top))
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        fit, _ = heldout(r.model, u, y, cut)
+        scores[int(nx)] = float(np.mean(fit))
+    if not scores:
+        raise ValueError(f"record too short for any subspace order in {tuple(orders)} "
+                         f"({len(u)} samples)")
+    best = max(scores, key=lambda k: (scores[k], -k))
+    return n4sid(u, y, best, fs=fs), scores
+
+
+def continuous_modes(A: np.ndarray, fs: float) -> list[tuple[float, float]]:
+    """Oscillatory modes (f_n in Hz, ζ) of the discrete dynamics matrix ``A`` at rate ``fs``:
+    complex pole pairs below 0.95·Nyquist with 0 < ζ < 1, slowest first."""
+    out = []
+    for z in np.linalg.eigvals(A):
+        if z.imag <= 1e-9 or abs(z) <= 0:
+            continue
+        s = np.log(z) * fs
+        wn = abs(s)
+        zeta = -s.real / wn
+        f = wn / (2 * np.pi)
+        if 0 < zeta < 1 and f < 0.95 * fs / 2:
+            out.append((float(f), float(zeta)))
+    return sorted(out)
