@@ -92,31 +92,32 @@ def compute_samples(n: int = 200_000, order: int = 4):
     plant.read(fin)
     prm, st, drive, ring, hist = s.prm, s.st, s.drive, loop.recorder.ring, s.hist
     exc = np.zeros((1, 2))
+    sw = loop.safe.word
     perf = time.perf_counter_ns
     out = np.empty(n, dtype=np.int64)
     rt = K.rt_cycle
     for _ in range(2000):
         fin[11] += 1.0
-        rt(fin, prm, st, drive, ring, exc, -1, hist, 0, -1)
+        rt(fin, prm, st, drive, ring, exc, -1, hist, 0, -1, sw)
     block = 1 << 16
     for b0 in range(0, n, block):
         st[L.S_RD] = st[L.S_W]                 # the writer's job, outside the timed calls
         for i in range(b0, min(n, b0 + block)):
             fin[11] += 1.0
             t0 = perf()
-            rt(fin, prm, st, drive, ring, exc, -1, hist, 0, -1)
+            rt(fin, prm, st, drive, ring, exc, -1, hist, 0, -1, sw)
             out[i] = perf() - t0
     assert st[L.S_FAULT] == 0, st[L.S_FAULT]
     # in-batch: the same cycle without dispatch, with a no-op plant
     m = 100_000
     st[L.S_RD] = st[L.S_W]
     z = np.zeros(1)
-    K.lockstep_batch(_null_plant, z, z, fin, prm, st, drive, ring, exc, -1, 1000)
+    K.lockstep_batch(_null_plant, z, z, fin, prm, st, drive, ring, exc, -1, 1000, sw)
     kernel_ns = float("inf")
     for _ in range(5):            # best of 5: the machine is shared
         st[L.S_RD] = st[L.S_W]
         t0 = perf()
-        K.lockstep_batch(_null_plant, z, z, fin, prm, st, drive, ring, exc, -1, m)
+        K.lockstep_batch(_null_plant, z, z, fin, prm, st, drive, ring, exc, -1, m, sw)
         kernel_ns = min(kernel_ns, (perf() - t0) / m)
     loop.close()
     return out, kernel_ns

@@ -133,15 +133,36 @@ def _scalar(v) -> str:
     return str(v)
 
 
+def _safe_by_word(args: argparse.Namespace) -> tuple[dict | None, str]:
+    """SAFE through the daemon's SAFE word (no socket, no client slot): ``(result, "")``, or
+    ``(None, why not)`` to go by the socket instead."""
+    from rigd.service.safe_request import SafeWordClient, SafeWordUnavailable
+
+    try:
+        word = SafeWordClient(args.socket)
+    except SafeWordUnavailable as exc:
+        return None, str(exc)
+    try:
+        result = word.safe(min(args.timeout, 2.0))
+    finally:
+        word.close()
+    if result is None:
+        return None, f"{word.path}: no cycle took the request (is the loop running?)"
+    return result, ""
+
+
 def run(args: argparse.Namespace) -> int:
     from rigd.service.client import ControlClient
 
     cmd, req = _request(args)
-    with ControlClient(args.socket, timeout=args.timeout) as client:
-        reply = client.request(cmd, **req)
-    if not reply.get("ok"):
-        raise InputError(reply.get("error", "refused"), "daemon")
-    result = reply.get("result")
+    result, why = _safe_by_word(args) if args.ctl_command == "safe" else (None, "")
+    if result is None:
+        with ControlClient(args.socket, timeout=args.timeout) as client:
+            reply = client.request(cmd, **req)
+        if not reply.get("ok"):
+            raise InputError(reply.get("error", "refused") + (f" (SAFE word: {why})"
+                                                              if why else ""), "daemon")
+        result = reply.get("result")
     if args.json:
         print(json.dumps(result, indent=None, separators=(",", ":")))
     elif args.ctl_command == "status":
@@ -149,7 +170,10 @@ def run(args: argparse.Namespace) -> int:
         print(format_human(result))
     elif args.ctl_command == "safe":
         f = result.get("fault") or {}
-        print(f"safe state: FAULT {f.get('name')} latched at cycle {f.get('seq')} (K∞ off, "
+        at = (f", taken at cycle {result['latched_at']} (requested at cycle "
+              f"{result['requested_at']}, via the {result.get('via', 'socket')})"
+              if "latched_at" in result else "")
+        print(f"safe state: FAULT {f.get('name')} latched at cycle {f.get('seq')}{at} (K∞ off, "
               f"excitation off, r_p,i = r0; `rigd ctl reset` to leave it)")
     elif args.ctl_command == "ping":
         print(f"rigd alive (pid {result.get('pid', '?')}, version {result.get('version', '?')})")

@@ -85,6 +85,8 @@ from rigd.loop.layout import (
     S_RAMP,
     S_RD,
     S_RP_PREV,
+    S_SAFE_GEN,
+    S_SAFE_SEEN,
     S_SEQ,
     S_SLOW_OMEGA,
     S_SLOW_PINJ,
@@ -95,6 +97,7 @@ from rigd.loop.layout import (
     S_XN,
     S_Y,
 )
+from rigd.loop.safeword import W_ACK_CODE, W_ACK_FAULT_SEQ, W_ACK_N, W_ACK_SEQ, W_REQ, W_SEQ
 
 N_IN = F.N_IN
 IN_E_X, IN_E_Y, IN_PHI = F.IN_E_X, F.IN_E_Y, F.IN_PHI
@@ -285,6 +288,25 @@ def latch(st, code, detail):
 
 
 @njit(cache=True)
+def take_safe(sw, st):
+    """Take a SAFE request from the shared word ``sw`` (:mod:`rigd.loop.safeword`), before
+    the cycle: latch ``operator_safe`` so this very cycle runs in the safe state, and
+    acknowledge it (the cycle, the fault in force). Every cycle: one store, two loads, one
+    compare."""
+    seq = st[S_SEQ]
+    sw[W_SEQ] = int(seq)
+    req = sw[W_REQ]
+    if req != st[S_SAFE_SEEN]:
+        st[S_SAFE_SEEN] = req
+        st[S_SAFE_GEN] += 1.0
+        latch(st, FC.OPERATOR_SAFE, -1)
+        sw[W_ACK_SEQ] = int(seq)
+        sw[W_ACK_CODE] = int(st[S_FAULT])
+        sw[W_ACK_FAULT_SEQ] = int(st[S_FAULT_SEQ])
+        sw[W_ACK_N] += 1
+
+
+@njit(cache=True)
 def cycle(fin, prm, st, drive, ring, ex, ey):
     """One loop cycle from the input frame ``fin`` to the drive vector and one ring frame.
 
@@ -426,9 +448,10 @@ def _hist_add(hist, row, ns):
 
 
 @njit(cache=True)
-def rt_cycle(fin, prm, st, drive, ring, exc, exc_i, hist, late_ns, prev_compute_ns):
-    """One cycle on the real-time clock: timing samples into ``hist``, excitation row
-    ``exc[exc_i]`` (none when ``exc_i < 0``), then :func:`cycle`.
+def rt_cycle(fin, prm, st, drive, ring, exc, exc_i, hist, late_ns, prev_compute_ns, sw):
+    """One cycle on the real-time clock: timing samples into ``hist``, a SAFE request from the
+    word ``sw`` (:func:`take_safe`), excitation row ``exc[exc_i]`` (none when ``exc_i < 0``),
+    then :func:`cycle`.
 
     ``late_ns`` is this cycle's wake-up lateness, ``prev_compute_ns`` the previous cycle's
     compute time (read to write, drivers included; < 0: none yet).
@@ -436,19 +459,21 @@ def rt_cycle(fin, prm, st, drive, ring, exc, exc_i, hist, late_ns, prev_compute_
     _hist_add(hist, 1, late_ns)
     if prev_compute_ns >= 0:
         _hist_add(hist, 0, prev_compute_ns)
+    take_safe(sw, st)
     if exc_i >= 0:
         cycle(fin, prm, st, drive, ring, exc[exc_i, 0], exc[exc_i, 1])
     else:
         cycle(fin, prm, st, drive, ring, 0.0, 0.0)
 
 
-def _lockstep_batch(plant_step, pstate, pparams, fin, prm, st, drive, ring, exc, exc_i, n):
+def _lockstep_batch(plant_step, pstate, pparams, fin, prm, st, drive, ring, exc, exc_i, n,
+                    sw):
     """Run up to ``n`` cycles with the plant kernel in the loop; returns the cycles run.
 
     Stops early (never drops) when the ring buffer has no free row: the caller lets the writer
     thread drain it and calls again. Stops after the cycle that latches a fault, so that the
     caller sees it at once (a segment ends there, faults are reported). ``exc_i < 0``: no
-    excitation; else row ``exc_i + k``.
+    excitation; else row ``exc_i + k``. ``sw``: the SAFE word, read every cycle.
     """
     ring_n = prm[P_RING_N]
     nf = st[S_NFAULT]
@@ -456,6 +481,7 @@ def _lockstep_batch(plant_step, pstate, pparams, fin, prm, st, drive, ring, exc,
     for k in range(n):
         if st[S_W] - st[S_RD] >= ring_n:
             break
+        take_safe(sw, st)
         if exc_i >= 0:
             cycle(fin, prm, st, drive, ring, exc[exc_i + k, 0], exc[exc_i + k, 1])
         else:
@@ -469,10 +495,11 @@ def _lockstep_batch(plant_step, pstate, pparams, fin, prm, st, drive, ring, exc,
 
 _A1 = types.float64[::1]
 _A2 = types.float64[:, ::1]
+_W = types.int64[::1]
 PLANT_SIG = types.void(_A1, _A1, _A1, _A1)
 #: cached variant for plant kernels of the standard signature (float64 C-contiguous 1-D arrays)
 lockstep_batch = njit(types.int64(types.FunctionType(PLANT_SIG), _A1, _A1, _A1, _A1, _A1, _A1,
-                                  _A2, _A2, types.int64, types.int64),
+                                  _A2, _A2, types.int64, types.int64, _W),
                       cache=True, nogil=True)(_lockstep_batch)
 #: generic variant (any plant kernel signature; compiled per process)
 lockstep_batch_generic = njit(nogil=True)(_lockstep_batch)

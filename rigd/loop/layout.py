@@ -80,6 +80,8 @@ S_PEQ_INIT = 31     # 0 until p_eq tracking has been seeded with a first sample
 S_K_OUT_X = 32      # last K∞ output before the blend (for status)
 S_K_OUT_Y = 33
 S_RP_PREV = 34      # 4 valve references of the previous cycle (valve tracking check)
+S_SAFE_SEEN = 38    # the safe word's request value last taken (rigd.loop.safeword; private)
+S_SAFE_GEN = 39     # SAFE requests taken so far: a command posted before a change is dropped
 S_FLOG = 40         # fault log: FLOG_N entries of (seq, code, detail)
 FLOG_N = 16
 #: fault requests from Python, one triple per source (rigd.loop.requests): request counter

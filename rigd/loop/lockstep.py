@@ -60,7 +60,7 @@ class LockstepClock:
         try:
             C.lockstep_batch(self._pk, f.state.copy(), f.params.copy(), s.fin.copy(),
                              s.prm.copy(), s.st.copy(), s.drive.copy(), ring, NO_EXCITATION,
-                             -1, 0)
+                             -1, 0, self._p.safe.word.copy())
             self._batch = C.lockstep_batch
         except Exception:  # noqa: BLE001 - a plant kernel of another signature: generic variant
             self._batch = C.lockstep_batch_generic
@@ -139,6 +139,8 @@ class LockstepClock:
         while done < n and not stop.is_set():
             if seg is not None:
                 seg.fire_events()
+            if commands:
+                C.take_safe(p.safe.word, st)   # a SAFE requested by now overtakes the queue
             commands.apply()
             m = min(n - done, batch)
             if halt and st[L.S_FAULT] != 0.0:    # latched before: play one cycle, stop below
@@ -173,11 +175,11 @@ class LockstepClock:
         if self._batch is not None:
             f = p.fast
             return int(self._batch(self._pk, f.state, f.params, s.fin, s.prm, s.st, s.drive,
-                                   p.recorder.ring, exc, ei, m))
+                                   p.recorder.ring, exc, ei, m, p.safe.word))
         st, fin, prm, drive, ring = s.st, s.fin, s.prm, s.drive, p.recorder.ring
         read, write, failed = p.fast.read, p.fast.write, p.supervisor.driver_failed
         ring_n = p.recorder.n
-        cycle = C.cycle
+        cycle, take_safe, sw = C.cycle, C.take_safe, p.safe.word
         nf = st[L.S_NFAULT]
         for k in range(m):
             if st[L.S_NFAULT] != nf:               # a fault latched: end the batch there
@@ -188,6 +190,7 @@ class LockstepClock:
                 read(fin)
             except Exception as exc_:  # noqa: BLE001
                 failed(exc_)
+            take_safe(sw, st)
             if ei >= 0:
                 cycle(fin, prm, st, drive, ring, exc[ei + k, 0], exc[ei + k, 1])
             else:

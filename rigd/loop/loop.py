@@ -37,11 +37,12 @@ from rigd.loop import faults as FC
 from rigd.loop import layout as L
 from rigd.loop import requests as RQ
 from rigd.loop.clock import boosted
-from rigd.loop.commands import CommandQueue, Ticket
+from rigd.loop.commands import DROP_LATE, DROP_SAFE, CommandDropped, CommandQueue, Ticket
 from rigd.loop.cycle import cycle, hist_new, rt_cycle
 from rigd.loop.lockstep import LockstepClock
 from rigd.loop.realtime import RealTimeClock
 from rigd.loop.recorder import Recorder
+from rigd.loop.safeword import W_ACK_CODE, W_ACK_FAULT_SEQ, SafeWord
 from rigd.loop.segment import Segment, SegmentPlayer, SegmentResult, segment_inputs
 from rigd.loop.sinks import H5Sink, MemorySink, RecordSpec, Sink, make_sink
 from rigd.loop.slow import SlowPollers
@@ -93,6 +94,8 @@ class ControlLoop:
         self.state = KernelState(cfg, cfg.recorder.ring_frames)
         self.requests = RQ.FaultRequests(self.state.st)
         self.commands = CommandQueue(self.state)
+        #: the SAFE request word the cycle reads every cycle (rigd.loop.safeword)
+        self.safe = SafeWord()
         self.player = SegmentPlayer()
         self.recorder = Recorder(cfg.recorder.ring_frames, self.state.st,
                                  flush_interval_s=cfg.recorder.flush_interval_s,
@@ -147,7 +150,7 @@ class ControlLoop:
         prm = s.prm.copy()
         prm[L.P_RING_N] = 4
         rt_cycle(s.fin.copy(), prm, s.st.copy(), s.drive.copy(), ring, np.zeros((1, 2)), -1,
-                 hist_new(), 0, -1)
+                 hist_new(), 0, -1, self.safe.word.copy())
         cycle(s.fin.copy(), prm, s.st.copy(), s.drive.copy(), ring, 0.0, 0.0)
         self.lockstep.warm_up()
         f, pk = self.fast, getattr(self.fast, "kernel", None)
@@ -165,26 +168,34 @@ class ControlLoop:
     # --- commands (any thread) -------------------------------------------------------
     # Each command returns its ticket: ``wait_applied(ticket)`` waits until the loop has
     # applied it (the daemon does, so that ``status`` after the reply shows the change).
-    def enable_controller(self, on: bool = True) -> Ticket:
-        """Blend K∞ in (on) or out over ``loop.k_ramp_s``; p_eq is frozen while on."""
-        return self.commands.enable(on)
+    # ``gen`` (the SAFE generation the command was sent in, :attr:`safe_generation`; default
+    # now) and ``deadline`` (``time.monotonic()``; default none) make the loop drop it rather
+    # than apply it after a SAFE or too late (rigd.loop.commands: applied when answered, or
+    # never).
+    def enable_controller(self, on: bool = True, *, gen: int | None = None,
+                          deadline: float | None = None) -> Ticket:
+        """Blend K∞ in (on) or out over ``loop.k_ramp_s``; p_eq is frozen while on. An enable
+        is dropped (:data:`~rigd.loop.commands.DROP_FAULT`) while a fault is latched."""
+        return self.commands.enable(on, gen, deadline)
 
-    def load_controller(self, path_or_controller) -> Ticket:
+    def load_controller(self, path_or_controller, *, gen: int | None = None,
+                        deadline: float | None = None) -> Ticket:
         """Validate a controller now (raises InputError), switch to it bumplessly (once K∞
         has blended out, if it is in)."""
         return self.commands.controller(
-            PackedController(self._as_controller(path_or_controller)))
+            PackedController(self._as_controller(path_or_controller)), gen, deadline)
 
-    def reset_fault(self) -> Ticket:
+    def reset_fault(self, *, gen: int | None = None, deadline: float | None = None) -> Ticket:
         """Clear the latched fault (it latches again next cycle if the cause persists)."""
-        return self.commands.reset()
+        return self.commands.reset(gen, deadline)
 
     def applied(self, ticket: Ticket) -> bool:
         """Has the loop applied the command that returned ``ticket``?"""
         return self.commands.applied(ticket)
 
-    def wait_applied(self, ticket: Ticket | None, timeout_s: float | None = None) -> bool:
-        """Wait until the loop has applied the command that returned ``ticket``.
+    def wait_applied(self, ticket: Ticket | None, timeout_s: float | None = None, *,
+                     cancel: bool = False) -> bool:
+        """Wait until the loop has applied (or dropped) the command that returned ``ticket``.
 
         Parameters
         ----------
@@ -194,31 +205,82 @@ class ControlLoop:
         timeout_s : float, optional
             Bound on the wait, s; default 2 s plus two blend times (a controller swap waits
             for K∞ to blend out).
+        cancel : bool
+            When the bound passes with the command still queued, cancel it: the loop will
+            then never apply it (``ticket.dropped`` says so).
 
         Returns
         -------
         bool
-            True once applied; False at once when no cycles are being run (the command stays
-            queued for the next run), or when the bound passed.
+            True once applied; False when dropped (``ticket.dropped`` says why), at once when
+            no cycles are being run (the command stays queued for the next run), or when the
+            bound passed.
         """
-        if ticket is None or self.commands.applied(ticket):
+        if ticket is None or ticket.applied:
             return True
         if timeout_s is None:
             timeout_s = 2.0 + 2.0 * self.config.loop.k_ramp_s
         end = time.monotonic() + timeout_s
         while self.running:
-            if self.commands.applied(ticket):
-                return True
+            if ticket.done:
+                return ticket.applied
             if time.monotonic() > end:
-                return False
+                break
             time.sleep(0.001)
-        return self.commands.applied(ticket)
+        if cancel and not ticket.done and self.running and not ticket.cancel():
+            end = time.monotonic() + 1.0          # the loop took it this instant
+            while not ticket.done and time.monotonic() < end:
+                time.sleep(0.0005)
+        return ticket.applied
 
     def trip(self, code: int = FC.OPERATOR_STOP) -> None:
         """Put the loop into the safe state with ``code`` latched (operator / service)."""
+        if int(code) == FC.OPERATOR_SAFE:
+            self.request_safe()
+            return
         self.requests.post(RQ.OPERATOR, int(code))
 
-    def set_operating_point(self, omega_rpm: float, p_inj_bar: float) -> Ticket | None:
+    def request_safe(self) -> int:
+        """SAFE through the shared word (:mod:`rigd.loop.safeword`): ``operator_safe`` latches
+        in the next cycle whatever else is queued. Returns ``c0`` for :meth:`wait_safe`.
+
+        Runs in: any thread (a signal handler too) — two stores, no lock, no allocation
+        beyond the request value.
+        """
+        return self.safe.request()
+
+    def wait_safe(self, c0: int, timeout_s: float = 2.0) -> dict[str, Any] | None:
+        """Wait until the loop has taken a SAFE request at a cycle ``>= c0``.
+
+        Returns
+        -------
+        dict or None
+            ``{"requested_at": c0, "latched_at": cycle it was taken, "fault": {code, name,
+            text, seq}}`` (the fault in force: ``operator_safe`` or an earlier one); None when
+            no cycle took it within ``timeout_s`` (the loop is not running cycles; the
+            request stays pending for the next cycle).
+        """
+        end = time.monotonic() + timeout_s
+        while True:
+            at = self.safe.acknowledged_at()
+            if at >= c0:
+                w = self.safe.word
+                code = int(w[W_ACK_CODE])
+                return {"requested_at": int(c0), "latched_at": at,
+                        "fault": {"code": code, "name": FC.fault_name(code),
+                                  "text": FC.fault_text(code), "seq": int(w[W_ACK_FAULT_SEQ])}}
+            if time.monotonic() > end:
+                return None
+            time.sleep(0.0005)
+
+    @property
+    def safe_generation(self) -> int:
+        """SAFE requests the cycle has taken so far (a command posted before it is dropped)."""
+        return int(self.state.st[L.S_SAFE_GEN])
+
+    def set_operating_point(self, omega_rpm: float, p_inj_bar: float, *,
+                            gen: int | None = None, deadline: float | None = None
+                            ) -> Ticket | None:
         """Sim: plant operating point (at a cycle boundary); rig: slow-driver setpoints.
 
         The slow preparation (the plant's parameter block) runs here, in the caller's thread;
@@ -236,7 +298,11 @@ class ControlLoop:
             with boosted(self.rt.helper_priority if self.rt.alive else None):
                 swap = prepare(om, pi)
         if swap is not None:
-            return self.commands.call(swap)
+            return self.commands.call(swap, gen, deadline)
+        if gen is not None and gen != self.safe_generation:
+            raise CommandDropped(f"operating_point.set: {DROP_SAFE}")
+        if deadline is not None and time.monotonic() > deadline:
+            raise CommandDropped(f"operating_point.set: {DROP_LATE}")
         if hasattr(self.fast, "set_operating_point"):
             self.fast.set_operating_point(om, pi)    # its own thread-safe staging, here
         else:

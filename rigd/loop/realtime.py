@@ -114,7 +114,8 @@ class RealTimeClock:
         s = p.state
         fin, prm, st, drive, hist = s.fin, s.prm, s.st, s.drive, s.hist
         ring = p.recorder.ring
-        read, write, rt_cycle = p.fast.read, p.fast.write, C.rt_cycle
+        sw = p.safe.word          # attached to its shared file (if any) before the start
+        read, write, rt_cycle, take_safe = p.fast.read, p.fast.write, C.rt_cycle, C.take_safe
         publish = p.recorder.publish
         commands, cq, player = p.commands, p.commands.queue, p.player
         driver_failed = p.supervisor.driver_failed
@@ -142,11 +143,13 @@ class RealTimeClock:
                 if seg.events:
                     seg.fire_events()
             if cq or commands.swap is not None:
+                take_safe(sw, st)     # a SAFE requested by now overtakes what is queued
                 commands.apply()
             if seg is None:
-                rt_cycle(fin, prm, st, drive, ring, NO_EXCITATION, -1, hist, wake - nxt, prev)
+                rt_cycle(fin, prm, st, drive, ring, NO_EXCITATION, -1, hist, wake - nxt, prev,
+                         sw)
             else:
-                rt_cycle(fin, prm, st, drive, ring, seg.exc, seg.i, hist, wake - nxt, prev)
+                rt_cycle(fin, prm, st, drive, ring, seg.exc, seg.i, hist, wake - nxt, prev, sw)
                 seg.i += 1
                 if seg.stop_on_fault and st[S_FAULT] != 0.0:
                     player.stopped_for_fault(seg, st)     # flag only: the caller finishes it

@@ -71,10 +71,12 @@ class SocketFrontend:
     def __init__(self, path: str, mode: int, handle_command: Callable[[bytes], bytes],
                  snapshot: Callable[[], dict[str, Any]], *, rate_hz: float = SNAPSHOT_HZ,
                  log=None, nice: int = 10, max_clients: int = 64,
-                 helper_priority: int | None = None, ring=None):
+                 helper_priority: int | None = None, ring=None,
+                 safe_generation: Callable[[], int] | None = None):
         self.path = str(path)
         self.mode = mode
         self.handle_command = handle_command
+        self._generation = safe_generation
         self._snapshot_fn = snapshot
         self.period = 1.0 / rate_hz
         self.log = log
@@ -211,7 +213,7 @@ class SocketFrontend:
                     if not proc.is_alive():
                         self._restart("exited")
                     continue
-                kind, tag, line, _ = conn.recv()
+                kind, tag, line, meta = conn.recv()
             except (OSError, EOFError, ValueError):
                 if not self._stop.is_set():
                     proc.join(1.0)
@@ -223,18 +225,31 @@ class SocketFrontend:
                 continue
             if _is_safe(line):    # the safety button never waits behind a slow command
                 self._reply(conn, tag, self.handle_command(line))
-            else:
-                self._work.put((conn, tag, line))
+                continue
+            gen = self._generation() if self._generation is not None else None
+            deadline = meta.get("deadline") if isinstance(meta, dict) else None
+            self._work.put((conn, tag, line, gen, deadline))
 
     def _work_run(self) -> None:
-        """Worker thread: runs the forwarded commands one after the other (but ``safe``)."""
+        """Worker thread: runs the forwarded commands one after the other (but ``safe``).
+
+        A command that waited here past its deadline, or that a SAFE overtook while it waited,
+        is answered "dropped" and not run (applied when answered, or never)."""
         as_helper(self.helper_priority)
         while True:
             item = self._work.get()
             if item is None:
                 return
-            conn, tag, line = item
-            self._reply(conn, tag, self.handle_command(line))
+            conn, tag, line, gen, deadline = item
+            why = ""
+            if deadline is not None and time.monotonic() > deadline:
+                why = "it waited behind other commands past its deadline"
+            elif gen is not None and self._generation() != gen:
+                why = "overtaken by SAFE (sent before the safe state was requested)"
+            if why:
+                self._reply(conn, tag, _dropped(line, why))
+                continue
+            self._reply(conn, tag, self.handle_command(line, gen, deadline))
 
     def _reply(self, conn, tag: int, reply: bytes) -> None:
         snap = self.snapshot()
@@ -247,6 +262,20 @@ class SocketFrontend:
     @property
     def n_clients(self) -> int:
         return 0  # counted by the socket process (``ping`` -> clients)
+
+
+def _dropped(line: bytes, why: str) -> bytes:
+    """The reply to a command dropped before it ran."""
+    from rigd.service import protocol
+
+    try:
+        req = json.loads(line)
+        req_id, cmd = req.get("id"), req.get("cmd")
+    except (ValueError, AttributeError):
+        req_id, cmd = None, "command"
+    if isinstance(req_id, (dict, list)):
+        req_id = None
+    return protocol.error(req_id, f"{cmd}: not run, dropped: {why}; it will never be applied")
 
 
 def _is_safe(line: bytes) -> bool:

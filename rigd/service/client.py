@@ -6,12 +6,21 @@ from __future__ import annotations
 import itertools
 import json
 import socket
+import time
 from collections.abc import Iterator
 from typing import Any
 
 from rigd.errors import InputError
 
 DEFAULT_SOCKET = "/run/rigd/rigd.sock"
+
+
+def command_timeout(wait_s: float) -> float:
+    """The ``timeout_s`` a client waiting ``wait_s`` for its reply sends: early enough that
+    the daemon's "dropped" answer (its deadline plus the socket process's grace) arrives
+    before the client gives up."""
+    wait_s = float(wait_s)
+    return round(0.6 * wait_s if wait_s < 5.0 else wait_s - 2.0, 3)
 
 
 class ControlError(Exception):
@@ -38,20 +47,33 @@ class ControlClient:
         self.subscribed: dict[str, Any] | None = None
 
     def connect(self) -> ControlClient:
-        s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        s.settimeout(self.timeout)
-        try:
-            s.connect(self.path)
-        except FileNotFoundError:
-            s.close()
-            raise InputError("no daemon socket here (is rigd running? see --socket)",
-                             self.path) from None
-        except PermissionError:
-            s.close()
-            raise InputError("permission denied (are you in the rigd group?)", self.path) from None
-        except OSError as exc:
-            s.close()
-            raise InputError(f"cannot connect: {exc.strerror or exc}", self.path) from None
+        end = time.monotonic() + (self.timeout or 10.0)
+        while True:
+            s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            s.settimeout(self.timeout)
+            try:
+                s.connect(self.path)
+                break
+            except BlockingIOError:
+                # the listen backlog is full (a flood of connections being accepted and
+                # refused): try again until the timeout, then say so
+                s.close()
+                if time.monotonic() > end:
+                    raise InputError("cannot connect: the daemon's connection backlog stays "
+                                     "full (too many clients connecting)", self.path) from None
+                time.sleep(0.01)
+                continue
+            except FileNotFoundError:
+                s.close()
+                raise InputError("no daemon socket here (is rigd running? see --socket)",
+                                 self.path) from None
+            except PermissionError:
+                s.close()
+                raise InputError("permission denied (are you in the rigd group?)",
+                                 self.path) from None
+            except OSError as exc:
+                s.close()
+                raise InputError(f"cannot connect: {exc.strerror or exc}", self.path) from None
         self._sock = s
         return self
 
@@ -84,13 +106,24 @@ class ControlClient:
         return json.loads(line)
 
     def request(self, cmd: str, **args: Any) -> dict[str, Any]:
-        """Send one request; return the whole reply object (``ok`` true or false)."""
+        """Send one request; return the whole reply object (``ok`` true or false).
+
+        The request carries ``timeout_s`` (:func:`command_timeout`): a command the daemon has
+        not applied by then is dropped, never applied later, and the reply says so before
+        this client stops waiting.
+        """
         if self._sock is None:
             self.connect()
         rid = next(self._ids)
-        self._sock.sendall((json.dumps({"id": rid, "cmd": cmd, **args}) + "\n").encode())
+        req = {"id": rid, "cmd": cmd, **args}
+        if self.timeout:
+            req["timeout_s"] = command_timeout(self.timeout)
+        self._sock.sendall((json.dumps(req) + "\n").encode())
         reply = self.read_reply()
         if reply.get("id") != rid:
+            if reply.get("id") is None and reply.get("ok") is False:
+                raise InputError(f"the daemon refused the connection: {reply.get('error')}",
+                                 self.path)
             raise InputError(f"reply id {reply.get('id')!r} does not match request {rid}",
                              self.path)
         return reply

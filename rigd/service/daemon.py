@@ -14,6 +14,11 @@
 * **SIGTERM / SIGINT**: stop the experiment after its segment, trip the loop into the safe
   state (``operator_stop``: K∞ off, excitation off, r_p = r0), let a few cycles record it,
   stop the loop; ``rigd run`` then flushes and closes the recordings and exits 0;
+* **SIGUSR1**: SAFE (``operator_safe`` latched by the next cycle) through the loop's SAFE word
+  — the same as ``rigd ctl safe``; the handler only writes the word;
+* **SAFE word** (with ``--socket``): ``<socket>.safe``, the socket's permissions, mapped by
+  the loop's cycle (:mod:`rigd.loop.safeword`): ``rigd ctl safe`` and ``rigd web`` write
+  their SAFE into it directly — no client slot, no worker thread, nothing to wait behind;
 * **SIGHUP**: re-read the config file and the controller, *validated first* (in a worker
   thread); a bad file is refused with one log line and the loop keeps running untouched; a
   valid controller is switched bumplessly; other config changes are reported as needing a
@@ -113,12 +118,15 @@ class Daemon:
             self.server = SocketFrontend(sock, mode, self.dispatcher.handle_line,
                                          self._snapshot, log=self.log,
                                          helper_priority=self._helper_priority(),
-                                         ring=self._ring()).start()
+                                         ring=self._ring(),
+                                         safe_generation=self._safe_generation).start()
+            self._attach_safe_word(sock, mode)
         self._faults = self.loop.subscribe()
         if threading.current_thread() is threading.main_thread():
             for s, h in ((signal.SIGTERM, self._on_stop_signal),
                          (signal.SIGINT, self._on_stop_signal),
-                         (signal.SIGHUP, self._on_hup)):
+                         (signal.SIGHUP, self._on_hup),
+                         (signal.SIGUSR1, self._on_safe_signal)):
                 self._old_handlers[s] = signal.signal(s, h)
         self._thread = threading.Thread(target=self._service_run, name="rigd-service",
                                         daemon=True)
@@ -147,6 +155,9 @@ class Daemon:
             self._thread.join(5.0)
         if self.server is not None:
             self.server.stop()
+        safe = getattr(self.loop, "safe", None)
+        if safe is not None:
+            safe.detach_file()
         for s, h in self._old_handlers.items():
             signal.signal(s, h)
         self._old_handlers.clear()
@@ -172,6 +183,40 @@ class Daemon:
             self.log.warning("live stream unavailable (stream.subscribe refused); control and "
                              "recording unaffected", reason=shared.unshared)
         return shared.handle()
+
+    def _attach_safe_word(self, sock: str, mode: int) -> None:
+        """Put the loop's SAFE word in a file beside the socket (before the cycles start)."""
+        from rigd.loop.safeword import word_path
+
+        safe = getattr(self.loop, "safe", None)
+        if safe is None:
+            return
+        if getattr(getattr(self.loop, "rt", None), "started", False):
+            self.log.warning("SAFE word not shared: the loop was started before the service; "
+                             "`safe` goes by the socket")
+            return
+        try:
+            path = safe.attach_file(word_path(sock), mode)
+        except OSError as exc:
+            self.log.warning("SAFE word not shared; `safe` goes by the socket",
+                             error=exc.strerror or str(exc))
+            return
+        self.log.info("SAFE word shared", path=path)
+
+    def _safe_generation(self) -> int | None:
+        gen = getattr(self.loop, "safe_generation", None)
+        return gen if isinstance(gen, int) else None
+
+    def _on_safe_signal(self, _signum, _frame) -> None:
+        """SIGUSR1: SAFE through the word (two stores; the service thread logs it and stops
+        the experiment)."""
+        request = getattr(self.loop, "request_safe", None)
+        if request is not None:
+            request()
+        else:
+            from rigd.loop import faults as FC
+
+            self.loop.trip(FC.OPERATOR_SAFE)
 
     def _helper_priority(self) -> int | None:
         """SCHED_FIFO priority for the service's threads on a real-time loop: just below it."""
@@ -265,7 +310,17 @@ class Daemon:
         last_seq = -1
         last_wd = 0.0
         last_status = ""
+        last_gen = self._safe_generation()
         while not self._stop.wait(tick):
+            gen = self._safe_generation()
+            if gen != last_gen:       # a SAFE taken by the cycle (word, signal, socket)
+                last_gen = gen
+                self.log.warning("SAFE taken by the loop (operator_safe); experiment stopped, "
+                                 "queued commands dropped", safe_requests=gen)
+                if self.experiments is not None:
+                    self.experiments.stop()
+                if self.server is not None:
+                    self.server.publish_now()
             try:
                 seq = int(self.loop.status().get("seq", 0))
             except Exception:  # noqa: BLE001

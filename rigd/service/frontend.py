@@ -42,7 +42,7 @@ from typing import Any
 from rigd.loop.shared_ring import RingReader
 from rigd.plain import plain
 from rigd.service import protocol
-from rigd.service.protocol import RequestError, check_paths, error, parse_request
+from rigd.service.protocol import RequestError, check_paths, error, parse_envelope
 from rigd.service.server import ControlServer
 from rigd.service.stream import StreamHub
 
@@ -51,6 +51,10 @@ QUERIES = ("status", "timing", "faults", "experiment.status", "ping")
 
 #: longest wait for the daemon to run a forwarded command, s
 COMMAND_TIMEOUT_S = 60.0
+
+#: after a command's deadline the daemon's "dropped" reply is waited for this long before this
+#: process answers so itself, s
+REPLY_GRACE_S = 0.5
 
 #: commands forwarded to the loop's process per second, all clients together (token bucket
 #: with this burst too): bounds what even a flood of *valid* commands can cost the loop's
@@ -158,7 +162,7 @@ class SnapshotHandler:
         ``ControlServer`` contract)."""
         req_id = None
         try:
-            req_id, cmd, args = parse_request(line)
+            req_id, cmd, args, timeout_s = parse_envelope(line)
             if cmd == "stream.subscribe":
                 try:
                     result, sub = self.streams.subscribe(args.rate_hz, args.points,
@@ -173,7 +177,7 @@ class SnapshotHandler:
                     raise RequestError(f"{cmd}: too many commands (more than {self.rate:g} "
                                        f"per second from all clients); not run, try again",
                                        req_id)
-                return self._forward(line, req_id, cmd)
+                return self._forward(line, req_id, cmd, timeout_s)
             if not self._have.wait(10.0):
                 raise RequestError("the daemon has not published its state yet")
             if cmd == "ping":
@@ -199,10 +203,20 @@ class SnapshotHandler:
         self._tokens -= 1.0
         return True
 
-    def _forward(self, line: bytes, req_id: Any, cmd: str) -> Future | bytes:
+    def _forward(self, line: bytes, req_id: Any, cmd: str,
+                 timeout_s: float | None = None) -> Future | bytes:
         """Queue ``line`` for the daemon; a future of its reply line (an error line at once if
-        the channel is closed or too many commands are waiting)."""
+        the channel is closed or too many commands are waiting).
+
+        The command's *deadline* (``time.monotonic()``, the same clock in every process) is
+        its client's ``timeout_s`` from now, at most :attr:`timeout_s`; it travels with the
+        command: the daemon drops it rather than apply it after that (docs/service.md "Applied
+        when answered, or never"), and answers so; this process answers so itself a little
+        after the deadline if the daemon did not.
+        """
         fut: Future = Future()
+        wait = self.timeout_s if timeout_s is None else min(timeout_s, self.timeout_s)
+        deadline = time.monotonic() + wait
         with self._plock:
             if self._channel_closed:
                 return error(req_id, "the daemon's command channel is closed (stopping?)")
@@ -211,9 +225,9 @@ class SnapshotHandler:
                                      f"waiting for the daemon; not run, try again")
             self._tag += 1
             tag = self._tag
-            self._pending[tag] = (fut, req_id, time.monotonic() + self.timeout_s)
+            self._pending[tag] = (fut, req_id, deadline + REPLY_GRACE_S)
         self.forwarded += 1
-        self._outq.put(("cmd", tag, line, None))
+        self._outq.put(("cmd", tag, line, {"deadline": deadline, "timeout_s": wait}))
         return fut
 
     def _finish(self, tag: int, reply: bytes) -> None:
@@ -259,8 +273,9 @@ class SnapshotHandler:
                 late = [t for t, (_, _, end) in self._pending.items() if end < now]
                 entries = [(t, self._pending.pop(t)) for t in late]
             for _, (fut, req_id, _) in entries:
-                fut.set_result(error(req_id, f"the daemon did not run the command within "
-                                             f"{self.timeout_s:g} s"))
+                fut.set_result(error(req_id, "the daemon did not answer the command by its "
+                                             "deadline; it was dropped and will never be "
+                                             "applied (`status` shows the state)"))
 
 
 def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:

@@ -120,12 +120,27 @@ def error(req_id: Any, message: str) -> bytes:
 
 
 def parse_request(line: bytes | str) -> tuple[Any, str, StrictModel]:
+    """Parse and validate one request line: ``(id, cmd, args)`` of :func:`parse_envelope`."""
+    return parse_envelope(line)[:3]
+
+
+#: longest ``timeout_s`` a request may give, s
+MAX_TIMEOUT_S = 3600.0
+
+
+def parse_envelope(line: bytes | str) -> tuple[Any, str, StrictModel, float | None]:
     """Parse and validate one request line.
+
+    Besides ``id`` and ``cmd`` a request may carry ``timeout_s`` (a number, 0 < t <= 3600):
+    how long its client waits for the reply. A command not applied by then is dropped, never
+    applied later (the client sends a little less than its own wait, so that the daemon's
+    "dropped" reply reaches it).
 
     Returns
     -------
-    (id, cmd, args)
-        ``args`` is the validated argument model of the command.
+    (id, cmd, args, timeout_s)
+        ``args`` is the validated argument model of the command; ``timeout_s`` None when
+        not given.
 
     Raises
     ------
@@ -147,6 +162,11 @@ def parse_request(line: bytes | str) -> tuple[Any, str, StrictModel]:
     req_id = req.pop("id", None)
     if isinstance(req_id, (dict, list)):
         req_id = None  # only scalar ids are echoed
+    timeout_s = req.pop("timeout_s", None)
+    if timeout_s is not None and (isinstance(timeout_s, bool)
+                                  or not isinstance(timeout_s, (int, float))
+                                  or not 0.0 < timeout_s <= MAX_TIMEOUT_S):
+        raise RequestError(f"timeout_s: a number of seconds in (0, {MAX_TIMEOUT_S:g}]", req_id)
     cmd = req.pop("cmd", None)
     if not isinstance(cmd, str):
         raise RequestError("request has no 'cmd' string", req_id)
@@ -162,7 +182,7 @@ def parse_request(line: bytes | str) -> tuple[Any, str, StrictModel]:
         msg = "unknown argument" if e["type"] == "extra_forbidden" else e["msg"]
         msg = msg.removeprefix("Value error, ")
         raise RequestError(f"{cmd}: {loc}: {msg}", req_id) from None
-    return req_id, cmd, args
+    return req_id, cmd, args, (None if timeout_s is None else float(timeout_s))
 
 
 class Dispatcher:
@@ -192,12 +212,21 @@ class Dispatcher:
         self.info = info or (lambda: {})
         self.served = 0
         self.refused = 0
+        self._gen: int | None = None
+        self._deadline: float | None = None
 
-    def handle_line(self, line: bytes) -> bytes:
-        """Parse, run and answer one request line; never raises."""
+    def handle_line(self, line: bytes, gen: int | None = None,
+                    deadline: float | None = None) -> bytes:
+        """Parse, run and answer one request line; never raises.
+
+        ``gen`` is the loop's SAFE generation when the request arrived and ``deadline`` the
+        ``time.monotonic()`` its caller stops waiting at: a command a SAFE overtook, or not
+        applied by then, is dropped, never applied later, and the reply says so.
+        """
         req_id = None
         try:
             req_id, cmd, args = parse_request(line)
+            self._gen, self._deadline = gen, deadline
             result = self.run(cmd, args)
             self.served += 1
             return ok(req_id, result)
@@ -226,19 +255,24 @@ class Dispatcher:
         self._cache.clear()  # a command changes the state: the next query is fresh
         if cmd == "safe":
             return self._safe()
+        when = self._when()
         if cmd == "fault.reset":
-            self._applied(cmd, loop.reset_fault())
+            self._applied(cmd, loop.reset_fault(**when))
             return {"reset": True}
         if cmd in ("controller.enable", "controller.disable"):
-            self._applied(cmd, loop.enable_controller(cmd == "controller.enable"))
-            return {"enabled": cmd == "controller.enable"}
+            on = cmd == "controller.enable"
+            if on:
+                self._refuse_if_faulted(cmd)
+            self._applied(cmd, loop.enable_controller(on, **when))
+            return {"enabled": on}
         check_paths(cmd, args)
         if cmd == "controller.load":
             path = args.path
-            self._applied(cmd, loop.load_controller(path))
+            self._applied(cmd, loop.load_controller(path, **when))
             return {"loaded": path}
         if cmd == "operating_point.set":
-            self._applied(cmd, loop.set_operating_point(args.omega_rpm, args.p_inj_bar))
+            self._applied(cmd, loop.set_operating_point(args.omega_rpm, args.p_inj_bar,
+                                                        **when))
             return {"omega_rpm": args.omega_rpm, "p_inj_bar": args.p_inj_bar}
         if self.experiments is None:
             raise RequestError(f"{cmd}: experiments are not available in this daemon")
@@ -251,24 +285,72 @@ class Dispatcher:
         raise RequestError(f"unknown command {cmd!r}")  # pragma: no cover - table-driven
 
 
+    def _when(self) -> dict[str, Any]:
+        """The ``gen``/``deadline`` of the request being run, for the loop's commands."""
+        if not hasattr(self.loop, "safe_generation"):
+            return {}             # a loop double without them
+        return {"gen": self._gen, "deadline": self._deadline}
+
+    def _refuse_if_faulted(self, cmd: str) -> None:
+        """``enable`` while a fault is latched is refused with the fault's text (the loop
+        would drop it too: K∞ cannot come in while the safe state holds)."""
+        from rigd.loop import faults as FC
+        from rigd.loop import layout as L
+
+        state = getattr(self.loop, "state", None)
+        if state is None:
+            return                # a loop double without kernel state
+        st = state.st
+        code = int(st[L.S_FAULT])
+        if code:
+            raise RequestError(f"{cmd}: refused: fault {FC.fault_name(code)} latched at cycle "
+                               f"{int(st[L.S_FAULT_SEQ])}: "
+                               f"{FC.describe(code, int(st[L.S_FAULT_DETAIL]))}; reset it "
+                               f"first (`rigd ctl reset`), then enable")
+
     def _applied(self, cmd: str, ticket: Any) -> None:
-        """Reply only once the loop has applied the command (its ``status`` shows it then);
-        a loop that runs cycles but does not apply it in time is an error reply. A loop
-        double without tickets (``None``) or a loop not running cycles replies at once."""
+        """Reply only once the loop has applied the command (its ``status`` shows it then).
+        A command the loop dropped, or did not apply in time (it is then cancelled: never
+        applied later), is an error reply saying so. A loop double without tickets
+        (``None``) or a loop not running cycles replies at once."""
         wait = getattr(self.loop, "wait_applied", None)
         if wait is None or ticket is None:
             return
-        if not wait(ticket) and self.loop.running:
+        timeout = None
+        if self._deadline is not None:
+            default = 2.0 + 2.0 * self.loop.config.loop.k_ramp_s
+            timeout = max(0.0, min(default, self._deadline - time.monotonic()))
+        applied = wait(ticket, timeout, cancel=True)
+        self._cache.clear()   # a query answered while we waited must not outlive the change
+        if applied:
+            return
+        why = getattr(ticket, "dropped", "")
+        if why:
+            raise RequestError(f"{cmd}: not applied, dropped: {why}; it will never be "
+                               f"applied")
+        if self.loop.running:
             raise RequestError(f"{cmd}: queued, but the loop has not applied it yet (is it "
                                f"running? `status` shows when it does)")
-        self._cache.clear()   # a query answered while we waited must not outlive the change
 
     def _safe(self, confirm_s: float = 2.0) -> dict[str, Any]:
         """Latch ``operator_safe`` (the loop's safe state from its next cycle), stop the
         experiment, and wait until the loop shows a latched fault (any: the first one wins).
+
+        Through the loop's SAFE word (:mod:`rigd.loop.safeword`) when it has one: the reply
+        then names the cycle the request was made at and the cycle it latched at.
         """
         from rigd.loop import faults as FC
 
+        request = getattr(self.loop, "request_safe", None)
+        if request is not None:
+            c0 = request()
+            if self.experiments is not None:
+                self.experiments.stop()
+            ack = self.loop.wait_safe(c0, confirm_s)
+            if ack is None:
+                raise RequestError(f"safe: requested, but the loop did not confirm a latched "
+                                   f"fault within {confirm_s:g} s (is it running?)")
+            return {"safe": True, "via": "daemon", **ack}
         self.loop.trip(FC.OPERATOR_SAFE)
         if self.experiments is not None:
             self.experiments.stop()

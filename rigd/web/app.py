@@ -24,6 +24,7 @@ from rigd.configio import read_yaml
 from rigd.errors import InputError
 from rigd.experiments.schemas import load_experiment, validate_spec
 from rigd.fileio import atomic_write_text
+from rigd.service.safe_request import SafeWordClient, SafeWordUnavailable
 from rigd.web import runs as runs_mod
 from rigd.web import sse
 from rigd.web.auth import MAX_BODY, Guard
@@ -31,8 +32,8 @@ from rigd.web.ctl import COMMANDS, Daemon, DaemonDown, DaemonRefused, DaemonSile
 from rigd.web.paths import PathRefused, resolve_inside, split_rooted
 
 STATIC = Path(str(resources.files("rigd.web") / "static"))
-#: SSE clients at once (each holds one daemon socket connection)
-MAX_STREAMS = 16
+#: SSE clients at once (multiplexed onto at most rigd.web.sse.MAX_FEEDS daemon connections)
+MAX_STREAMS = 256
 #: the console page loads only its own files (Plotly adds inline styles)
 PAGE_CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
             "img-src 'self' data: blob:; connect-src 'self'; frame-ancestors 'none'; "
@@ -141,7 +142,7 @@ def build_app(settings: Settings) -> Starlette:
     """The ASGI app, wrapped in the token/size :class:`~rigd.web.auth.Guard`."""
     daemon = Daemon(settings.socket, settings.timeout_s)
     roots = {"config": settings.config_dir, "runs": settings.runs_dir}
-    streams = {"n": 0}
+    hub = sse.StreamHub(settings.socket, settings.timeout_s, MAX_STREAMS)
 
     async def call(cmd: str, **args: Any) -> Response:
         try:
@@ -169,8 +170,31 @@ def build_app(settings: Settings) -> Starlette:
             return await call(cmd)
         return handler
 
+    async def safe(request: Request) -> Response:
+        """SAFE through the daemon's SAFE word, in this event loop (no worker thread, no
+        daemon client slot); the socket's ``safe`` when the word cannot be mapped."""
+        try:
+            word = SafeWordClient(settings.socket)
+        except SafeWordUnavailable as exc:
+            why = str(exc)
+        else:
+            try:
+                result = await word.safe_async(min(settings.timeout_s, 2.0))
+            finally:
+                word.close()
+            if result is not None:
+                return JSONResponse(result)
+            why = f"{word.path}: no cycle took the request (is the loop running?)"
+        reply = await call("safe")
+        if reply.status_code >= 400:
+            return _err(reply.status_code, json.loads(reply.body)["error"]
+                        + f" (SAFE word: {why})")
+        return reply
+
     async def command(request: Request) -> Response:
         name = request.path_params["name"]
+        if name == "safe":
+            return await safe(request)
         if name not in COMMANDS:
             return _err(404, f"no command {name!r} (known: {', '.join(COMMANDS)})")
         try:
@@ -261,18 +285,12 @@ def build_app(settings: Settings) -> Starlette:
                                                 if q.get("channels") else None)}
         except ValueError as exc:
             return _err(400, f"bad query: {exc}")
-        if streams["n"] >= MAX_STREAMS:
-            return _err(503, f"too many stream clients (at most {MAX_STREAMS})")
+        try:
+            lease, key = hub.acquire(sub)
+        except sse.StreamFull as exc:
+            return _err(503, str(exc))
 
-        async def body():
-            streams["n"] += 1
-            try:
-                async for chunk in sse.relay(settings.socket, sub, settings.timeout_s):
-                    yield chunk
-            finally:
-                streams["n"] -= 1
-
-        return StreamingResponse(body(), media_type="text/event-stream",
+        return StreamingResponse(hub.events(lease, key, sub), media_type="text/event-stream",
                                  headers={"cache-control": "no-store",
                                           "x-accel-buffering": "no"})
 

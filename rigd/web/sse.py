@@ -1,18 +1,23 @@
 """``GET /api/stream``: the daemon's live stream relayed as Server-Sent Events.
 
-One control-socket connection per SSE client, opened with ``stream.subscribe``
-(docs/service.md): each pushed line ``{"stream": {...}}`` becomes one ``data:`` event with the
-inner object unchanged — its bytes are sliced out of the line, not decoded and re-encoded (the
-daemon's socket process already wrote strict JSON; :func:`stream_body`). When the daemon
-refuses, stops the push (an error line without request id) or is gone, one ``event: error``
-with a one-line ``{"error": ...}`` ends the stream (the page then falls back to polling
-``/api/status``).
+Browsers are *multiplexed* (:class:`StreamHub`): all the browsers that ask for the same
+stream settings (rate, points, channels) share ONE control-socket connection, opened with
+``stream.subscribe`` (docs/service.md), and at most :data:`MAX_FEEDS` different settings are
+served at once — so no number of browsers can take more than a few of the daemon's client
+slots. Each browser has a bounded queue of events; one that does not read loses its oldest
+events, never holds the others. Each pushed line ``{"stream": {...}}`` becomes one ``data:``
+event with the inner object unchanged — its bytes are sliced out of the line, not decoded and
+re-encoded (the daemon's socket process already wrote strict JSON; :func:`stream_body`). When
+the daemon refuses, stops the push (an error line without request id) or is gone, one
+``event: error`` with a one-line ``{"error": ...}`` ends the stream (the page then falls back
+to polling ``/api/status``).
 """
 
 from __future__ import annotations
 
 import asyncio
 import json
+import weakref
 from collections.abc import AsyncIterator
 from typing import Any
 
@@ -107,3 +112,134 @@ async def relay(socket_path: str, subscribe: dict[str, Any],
             await writer.wait_closed()
         except (OSError, ConnectionError):
             pass
+
+
+#: different stream settings served at once (each one daemon connection)
+MAX_FEEDS = 4
+#: events waiting for one browser at most; beyond, its oldest are dropped
+QUEUE_EVENTS = 32
+
+
+class StreamFull(Exception):
+    """No stream for this browser now (the message says which limit; -> HTTP 503)."""
+
+
+class _Lease:
+    """One browser's place among ``max_streams`` (released once, whatever ends it)."""
+
+    def __init__(self, hub: StreamHub) -> None:
+        self._hub: StreamHub | None = hub
+
+    def release(self) -> None:
+        hub, self._hub = self._hub, None
+        if hub is not None:
+            hub.active -= 1
+
+
+class _Feed:
+    """One daemon subscription and the browsers' queues it fans out to."""
+
+    def __init__(self, hub: StreamHub, key: tuple, subscribe: dict[str, Any]) -> None:
+        self.hub, self.key = hub, key
+        self.queues: set[asyncio.Queue] = set()
+        self.head: bytes | None = None          # the "subscribed" event, for late joiners
+        self.task = asyncio.get_running_loop().create_task(self._run(subscribe))
+
+    async def _run(self, subscribe: dict[str, Any]) -> None:
+        try:
+            async for chunk in relay(self.hub.socket_path, subscribe, self.hub.timeout):
+                if chunk.startswith(b"event: subscribed"):
+                    self.head = chunk
+                for q in self.queues:
+                    _put(q, chunk)
+        finally:
+            if self.hub.feeds.get(self.key) is self:
+                del self.hub.feeds[self.key]
+            for q in self.queues:
+                _put(q, None)                   # the end (after any error event)
+
+
+def _put(q: asyncio.Queue, item: bytes | None) -> None:
+    """Queue ``item`` for one browser; a full queue loses its oldest event (never the end)."""
+    while True:
+        try:
+            q.put_nowait(item)
+            return
+        except asyncio.QueueFull:
+            try:
+                q.get_nowait()
+            except asyncio.QueueEmpty:
+                pass
+
+
+class StreamHub:
+    """The browsers' streams of one ``rigd web`` on at most :data:`MAX_FEEDS` daemon
+    connections (see module docstring).
+
+    Parameters
+    ----------
+    socket_path : str
+        The daemon's control socket.
+    timeout : float
+        Connect / subscribe timeout, s.
+    max_streams : int
+        Browsers streaming at once.
+    """
+
+    def __init__(self, socket_path: str, timeout: float, max_streams: int) -> None:
+        self.socket_path, self.timeout, self.max_streams = socket_path, timeout, max_streams
+        self.active = 0
+        self.feeds: dict[tuple, _Feed] = {}
+
+    def acquire(self, subscribe: dict[str, Any]) -> tuple[_Lease, tuple]:
+        """A place for one more browser, taken now (check and count in one step of the event
+        loop: no await between, so concurrent requests cannot all pass the check).
+
+        Raises
+        ------
+        StreamFull
+            ``max_streams`` browsers stream already, or ``MAX_FEEDS`` other settings are
+            being served.
+        """
+        key = (subscribe.get("rate_hz"), subscribe.get("points"),
+               tuple(subscribe.get("channels") or ()))
+        if self.active >= self.max_streams:
+            raise StreamFull(f"too many stream clients (at most {self.max_streams})")
+        if key not in self.feeds and len(self.feeds) >= MAX_FEEDS:
+            raise StreamFull(f"too many different stream settings at once (at most "
+                             f"{MAX_FEEDS}; the console's defaults are always served)")
+        self.active += 1
+        return _Lease(self), key
+
+    def events(self, lease: _Lease, key: tuple, subscribe: dict[str, Any]
+               ) -> AsyncIterator[bytes]:
+        """This browser's SSE events; the lease is released when the stream ends, however
+        (also when the response is dropped before its first event)."""
+        gen = self._events(lease, key, subscribe)
+        weakref.finalize(gen, lease.release)
+        return gen
+
+    async def _events(self, lease: _Lease, key: tuple, subscribe: dict[str, Any]
+                      ) -> AsyncIterator[bytes]:
+        q: asyncio.Queue = asyncio.Queue(QUEUE_EVENTS)
+        feed = None
+        try:
+            feed = self.feeds.get(key)
+            if feed is None:
+                feed = self.feeds[key] = _Feed(self, key, subscribe)
+            feed.queues.add(q)
+            if feed.head is not None:
+                yield feed.head
+            while True:
+                item = await q.get()
+                if item is None:
+                    return
+                yield item
+        finally:
+            lease.release()
+            if feed is not None:
+                feed.queues.discard(q)
+                if not feed.queues and not feed.task.done():
+                    feed.task.cancel()      # the last browser left: close the subscription
+                    if self.feeds.get(key) is feed:
+                        del self.feeds[key]

@@ -1,0 +1,131 @@
+"""SAFE cannot be refused: with 200 browser streams on ``rigd web`` and 200 idle connections on
+the daemon's socket (every client slot taken), ``rigd ctl safe`` and the console's SAFE still
+latch ``operator_safe`` within 250 cycles (50 ms at 5 kHz) of the request — counted on the
+loop's own cycle counter, not the wall clock. The 200 browsers cost the daemon one client.
+Then ``enable`` is refused while the fault is latched (CLI exit 2, HTTP 409, the fault's text)
+and SIGUSR1 is SAFE too."""
+
+from __future__ import annotations
+
+import json
+import mmap
+import os
+import re
+import signal
+import socket
+import subprocess
+import time
+import urllib.error
+import urllib.request
+
+from daemon_helpers import PROCESS_S, RIGD
+from webproc import daemon_and_web
+
+from rigd.loop.safeword import W_ACK_N, W_SEQ, word_path
+
+N_STREAMS = 200
+N_IDLE = 200
+MAX_CYCLES = 250
+
+
+def _open_stream(url: str, token: str) -> socket.socket:
+    host, port = url.removeprefix("http://").split(":")
+    s = socket.create_connection((host, int(port)), timeout=PROCESS_S)
+    s.sendall(f"GET /api/stream HTTP/1.1\r\nHost: {host}:{port}\r\nAuthorization: Bearer "
+              f"{token}\r\nAccept: text/event-stream\r\n\r\n".encode())
+    return s
+
+
+def _head(s: socket.socket) -> bytes:
+    buf = b""
+    while b"\r\n\r\n" not in buf:
+        chunk = s.recv(4096)
+        if not chunk:
+            break
+        buf += chunk
+    return buf
+
+
+def _ping(sock: str) -> dict:
+    r = subprocess.run([RIGD, "ctl", "--socket", sock, "ping", "--json"], capture_output=True,
+                       text=True, timeout=PROCESS_S)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout)
+
+
+def test_safe_latches_within_250_cycles_with_every_slot_taken(tmp_path):
+    streams, idle = [], []
+    with daemon_and_web(tmp_path) as (d, web):
+        try:
+            for _ in range(N_STREAMS):
+                streams.append(_open_stream(web.url, web.token))
+            heads = [_head(s) for s in streams]
+            assert all(h.startswith(b"HTTP/1.1 200") for h in heads), heads[0]
+            # every browser shares one daemon subscription: the daemon sees 1 + this ping
+            assert _ping(d.sock)["clients"] == 2
+            for _ in range(N_IDLE):
+                c = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+                c.connect(d.sock)
+                idle.append(c)
+            # the socket is full: a client says so in one clear line
+            r = subprocess.run([RIGD, "ctl", "--socket", d.sock, "status"],
+                               capture_output=True, text=True, timeout=PROCESS_S)
+            assert r.returncode == 2 and "too many clients" in r.stderr, r.stderr
+            assert "does not match" not in r.stderr
+            # the operator's SAFE: through the SAFE word, no slot needed
+            r = subprocess.run([RIGD, "ctl", "--socket", d.sock, "safe"], capture_output=True,
+                               text=True, timeout=PROCESS_S)
+            assert r.returncode == 0, r.stderr
+            m = re.search(r"FAULT operator_safe latched at cycle (\d+), taken at cycle (\d+) "
+                          r"\(requested at cycle (\d+), via the safe word\)", r.stdout)
+            assert m, r.stdout
+            latched, taken, asked = map(int, m.groups())
+            assert latched == taken and 0 <= taken - asked <= MAX_CYCLES, r.stdout
+            # the console's SAFE, the cycle read here just before the request
+            with open(word_path(d.sock), "rb") as f:
+                word = memoryview(mmap.mmap(f.fileno(), 128, prot=mmap.PROT_READ)).cast("q")
+            c0 = int(word[W_SEQ])
+            req = urllib.request.Request(web.url + "/api/safe", data=b"{}", method="POST",
+                                         headers={"Authorization": f"Bearer {web.token}",
+                                                  "Content-Type": "application/json"})
+            with urllib.request.urlopen(req, timeout=PROCESS_S) as resp:
+                ack = json.loads(resp.read())
+            word.release()
+            assert ack["via"] == "safe word" and ack["fault"]["name"] == "operator_safe"
+            assert 0 <= ack["latched_at"] - c0 <= MAX_CYCLES, (ack, c0)
+            assert ack["fault"]["seq"] == latched          # the first SAFE's latch holds
+            # the streams are still served
+            data = streams[0].recv(65536)
+            assert b"data: " in data or b"event: " in data
+            for c in idle:
+                c.close()
+            # enable while the fault is latched: refused with the fault's text (CLI exit 2,
+            # web 409), K∞ not requested
+            r = subprocess.run([RIGD, "ctl", "--socket", d.sock, "enable"], capture_output=True,
+                               text=True, timeout=PROCESS_S)
+            assert r.returncode == 2, r.stdout
+            assert (f"refused: fault operator_safe latched at cycle {latched}: safe state "
+                    f"requested by the operator") in r.stderr, r.stderr
+            req = urllib.request.Request(web.url + "/api/enable", data=b"{}", method="POST",
+                                         headers={"Authorization": f"Bearer {web.token}",
+                                                  "Content-Type": "application/json"})
+            try:
+                urllib.request.urlopen(req, timeout=PROCESS_S)
+                raise AssertionError("enable accepted while a fault is latched")
+            except urllib.error.HTTPError as exc:
+                assert exc.code == 409
+                assert "refused: fault operator_safe latched" in json.loads(exc.read())["error"]
+            assert not d.ctl_json("status")["controller"]["requested"]
+            # SIGUSR1: SAFE too (the word's request count goes up by one)
+            with open(word_path(d.sock), "rb") as f:
+                word = memoryview(mmap.mmap(f.fileno(), 128, prot=mmap.PROT_READ)).cast("q")
+            n0 = int(word[W_ACK_N])
+            os.kill(d.proc.pid, signal.SIGUSR1)
+            end = time.monotonic() + PROCESS_S
+            while int(word[W_ACK_N]) == n0 and time.monotonic() < end:
+                time.sleep(0.01)
+            assert int(word[W_ACK_N]) == n0 + 1
+            word.release()
+        finally:
+            for s in streams + idle:
+                s.close()
