@@ -7,7 +7,11 @@ silent or hostile client can never block another one or the loop:
   is disconnected (its buffer is bounded);
 * a client that does not read its replies is disconnected once ``max_pending`` bytes of
   replies are waiting;
-* beyond ``max_clients`` connections, new ones get one error line and are closed;
+* beyond ``max_clients`` connections, :data:`RESERVED` more are accepted for ``safe`` only
+  (any other request there gets one error line saying the daemon is full, and is closed);
+  beyond those, new ones get one error line and are closed;
+* a client that sends nothing for ``idle_s`` (no request waiting, no push) is closed, so idle
+  connections cannot hold the slots for ever;
 * any exception while handling a request becomes an error reply to that client only;
 * a request whose answer takes time (a command the socket process forwards to the daemon)
   does not hold the thread: ``handle`` returns a :class:`concurrent.futures.Future` of the
@@ -27,6 +31,7 @@ stale files replaced, live daemons refused).
 from __future__ import annotations
 
 import errno
+import json
 import os
 import selectors
 import socket
@@ -40,11 +45,27 @@ from pathlib import Path
 from rigd.service import protocol
 from rigd.service.listen import listen
 
+#: connections accepted beyond ``max_clients``, for ``safe`` only
+RESERVED = 4
+#: a client silent this long is closed, s (default of ``ControlServer(idle_s=...)``)
+IDLE_S = 60.0
+
+
+def _is_safe_request(line: bytes) -> bool:
+    try:
+        req = json.loads(line)
+    except ValueError:
+        return False
+    return isinstance(req, dict) and req.get("cmd") == "safe"
+
 
 class _Client:
-    __slots__ = ("sock", "rbuf", "wbuf", "closing", "closed", "waiting", "push")
+    __slots__ = ("sock", "rbuf", "wbuf", "closing", "closed", "waiting", "push", "reserved",
+                 "last")
 
-    def __init__(self, sock: socket.socket):
+    def __init__(self, sock: socket.socket, reserved: bool = False):
+        self.reserved = reserved
+        self.last = time.monotonic()
         self.sock = sock
         self.rbuf = bytearray()
         self.wbuf = bytearray()
@@ -73,13 +94,15 @@ class ControlServer:
 
     def __init__(self, path: str | Path, handle: Callable[[bytes], bytes], *, mode: int = 0o660,
                  max_line: int = protocol.MAX_LINE, max_clients: int = 64,
-                 max_pending: int = 1 << 20):
+                 max_pending: int = 1 << 20, idle_s: float = IDLE_S):
         self.path = str(path)
         self.handle = handle
         self.mode = mode
         self.max_line = max_line
         self.max_clients = max_clients
         self.max_pending = max_pending
+        self.idle_s = idle_s
+        self._next_sweep = 0.0
         self._sel = selectors.DefaultSelector()
         self._lsock: socket.socket | None = None
         self._thread: threading.Thread | None = None
@@ -90,7 +113,8 @@ class ControlServer:
         self._pushing: dict[int, _Client] = {}  # clients with a push subscription
         self._owns_path = False
         self.stats = {"connections": 0, "requests": 0, "dropped_clients": 0,
-                      "too_long": 0, "refused_clients": 0, "deferred": 0, "pushed": 0}
+                      "too_long": 0, "refused_clients": 0, "deferred": 0, "pushed": 0,
+                      "idle_closed": 0}
 
     # --- life cycle ---------------------------------------------------------------------
     def start(self, lsock: socket.socket | None = None) -> ControlServer:
@@ -176,13 +200,27 @@ class ControlServer:
                     self._close(client)
             if self._pushing:
                 self._push()
+            self._sweep()
+
+    def _sweep(self) -> None:
+        """Close the clients silent for ``idle_s`` (about once a second)."""
+        now = time.monotonic()
+        if now < self._next_sweep:
+            return
+        self._next_sweep = now + min(1.0, self.idle_s / 2)
+        for c in list(self._clients.values()):
+            if (c.waiting is None and c.push is None and not c.closed
+                    and now - c.last > self.idle_s):
+                self.stats["idle_closed"] += 1
+                self._close(c)
 
     # --- pushed lines (the live stream) ---------------------------------------------------
     def _push_timeout(self) -> float | None:
+        sweep = max(0.0, self._next_sweep - time.monotonic()) if self._clients else None
         if not self._pushing:
-            return None
-        due = min(c.push.next_due for c in self._pushing.values())
-        return max(0.0, due - time.monotonic())
+            return sweep
+        due = max(0.0, min(c.push.next_due for c in self._pushing.values()) - time.monotonic())
+        return due if sweep is None else min(due, sweep)
 
     def _push(self) -> None:
         now = time.monotonic()
@@ -221,7 +259,8 @@ class ControlServer:
                 self.stats["refused_clients"] += 1
             return
         self.stats["connections"] += 1
-        if len(self._clients) >= self.max_clients:
+        reserved = len(self._clients) >= self.max_clients
+        if reserved and sum(c.reserved for c in self._clients.values()) >= RESERVED:
             self.stats["refused_clients"] += 1
             try:
                 sock.setblocking(False)
@@ -231,7 +270,7 @@ class ControlServer:
             sock.close()
             return
         sock.setblocking(False)
-        c = _Client(sock)
+        c = _Client(sock, reserved)
         self._clients[sock.fileno()] = c
         self._sel.register(sock, selectors.EVENT_READ, c)
 
@@ -248,6 +287,7 @@ class ControlServer:
                 self._flush(c)   # the replies still due, then close
             return
         c.rbuf += data
+        c.last = time.monotonic()
         if c.waiting is not None:
             # its lines wait behind the reply being worked on; bounded like unread replies
             if len(c.rbuf) > self.max_pending:
@@ -270,6 +310,14 @@ class ControlServer:
             if not line:
                 continue
             self.stats["requests"] += 1
+            if c.reserved and not _is_safe_request(line):
+                self.stats["refused_clients"] += 1
+                c.wbuf += protocol.error(None, f"too many clients (max {self.max_clients}): "
+                                               "the daemon is full; only `safe` is taken on "
+                                               "this connection")
+                c.closing = True
+                c.rbuf.clear()
+                break
             reply = self.handle(line)
             if isinstance(reply, tuple):          # (reply line, pusher): a subscription
                 reply, c.push = reply

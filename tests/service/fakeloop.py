@@ -31,6 +31,10 @@ class FakeLoop:
     def faults(self):
         return [{"code": 3, "name": "sensor_nan", "seq": 10, "latched": True}] if self.fault else []
 
+    def trip(self, code):
+        self._log("trip", code)
+        self.fault = int(code)
+
     def reset_fault(self):
         self._log("reset_fault")
         self.fault = 0

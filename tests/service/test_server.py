@@ -12,7 +12,7 @@ from fakeloop import FakeLoop  # noqa: E402  (tests/service on sys.path via root
 from rigd.errors import InputError
 from rigd.service.client import ControlClient, ControlError
 from rigd.service.protocol import Dispatcher, RequestError, parse_request
-from rigd.service.server import ControlServer
+from rigd.service.server import RESERVED, ControlServer
 
 
 @pytest.fixture()
@@ -143,7 +143,7 @@ def test_many_clients_and_a_silent_one(served):
 def test_client_limit(served):
     srv, _, _ = served
     socks = []
-    for _ in range(8):
+    for _ in range(8 + RESERVED):
         s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         s.connect(srv.path)
         socks.append(s)
@@ -154,6 +154,47 @@ def test_client_limit(served):
     assert r["ok"] is False and "too many clients" in r["error"]
     for s in socks:
         s.close()
+
+
+class _SafeFake(FakeLoop):
+    def status(self):
+        return {"fault": {"code": self.fault, "name": "operator_safe", "seq": 1, "text": ""}}
+
+
+def test_a_full_daemon_keeps_a_slot_for_safe_and_says_it_is_full(tmp_path):
+    """Every slot taken: a reserved connection takes ``safe`` and nothing else, and the client
+    says in one line that the daemon is full (it once said "reply id None does not match")."""
+    loop = _SafeFake()
+    srv = ControlServer(tmp_path / "rigd.sock", Dispatcher(loop).handle_line, max_clients=8)
+    srv.start()
+    socks = []
+    for _ in range(8):
+        s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        s.connect(srv.path)
+        socks.append(s)
+    with ControlClient(srv.path, timeout=5) as c, \
+            pytest.raises(InputError, match=r"refused the connection: too many clients \(max 8\)"
+                                            r": the daemon is full; only `safe`"):
+        c.request("status")
+    with ControlClient(srv.path, timeout=5) as c:
+        assert c.call("safe")["safe"] is True
+    assert loop.fault
+    for s in socks:
+        s.close()
+    srv.stop()
+
+
+def test_idle_clients_are_dropped(tmp_path):
+    disp = Dispatcher(FakeLoop())
+    with ControlServer(tmp_path / "rigd.sock", disp.handle_line, idle_s=0.2) as srv:
+        s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        s.settimeout(30)
+        s.connect(srv.path)
+        assert s.recv(1) == b""                # closed by the daemon, not by us
+        s.close()
+        assert srv.stats["idle_closed"] == 1
+        with ControlClient(srv.path, timeout=5) as c:   # an active client is served
+            assert c.call("ping")["pong"] is True
 
 
 def test_stale_socket_replaced_live_refused(tmp_path):
