@@ -1,0 +1,186 @@
+"""Hostile load on a real daemon + ``rigd web``: does it disturb the loop, and how fast is SAFE?
+
+A real daemon (``rigd run`` on the simulated rig, real-time clock) and a real ``rigd web`` in
+front of it. Alternating 1 s windows:
+
+* **hostile**: 100 browser streams (``GET /api/stream``, read by this process) and
+  ``idle_clients`` silent connections on the daemon's socket are opened first; during the
+  window a big controller (~700 kB of YAML, order 64) is loaded with ``rigd ctl load`` and
+  uploaded through ``POST /api/load``, and SAFE is requested twice — once through the SAFE
+  word (:class:`rigd.service.safe_request.SafeWordClient`, as ``rigd ctl safe`` does) and once
+  through ``POST /api/safe`` — then ``fault.reset``; streams and idle clients are closed after;
+* **idle**: nothing.
+
+Figures: ``hostile_load_miss_fraction`` / ``idle_miss_fraction`` (real-time overruns per cycle
+over the hostile / idle windows, from the daemon's ``timing``), ``safe_latency_ms`` {p50,
+p99, max, n}: (cycle latched − cycle at request) / f_s, the request's cycle read from the SAFE
+word just before it (for the web, before the HTTP request is sent), and
+``hostile_loads_ok`` / ``hostile_loads_failed`` (what the big loads answered). Targets: SAFE
+p99 <= 50 ms; hostile miss fraction <= idle + 1e-3.
+
+The daemon accepts ``max_clients`` = 64 connections (plus 4 kept for ``safe``): with 64 idle
+ones the loads could not get in at all, so ``idle_clients`` is 56 by default (8 left for the
+loads, the web's commands and the timing queries).
+
+    python -m bench hostile        # about 60 s
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import subprocess
+import tempfile
+import threading
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+
+from bench.socket_load import RIGD, _call, _counts, start_daemon, stop_daemon
+from bench.web import _start_web
+from rigd.controller import save_controller
+from rigd.service.safe_request import SafeWordClient
+
+
+def big_controller(path: Path, order: int = 64, pad: int = 20000) -> Path:
+    """A valid order-``order`` controller file of about 700 kB (``continuous`` and a padded
+    ``weights`` copy, as a designed controller carries)."""
+    rng = np.random.default_rng(1)
+    A = 0.5 * np.eye(order) + rng.normal(scale=0.2 / order, size=(order, order))
+    B = rng.normal(scale=1e-3, size=(order, 2))
+    C = rng.normal(scale=1e-2, size=(2, order))
+    D = np.zeros((2, 2))
+    save_controller(path, A, B, C, D, fs_hz=5000.0,
+                    continuous={"A": (A - np.eye(order)).tolist(), "B": B.tolist(),
+                                "C": C.tolist(), "D": D.tolist()},
+                    weights={"pad": rng.normal(size=pad).tolist()})
+    return path
+
+
+class _Streams(threading.Thread):
+    """``n`` browser streams on ``rigd web``, read continuously (as browsers do)."""
+
+    def __init__(self, url: str, token: str, n: int):
+        super().__init__(daemon=True)
+        host, port = url.removeprefix("http://").split(":")
+        self.socks = []
+        for _ in range(n):
+            s = socket.create_connection((host, int(port)), timeout=30)
+            s.sendall(f"GET /api/stream HTTP/1.1\r\nHost: {host}:{port}\r\nAuthorization: "
+                      f"Bearer {token}\r\n\r\n".encode())
+            s.setblocking(False)
+            self.socks.append(s)
+        self.bytes = 0
+        self._stop = threading.Event()
+        self.start()
+
+    def run(self):
+        import selectors
+
+        sel = selectors.DefaultSelector()
+        for s in self.socks:
+            sel.register(s, selectors.EVENT_READ)
+        while not self._stop.is_set():
+            for key, _ in sel.select(0.1):
+                try:
+                    data = key.fileobj.recv(1 << 16)
+                except OSError:
+                    data = b""
+                if not data:
+                    sel.unregister(key.fileobj)
+                self.bytes += len(data)
+
+    def close(self):
+        self._stop.set()
+        self.join(5)
+        for s in self.socks:
+            s.close()
+
+
+def _post(url: str, token: str, path: str, body: dict, timeout: float = 30.0):
+    req = urllib.request.Request(url + path, data=json.dumps(body).encode(), method="POST",
+                                 headers={"Authorization": f"Bearer {token}",
+                                          "Content-Type": "application/json"})
+    try:
+        with urllib.request.urlopen(req, timeout=timeout) as r:
+            return r.status, json.loads(r.read())
+    except urllib.error.HTTPError as exc:
+        return exc.code, json.loads(exc.read() or b"{}")
+
+
+def run(pairs: int = 6, window_s: float = 1.0, streams: int = 100,
+        idle_clients: int = 56) -> dict:
+    with tempfile.TemporaryDirectory(prefix="rigd-hostile-") as d:
+        tmp = Path(d)
+        ctrl = big_controller(tmp / "big-controller.yaml")
+        text = ctrl.read_text()
+        proc, sock = start_daemon(tmp)
+        web, url = _start_web(tmp, sock)
+        token = (tmp / "token").read_text().strip()
+        fs = float(_call(sock, "status")["fs_hz"])
+        lat_ms, hostile, idle = [], [0, 0], [0, 0]
+        loads = {"ok": 0, "failed": 0, "errors": []}
+        try:
+            word = SafeWordClient(sock)
+            for _ in range(pairs):
+                st = _Streams(url, token, streams)
+                idles = []
+                for _ in range(idle_clients):
+                    c = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+                    c.connect(sock)
+                    idles.append(c)
+                c0, o0 = _counts(sock)
+                end = time.monotonic() + window_s
+                cli = subprocess.Popen([RIGD, "ctl", "--socket", sock, "--timeout", "30",
+                                        "load", str(ctrl)], stdout=subprocess.DEVNULL,
+                                       stderr=subprocess.PIPE, text=True)
+                code, body = _post(url, token, "/api/load",
+                                   {"upload": {"name": "big-controller.yaml", "text": text}})
+                loads["ok" if code == 200 else "failed"] += 1
+                if code != 200:
+                    loads["errors"].append(f"web {code}: {body.get('error', '')[:120]}")
+                _, err = cli.communicate(timeout=60)
+                loads["ok" if cli.returncode == 0 else "failed"] += 1
+                if cli.returncode:
+                    loads["errors"].append(f"ctl: {err.strip()[:120]}")
+                a = word.safe(5.0)                     # as `rigd ctl safe` does
+                if a is not None:
+                    lat_ms.append((a["latched_at"] - a["requested_at"]) / fs * 1e3)
+                w0 = word.seq
+                code, a = _post(url, token, "/api/safe", {})
+                if code == 200:
+                    lat_ms.append((a["latched_at"] - w0) / fs * 1e3)
+                while time.monotonic() < end:
+                    time.sleep(0.01)
+                c1, o1 = _counts(sock)
+                hostile[0] += c1 - c0
+                hostile[1] += o1 - o0
+                st.close()
+                for c in idles:
+                    c.close()
+                _call(sock, "fault.reset")
+                c0, o0 = _counts(sock)
+                time.sleep(window_s)
+                c1, o1 = _counts(sock)
+                idle[0] += c1 - c0
+                idle[1] += o1 - o0
+            word.close()
+        finally:
+            web.terminate()
+            web.wait(30)
+            stop_daemon(proc)
+    lat = np.asarray(lat_ms)
+    return {
+        "hostile_load_miss_fraction": hostile[1] / max(hostile[0], 1),
+        "idle_miss_fraction": idle[1] / max(idle[0], 1),
+        "safe_latency_ms": {"p50": float(np.percentile(lat, 50)) if lat.size else None,
+                            "p99": float(np.percentile(lat, 99)) if lat.size else None,
+                            "max": float(lat.max()) if lat.size else None, "n": int(lat.size)},
+        "hostile_loads_ok": loads["ok"], "hostile_loads_failed": loads["failed"],
+        "hostile_load_errors": loads["errors"][:4],
+        "hostile_controller_kb": round(len(text) / 1024), "hostile_streams": streams,
+        "hostile_idle_clients": idle_clients, "hostile_pairs": pairs,
+    }
