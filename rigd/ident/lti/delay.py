@@ -16,7 +16,7 @@ samples gives nk = ⌊τ⌋ + 1 (τ ∈ [nk − 1, nk)), which :attr:`DelayEstim
 an instantaneous (measured, first-order-hold) input gives nk = ⌈τ⌉.
 
 ``confidence`` (0 … 1): 1 when both estimates agree, 0.6 when they differ by one sample,
-0.4 when only one is significant or they differ more (the ARX one is then kept), 0 when
+0.4 when only one is significant or they differ more (the earlier one is then kept), 0 when
 neither shows the input acting (nk = 0 reported).
 """
 
@@ -30,8 +30,9 @@ import scipy.signal
 from rigd.ident.lti.linear import as_2d
 from rigd.ident.lti.lsq import stacked_r
 
-#: output lags of the ARX model whose b coefficients give the impulse response
-NA = 2
+#: output lags of the ARX model whose b coefficients give the impulse response (enough for
+#: several modes: a model too low in order leaves a residual that hides the first lags)
+NA = 8
 #: order of the AR model that prewhitens each input
 AR_ORDER = 10
 #: |t| (or √N·|ρ|) above which a lag counts as the input acting (≈ 1e-4 two-sided, several
@@ -150,5 +151,5 @@ def estimate_delays(u: np.ndarray, y: np.ndarray, max_lag: int | None = None
             out.append(DelayEstimate(a if a is not None else x, 0.4, a, x))
         else:
             conf = 1.0 if a == x else 0.6 if abs(a - x) == 1 else 0.4
-            out.append(DelayEstimate(a, conf, a, x))
+            out.append(DelayEstimate(a if conf > 0.4 else min(a, x), conf, a, x))
     return out
