@@ -34,26 +34,12 @@ from rigd.diagnose import residual as R
 from rigd.diagnose import unexplained as U
 from rigd.effects import REGISTRY
 from rigd.effects.context import CannotReveal, Context, Finding
+from rigd.ident.figures import fit_percent
 from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
+from rigd.ident.thresholds import MIN_FIT_GAIN, MIN_REFIT_GAIN, P_LEVEL, STRONG_REFIT_GAIN
 
-#: share of validation error energy a refit must remove for significance
-MIN_REFIT_GAIN = 0.10
-#: share of validation error energy a refit must remove for significance on its own (with a
-#: decisive F test) when the linearised signature explains less than ``min_score``
-STRONG_REFIT_GAIN = 0.5
-#: validation fit (percentage points) an effect must add to be significant
-MIN_FIT_GAIN = 0.5
-#: significance level of the signature F test
-P_LEVEL = 1e-3
 #: most effects added by the forward selection
 MAX_STEPS = 3
-
-
-def fit_percent(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
-    """Per-output fit, 100·(1 − ‖y − ŷ‖/‖y − ȳ‖) (%)."""
-    num = np.linalg.norm(y - yhat, axis=0)
-    den = np.linalg.norm(y - y.mean(axis=0), axis=0)
-    return 100.0 * (1.0 - num / np.maximum(den, 1e-300))
 
 
 @dataclass

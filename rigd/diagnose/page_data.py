@@ -23,8 +23,8 @@ import numpy as np
 from scipy import signal
 
 from rigd.diagnose import residual as R
-from rigd.diagnose.engine import fit_percent
 from rigd.htmlpage import minmax_decimate
+from rigd.ident.figures import fit_percent
 
 #: most points of one time trace on the page (min/max decimation beyond)
 TRACE_POINTS = 2000

@@ -32,9 +32,8 @@ import numpy as np
 from rigd.effects import numbers as N
 from rigd.effects.context import Context
 from rigd.effects.detectability import parameter_responses
+from rigd.ident.thresholds import MIN_SHARE
 
-#: least share of the final residual a probe must explain to be reported
-MIN_SHARE = 0.10
 #: sgn(v) is smoothed as tanh(v / v_ε), v_ε this fraction of the rms velocity
 SMOOTH = 0.05
 

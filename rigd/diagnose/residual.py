@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal, stats
 
+from rigd.ident.thresholds import CORR_CONFIDENCE
+
 
 def _z(conf: float) -> float:
     return float(stats.norm.ppf(0.5 + conf / 2))
@@ -39,7 +41,7 @@ class CorrTest:
     passed: bool
 
 
-def whiteness(r: np.ndarray, max_lag: int = 25, conf: float = 0.99) -> CorrTest:
+def whiteness(r: np.ndarray, max_lag: int = 25, conf: float = CORR_CONFIDENCE) -> CorrTest:
     """Autocorrelation of the residual at lags 1..max_lag with bound z/√N."""
     r = np.asarray(r, float)
     rho = _acf(r, max_lag)[1:]
@@ -50,7 +52,7 @@ def whiteness(r: np.ndarray, max_lag: int = 25, conf: float = 0.99) -> CorrTest:
 
 
 def cross_correlation(r: np.ndarray, u: np.ndarray, max_lag: int = 25,
-                      conf: float = 0.99) -> CorrTest:
+                      conf: float = CORR_CONFIDENCE) -> CorrTest:
     """Residual–input cross-correlation at lags −max_lag..max_lag (positive: input leads).
 
     The bound accounts for the autocorrelation of both series (as ``resid``):

@@ -31,16 +31,13 @@ import numpy as np
 from scipy import signal
 
 from rigd.effects import numbers as N
+from rigd.ident.thresholds import LEVEL_RATIO, MIN_FIT_GAIN, MIN_SHARE
 
-#: residual rms above this multiple of the noise estimate: structured
-LEVEL_RATIO = 1.5
-#: smallest share of the error energy a localisation must hold to be reported
-MIN_SHARE = 0.10
 #: most frequency bands reported
 MAX_BANDS = 3
-#: fit points (%) the structure must be worth to be reported (the effects' practical
-#: significance, rigd.diagnose.engine.MIN_FIT_GAIN)
-MIN_WORTH = 0.5
+#: fit points (%) the structure must be worth to be reported: the effects' practical
+#: significance
+MIN_WORTH = MIN_FIT_GAIN
 
 
 # --------------------------------------------------------------------------------------

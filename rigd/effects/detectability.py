@@ -36,19 +36,14 @@ import numpy as np
 
 from rigd.effects.context import Context
 from rigd.effects.signature import effective_n
+from rigd.ident.thresholds import MIN_FIT_GAIN, MIN_REFIT_GAIN, P_LEVEL
 
-#: the findings' rules (rigd.diagnose.engine: P_LEVEL, MIN_REFIT_GAIN, MIN_FIT_GAIN; kept
-#: equal by tests/diagnose/test_detectability.py — the effects layer does not import the
-#: diagnosis): F test level, share of the error energy, fit points
-P_DETECT = 1e-3
-MIN_SHARE = 0.10
-MIN_POINTS = 0.5
 #: relative finite-difference step of the base model's sensitivities
 _STEP = 1e-4
 
 
 def _rules() -> tuple[float, float]:
-    return MIN_SHARE, MIN_POINTS
+    return MIN_REFIT_GAIN, MIN_FIT_GAIN
 
 
 @dataclass
@@ -82,7 +77,7 @@ class Detectability:
     @property
     def detectable(self) -> bool:
         min_share, min_points = _rules()
-        return bool(self.p < P_DETECT and self.share >= min_share
+        return bool(self.p < P_LEVEL and self.share >= min_share
                     and self.fit_gain >= min_points)
 
     def describe(self) -> str:
@@ -211,14 +206,14 @@ def best(ctx: Context, signatures, k: int = 1, nuisance=None) -> tuple[Detectabi
 
 def seen(ctx: Context, sig) -> bool:
     """True when the effect's signature on the actual residual already passes the same rules
-    (F test p < P_DETECT, share of the validation error energy ≥ MIN_REFIT_GAIN, fit points
+    (F test p < P_LEVEL, share of the validation error energy ≥ MIN_REFIT_GAIN, fit points
     ≥ MIN_FIT_GAIN): the record shows it."""
     min_share, min_points = _rules()
     y, yh = ctx.y[ctx.val], ctx.yhat[ctx.val]
     dy = np.maximum(np.linalg.norm(y - y.mean(axis=0), axis=0), 1e-300)
     err = float(np.mean(100.0 * np.linalg.norm(y - yh, axis=0) / dy))
     gain = err * (1.0 - np.sqrt(max(1.0 - float(sig.score), 0.0)))
-    return bool(sig.f_p < P_DETECT and sig.score >= min_share and gain >= min_points)
+    return bool(sig.f_p < P_LEVEL and sig.score >= min_share and gain >= min_points)
 
 
 def cached_signature(ctx: Context, effect):

@@ -31,11 +31,12 @@ import numpy as np
 from rigd.errors import InputError
 from rigd.ident.iddata import IdData
 from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
+from rigd.ident.thresholds import HOLD_MARGIN_POINTS
 
 HOLDS = ("zoh", "foh")
 
 #: Fit points (100·(1 − NRMSE)) by which the non-default hold must win to be chosen.
-MARGIN_POINTS = 0.1
+MARGIN_POINTS = HOLD_MARGIN_POINTS
 
 
 @dataclass(frozen=True)

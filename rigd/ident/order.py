@@ -28,15 +28,17 @@ from typing import Any
 
 import numpy as np
 
+from rigd.ident.figures import mean_fit
 from rigd.ident.simulate import ExtraMode, Hooks
 from rigd.ident.structure import Structure
+from rigd.ident.thresholds import MIN_FIT_GAIN, MODE_SEPARATION
 
-#: validation fit (points) a mode must add to be kept
-MIN_GAIN = 0.5
+#: validation fit (points) a mode must add to be kept: the practical significance
+MIN_GAIN = MIN_FIT_GAIN
 #: most modes in all (base DOFs included) tried by ``order="auto"``
 MAX_MODES = 6
 #: relative distance from an existing mode for a candidate to count as new
-MIN_SEPARATION = 0.1
+MIN_SEPARATION = MODE_SEPARATION
 
 
 class ModalStructure(Structure):
@@ -234,9 +236,7 @@ class OrderChoice:
 
 
 def _fit_pct(y, yh):
-    from rigd.ident.pem import fit_percent
-
-    return float(np.mean(fit_percent(y, yh)))
+    return mean_fit(y, yh)
 
 
 def candidate_mode(u, r, fs, exclude_hz, hold="foh"):

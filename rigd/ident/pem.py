@@ -22,20 +22,12 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rigd.errors import InputError
+from rigd.ident.figures import fit_percent
 from rigd.ident.iddata import IdData
 from rigd.ident.structure import Structure
 
 METHODS = ("pem", "oe")
 _PENALTY = 1e3
-
-
-def fit_percent(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
-    """Fit per output, 100·(1 − ‖y − ŷ‖/‖y − mean(y)‖) (%), as MATLAB's ``compare``."""
-    y = np.atleast_2d(np.asarray(y, float).T).T
-    yhat = np.atleast_2d(np.asarray(yhat, float).T).T
-    num = np.linalg.norm(y - yhat, axis=0)
-    den = np.linalg.norm(y - y.mean(axis=0), axis=0)
-    return 100.0 * (1.0 - num / np.maximum(den, 1e-300))
 
 
 @dataclass

@@ -144,9 +144,12 @@ def test_runout_standstill_cannot_tell_spinning_can(rpm):
 
 
 def test_detectability_holds_the_findings_rules():
-    """The effects layer keeps its own copy of the findings' thresholds: they must match."""
+    """The effects layer and the diagnosis use the same thresholds: one home
+    (rigd.ident.thresholds), imported by both, no copy."""
     from rigd.diagnose import engine
     from rigd.effects import detectability as DT
+    from rigd.ident import thresholds as T
 
-    assert (DT.P_DETECT, DT.MIN_SHARE, DT.MIN_POINTS) == (
-        engine.P_LEVEL, engine.MIN_REFIT_GAIN, engine.MIN_FIT_GAIN)
+    assert (DT.P_LEVEL, DT.MIN_REFIT_GAIN, DT.MIN_FIT_GAIN) == (
+        engine.P_LEVEL, engine.MIN_REFIT_GAIN, engine.MIN_FIT_GAIN) == (
+        T.P_LEVEL, T.MIN_REFIT_GAIN, T.MIN_FIT_GAIN)
