@@ -292,6 +292,7 @@ class ComparisonResult:
 
 def compare(model: Any, data: Record | str | Path, *,
             runout: Record | str | Path | None = None, part: str = "all",
+            x0: str = "estimation",
             report: str | Path | None = None, title: str | None = None,
             **load_kw: Any) -> ComparisonResult:
     """Simulate a model on a record: fit per output and residual statistics.
@@ -307,6 +308,12 @@ def compare(model: Any, data: Record | str | Path, *,
         Run-out record for the run-out filter.
     part : {"all", "validation", "estimation"}
         Which part of the record (the model's split) to compare.
+    x0 : {"estimation", "estimate"}
+        ``part="validation"``: the initial state (and output offsets) from the estimation
+        part (default: nothing fitted on the held-out samples, the figure other tools
+        give), or ``"estimate"``: re-estimated on the validation samples themselves
+        (labelled so in ``summary()["initial_state"]``). Other parts: estimated on the
+        compared samples.
     report : path, optional
         Write the report into this directory: ``index.html``, interactive (measured vs
         simulated, residual spectrum, by amplitude and angle; :mod:`rigd.diagnose.compare_page`),
@@ -330,7 +337,7 @@ def compare(model: Any, data: Record | str | Path, *,
     mf = _as_model(model)
     record = as_record(data, **load_kw)
     ro = as_record(runout) if runout is not None else None
-    comps = compare_model(mf, record, ro, part)
+    comps = compare_model(mf, record, ro, part, x0)
     warnings = [w for w in file_warnings(mf) if w.split(":", 1)[0] in comps]
     res = ComparisonResult(comps, describe_source(record.meta), warnings=warnings)
     if report:

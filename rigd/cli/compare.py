@@ -22,6 +22,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runout", metavar="RUNOUT", help="run-out record for the run-out filter")
     p.add_argument("--part", choices=["all", "validation", "estimation"], default="all",
                    help="which part of the record (the model file's split) to compare")
+    p.add_argument("--x0", choices=["estimation", "estimate"], default="estimation",
+                   help="--part validation: initial state and output offsets from the "
+                        "estimation part (default; nothing is fitted on the held-out samples) "
+                        "or re-estimated on the validation samples themselves (estimate)")
     p.add_argument("--report", metavar="DIR", help="write the report into DIR: index.html "
                    "(interactive, self-contained, opens offline) and the PNG figures")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -31,8 +35,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from rigd import api
+    from rigd.ident.compare import X0_LABELS
 
-    res = api.compare(args.model, args.data, runout=args.runout, part=args.part,
+    res = api.compare(args.model, args.data, runout=args.runout, part=args.part, x0=args.x0,
                       report=args.report, title=f"{args.model} vs {args.data}",
                       **load_options(args))
     out = res.summary()
@@ -42,6 +47,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         print_source(res.source)
         for name, c in res.comparisons.items():
+            print(f"[{name}] initial state "
+                  f"{X0_LABELS[c.extra.get('initial_state', 'estimate')]}")
             print(f"[{name}] " + ", ".join(f"{o}: fit {f:.2f} %, residual rms "
                                           f"{c.residual[o]['rms']:.4g}"
                                           for o, f in zip(c.data.output_names, c.fit)))

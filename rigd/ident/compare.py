@@ -1,10 +1,11 @@
 """Model versus measurement (MATLAB ``compare``-like) and its HTML report (paper Fig. 2).
 
 :func:`compare_model` simulates every sub-model of a model file on a record (prefiltered as at
-identification; initial state re-estimated by least squares on that record) and returns the
+identification; initial state estimated by least squares, see ``x0``) and returns the
 fit per output, 100·(1 − ‖y − ŷ‖/‖y − ȳ‖), and residual statistics. The *whole* given record
 is used: give it held-out data (another record, or the validation part of the identification
-record, ``--part validation``).
+record, ``--part validation``: by default its initial state comes from the estimation part,
+so nothing is fitted on the held-out samples; ``x0="estimate"`` re-estimates it there).
 
 :func:`write_report` makes the HTML report: measured vs simulated outputs, the inputs, the
 residual ε = p_meas − p_id, time zooms of each, and the model's Bode plot over the empirical
@@ -70,13 +71,32 @@ def _part(model: ModelFile, part: str, n: int, where: str) -> tuple[int, int]:
     return a, b
 
 
+#: where the initial state (and output offsets) of a compared model come from: ``estimation``
+#: (the validation part's state from the estimation part: the model runs on through both,
+#: nothing is fitted on the compared samples; the default of ``--part validation``) or
+#: ``estimate`` (re-estimated by least squares on the compared samples themselves)
+X0_SOURCES = ("estimation", "estimate")
+
+#: the label of each source, printed and in the JSON (``initial_state``)
+X0_LABELS = {"estimation": "from the estimation part (nothing fitted on the compared samples)",
+             "estimate": "re-estimated on the compared samples"}
+
+
 def compare_model(model: ModelFile, record: Record, runout: Record | None = None,
-                  part: str = "all") -> dict[str, Comparison]:
+                  part: str = "all", x0: str = "estimation") -> dict[str, Comparison]:
     """Compare every sub-model of ``model`` that ``record`` has columns for.
 
     ``part``: ``all`` (whole record), ``validation`` / ``estimation`` (the split stored in the
-    model file, as a fraction of the record).
+    model file, as a fraction of the record). ``x0`` (``--part validation`` only): the initial
+    state and output offsets from the estimation part (``estimation``, default: least squares
+    on the estimation part, then the model simulated on through the validation part, which
+    is what the fit is measured on) or ``estimate`` (re-estimated on the validation samples
+    themselves, as other records are compared). The whole record and the estimation part
+    are compared with their state estimated on the compared samples. Each comparison says
+    which (``extra["initial_state"]``).
     """
+    if x0 not in X0_SOURCES:
+        raise InputError(f"x0 must be one of {', '.join(X0_SOURCES)} (got {x0!r})", "--x0")
     if abs(model.fs - record.fs) > 1e-6 * model.fs:
         raise InputError(f"record sample rate {record.fs:g} Hz differs from the model's "
                          f"{model.fs:g} Hz", record.source)
@@ -95,21 +115,46 @@ def compare_model(model: ModelFile, record: Record, runout: Record | None = None
                 continue
         need = samples_needed(sm.structure)
         data, _ = prepare(rec, name, _options_from(model, name), runout, min_samples=need)
-        if part != "all":
+        source = "estimate"
+        if part == "all":
+            theta = estimate_x0(sm.structure, sm.theta, data)
+            yhat = np.asarray(sm.structure.simulate(theta, data))
+        elif part == "validation" and x0 == "estimation":
+            source = "estimation"
+            data, theta, yhat = _run_on(model, sm, data, need, record.source)
+        else:
             data = data.slice(*_part(model, part, data.n, record.source))
-            if data.n < need:
-                raise InputError(f"--part {part} has {data.n} samples; the {name} model "
-                                 f"needs at least {need} to be compared (its initial "
-                                 "states are estimated on the record)", record.source)
-        theta = estimate_x0(sm.structure, sm.theta, data)
-        yhat = np.asarray(sm.structure.simulate(theta, data))
+            _enough(data.n, need, part, name, record.source)
+            theta = estimate_x0(sm.structure, sm.theta, data)
+            yhat = np.asarray(sm.structure.simulate(theta, data))
         out[name] = Comparison(name, data, yhat, fit_percent(data.y, yhat),
                                residual_stats(data.y, yhat, data.output_names), theta,
-                               sm.structure)
+                               sm.structure, {"initial_state": source})
     if not out:
         raise InputError("record has the columns of none of the model's sub-models ("
                          + ", ".join(model.submodels) + ")", record.source)
     return out
+
+
+def _enough(n: int, need: int, part: str, name: str, where: str) -> None:
+    if n < need:
+        raise InputError(f"--part {part} has {n} samples; the {name} model needs at least "
+                         f"{need} to be compared (its initial states are estimated on the "
+                         "record)", where)
+
+
+def _run_on(model: ModelFile, sm, data: IdData, need: int, where: str):
+    """The validation part with the state from the estimation part: x0 and offsets fitted
+    on the estimation samples, the model simulated from the start of the earlier of the two
+    parts to the end of the later one; returns (validation data, theta, its simulation)."""
+    a, b = _part(model, "validation", data.n, where)
+    e0, e1 = _part(model, "estimation", data.n, where)
+    _enough(e1 - e0, need, "estimation", sm.name, where)
+    s0, s1 = min(a, e0), max(b, e1)
+    run = data.slice(s0, s1)
+    theta = estimate_x0(sm.structure, sm.theta, run, rows=slice(e0 - s0, e1 - s0))
+    ysim = np.asarray(sm.structure.simulate(theta, run))
+    return data.slice(a, b), theta, ysim[a - s0:b - s0]
 
 
 def summary(comps: dict[str, Comparison]) -> dict[str, Any]:
@@ -122,7 +167,9 @@ def summary(comps: dict[str, Comparison]) -> dict[str, Any]:
             "fit_per_output": {n: dict(zip(c.data.output_names, map(float, c.fit)))
                                for n, c in comps.items()},
             "residual": {n: c.residual for n, c in comps.items()},
-            "n_samples": {n: c.data.n for n, c in comps.items()}}
+            "n_samples": {n: c.data.n for n, c in comps.items()},
+            "initial_state": {n: c.extra.get("initial_state", "estimate")
+                              for n, c in comps.items()}}
 
 
 def model_frequency_response(structure, theta, f_hz: np.ndarray) -> np.ndarray:
@@ -159,8 +206,9 @@ def write_report(comps: dict[str, Comparison], out: str | Path, title: str = "Mo
 def add_figures(rep, comps: dict[str, Comparison], zoom_s: float | None = None) -> None:
     """Add the fit tables and the PNG figures of :func:`write_report` to ``rep``
     (a :class:`rigd.htmlreport.Report`)."""
+    src = {X0_LABELS[c.extra.get("initial_state", "estimate")] for c in comps.values()}
     rep.text("Fit = 100·(1 − ‖y − ŷ‖/‖y − mean(y)‖) per output, ŷ simulated from the inputs "
-             "only (initial state estimated on this record).")
+             f"only (initial state {'; '.join(sorted(src))}).")
     for name, c in comps.items():
         d = c.data
         t = np.arange(d.n) / d.fs

@@ -74,12 +74,16 @@ def prepare(record: Record, submodel: str, options: PrefilterOptions | None = No
     return from_record(filt, submodel, **kw), rep
 
 
-def estimate_x0(structure, theta: np.ndarray, data: IdData) -> np.ndarray:
+def estimate_x0(structure, theta: np.ndarray, data: IdData,
+                rows: slice | None = None) -> np.ndarray:
     """theta with the initial-state entries (and constant output offsets, where the structure
     has them: the record's own zero) re-estimated on ``data`` by least squares.
 
     The free response is linear in x0 for the mechanical structures, so one simulation per
-    state gives the regressors.
+    state gives the regressors. ``rows``: the samples of ``data`` the least squares fit
+    (default: all); the initial state is still the one at ``data``'s first sample, so
+    ``rows`` = the estimation part and ``data`` = estimation + validation gives the
+    validation part's state from the estimation part alone.
     """
     base = structure
     while hasattr(base, "effect"):  # effect wrappers (their parameters come last)
@@ -104,8 +108,9 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData) -> np.ndarray:
         t1 = th.copy()
         t1[i] = d
         cols.append(((np.asarray(structure.simulate(t1, data)) - y0) / d).ravel())
-    A = np.column_stack(cols)
-    b = (data.y - y0).ravel()
+    rows = slice(None) if rows is None else rows
+    A = np.column_stack([c.reshape(data.y.shape)[rows].ravel() for c in cols])
+    b = (data.y - y0)[rows].ravel()
     if not (np.all(np.isfinite(A)) and np.all(np.isfinite(b))):
         th[idx] = np.asarray(theta, float)[idx]  # keep the model's own initial state
         return th
