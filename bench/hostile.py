@@ -39,10 +39,32 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.socket_load import RIGD, _call, _counts, start_daemon, stop_daemon
+from bench.socket_load import RIGD, start_daemon, stop_daemon
 from bench.web import _start_web
 from rigd.controller import save_controller
 from rigd.service.safe_request import SafeWordClient
+
+
+def _call(sock_path: str, cmd: str, timeout: float = 120.0) -> dict:
+    """One request on a connection of its own (a long bound: the socket process is niced and
+    the machine may be busy)."""
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    s.settimeout(timeout)
+    s.connect(sock_path)
+    s.sendall((json.dumps({"id": 1, "cmd": cmd}) + "\n").encode())
+    buf = b""
+    while not buf.endswith(b"\n"):
+        chunk = s.recv(65536)
+        if not chunk:
+            break
+        buf += chunk
+    s.close()
+    return json.loads(buf)["result"]
+
+
+def _counts(sock_path: str) -> tuple[int, int]:
+    t = _call(sock_path, "timing")
+    return int(t["cycles"]), int(t["overruns"])
 
 
 def big_controller(path: Path, order: int = 64, pad: int = 20000) -> Path:
@@ -117,8 +139,8 @@ def run(pairs: int = 6, window_s: float = 1.0, streams: int = 100,
         tmp = Path(d)
         ctrl = big_controller(tmp / "big-controller.yaml")
         text = ctrl.read_text()
-        proc, sock = start_daemon(tmp)
-        web, url = _start_web(tmp, sock)
+        proc, sock = start_daemon(tmp, wait_s=600.0)   # a busy machine: minutes
+        web, url = _start_web(tmp, sock, wait_s=600.0)
         token = (tmp / "token").read_text().strip()
         fs = float(_call(sock, "status")["fs_hz"])
         lat_ms, hostile, idle = [], [0, 0], [0, 0]

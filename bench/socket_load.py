@@ -203,7 +203,8 @@ def hammer(sock_path: str, *, clients: int = 20, rate: float = 1000.0,
             "reply_p99_ms": float(np.percentile(lat, 99) * 1e3) if lat.size else 0.0}
 
 
-def start_daemon(tmp: Path, *extra: str) -> tuple[subprocess.Popen, str]:
+def start_daemon(tmp: Path, *extra: str, wait_s: float = 120.0
+                 ) -> tuple[subprocess.Popen, str]:
     sock = str(tmp / "rigd.sock")
     env = dict(os.environ)
     env.pop("NOTIFY_SOCKET", None)
@@ -211,7 +212,7 @@ def start_daemon(tmp: Path, *extra: str) -> tuple[subprocess.Popen, str]:
         proc = subprocess.Popen([RIGD, "run", "--config", str(_config(tmp)), "--socket", sock,
                                  *extra], stdout=subprocess.DEVNULL, stderr=err, env=env,
                                 cwd=str(tmp))
-    end = time.monotonic() + 120
+    end = time.monotonic() + wait_s
     while time.monotonic() < end:
         if proc.poll() is not None:
             raise RuntimeError(f"daemon exited: {(tmp / 'daemon.err').read_text()[-2000:]}")

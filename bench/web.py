@@ -94,7 +94,7 @@ def _client_main(url: str, go, stop, out) -> None:
                  "error": f"{type(exc).__name__}: {exc}"})
 
 
-def _start_web(tmp: Path, sock: str) -> tuple[subprocess.Popen, str]:
+def _start_web(tmp: Path, sock: str, wait_s: float = 60.0) -> tuple[subprocess.Popen, str]:
     (tmp / "runs").mkdir(exist_ok=True)
     err = open(tmp / "web.err", "w+")  # noqa: SIM115 - closed with the process
     proc = subprocess.Popen([RIGD, "web", "--socket", sock, "--listen", "127.0.0.1:0",
@@ -102,7 +102,7 @@ def _start_web(tmp: Path, sock: str) -> tuple[subprocess.Popen, str]:
                              str(ROOT / "config"), "--token-file", str(tmp / "token")],
                             stdout=subprocess.DEVNULL, stderr=err, cwd=str(tmp))
     proc.err = err
-    end = time.monotonic() + 60
+    end = time.monotonic() + wait_s
     while time.monotonic() < end:
         err.seek(0)
         m = re.search(r"serving (http://[0-9.]+:\d+)/", err.read())

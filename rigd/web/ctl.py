@@ -26,7 +26,7 @@ class DaemonDown(Exception):
 
 
 class DaemonSilent(Exception):
-    """Connected, but no (complete) reply in time (-> HTTP 504): a command may still have
+    """Connected, but no (complete) reply in time (-> HTTP 504): a command may have
     been applied, so the caller must not assume either outcome."""
 
 
@@ -68,8 +68,9 @@ class Daemon:
         try:
             reply = client.request(cmd, **args)
         except (InputError, OSError, ValueError) as exc:
-            raise DaemonSilent(f"no complete reply from the daemon to {cmd} ({exc}); it may "
-                               "still have been applied: check the status") from None
+            raise DaemonSilent(f"no complete reply from the daemon to {cmd} ({exc}); it may have "
+                               "been applied before its deadline, never after: check the "
+                               "status") from None
         finally:
             client.close()
         if not reply.get("ok"):
