@@ -96,7 +96,7 @@ class _Streams(threading.Thread):
             s.setblocking(False)
             self.socks.append(s)
         self.bytes = 0
-        self._stop = threading.Event()
+        self._halt = threading.Event()
         self.start()
 
     def run(self):
@@ -105,7 +105,7 @@ class _Streams(threading.Thread):
         sel = selectors.DefaultSelector()
         for s in self.socks:
             sel.register(s, selectors.EVENT_READ)
-        while not self._stop.is_set():
+        while not self._halt.is_set():
             for key, _ in sel.select(0.1):
                 try:
                     data = key.fileobj.recv(1 << 16)
@@ -116,7 +116,7 @@ class _Streams(threading.Thread):
                 self.bytes += len(data)
 
     def close(self):
-        self._stop.set()
+        self._halt.set()
         self.join(5)
         for s in self.socks:
             s.close()
