@@ -56,6 +56,11 @@ def _data_hash(data: Any) -> str | None:
     return None if isinstance(data, Record) else sha256_file(data)
 
 
+def _yardstick_json(ys: dict[str, Any]) -> dict[str, Any]:
+    """``{"generic": {...}}`` (per sub-model) of :class:`rigd.ident.yardstick.Yardstick`s."""
+    return {n: (y.to_json() if y is not None else None) for n, y in ys.items()}
+
+
 # --- identify ------------------------------------------------------------------------------
 @dataclass
 class Identification:
@@ -75,6 +80,9 @@ class Identification:
     model: Any
     effects: list[str] = field(default_factory=list)
     source: dict[str, Any] = field(default_factory=dict)
+    #: per sub-model: what a plain ARX and a subspace model reach on the same split
+    #: (:class:`rigd.ident.yardstick.Yardstick`, None when the split does not allow it)
+    yardstick: dict[str, Any] = field(default_factory=dict)
 
     @property
     def submodels(self) -> list[str]:
@@ -133,6 +141,7 @@ class Identification:
                 "std": std, "readouts": plain(ro),
                 "fit_percent_per_output": {n: sm.fit_percent for n, sm in subs.items()},
                 "split": self.model.split, "operating_point": self.model.operating_point,
+                "yardstick": _yardstick_json(self.yardstick),
                 "source": self.source}
 
 
@@ -143,7 +152,7 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
              hold: str = "auto", offsets: bool = True, median: bool = True,
              runout_filter: bool = True, offset_samples: int = 2000,
              out: str | Path | None = None, order: str | int = "auto",
-             **load_kw: Any) -> Identification:
+             yardstick: bool = True, **load_kw: Any) -> Identification:
     """Identify grey-box models of a record by the prediction-error method (paper Sec. 4).
 
     Parameters
@@ -178,6 +187,9 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
     order : "auto" or int
         Generic records: modes of the base model, or ``auto`` (chosen from the data,
         :func:`rigd.ident.order.choose_order`).
+    yardstick : bool
+        Fit a plain ARX and a subspace model on the same split and report what they reach
+        (``.yardstick``, ``"yardstick"`` in the JSON; docs/diagnose.md "Yardstick").
 
     Returns
     -------
@@ -206,7 +218,13 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
                             hold=hold, order=order)
     if out:
         model.save(out)
-    return Identification(model, effects, describe_source(record.meta))
+    ys = {}
+    if yardstick:
+        from rigd.ident.compare import yardsticks
+
+        ys = yardsticks(model, record, ro, {n: sm.fit_percent["validation_mean"]
+                                            for n, sm in model.submodels.items()})
+    return Identification(model, effects, describe_source(record.meta), ys)
 
 
 def identify_sweep(run_dir: str | Path, *, out: str | Path | None = None,
@@ -271,6 +289,9 @@ class ComparisonResult:
     source: dict[str, Any] = field(default_factory=dict)
     report: str | None = None
     warnings: list[str] = field(default_factory=list)
+    #: ``part="validation"``: per sub-model, what a plain ARX and a subspace model reach
+    #: on the same split (:class:`rigd.ident.yardstick.Yardstick`)
+    yardstick: dict[str, Any] = field(default_factory=dict)
 
     @property
     def fit_percent(self) -> float | dict[str, float]:
@@ -286,6 +307,8 @@ class ComparisonResult:
         if self.report:
             res["report"] = self.report
         res["warnings"] = list(self.warnings)
+        if self.yardstick:
+            res["yardstick"] = _yardstick_json(self.yardstick)
         res["source"] = self.source
         return res
 
@@ -294,7 +317,7 @@ def compare(model: Any, data: Record | str | Path, *,
             runout: Record | str | Path | None = None, part: str = "all",
             x0: str = "estimation",
             report: str | Path | None = None, title: str | None = None,
-            **load_kw: Any) -> ComparisonResult:
+            yardstick: bool = True, **load_kw: Any) -> ComparisonResult:
     """Simulate a model on a record: fit per output and residual statistics.
 
     Parameters
@@ -314,6 +337,10 @@ def compare(model: Any, data: Record | str | Path, *,
         give), or ``"estimate"``: re-estimated on the validation samples themselves
         (labelled so in ``summary()["initial_state"]``). Other parts: estimated on the
         compared samples.
+    yardstick : bool
+        With ``part="validation"`` and the default ``x0``: fit a plain ARX and a subspace
+        model on the model's estimation part and report what they reach on its validation
+        part (``.yardstick``; a warning when the model is worse).
     report : path, optional
         Write the report into this directory: ``index.html``, interactive (measured vs
         simulated, residual spectrum, by amplitude and angle; :mod:`rigd.diagnose.compare_page`),
@@ -339,7 +366,15 @@ def compare(model: Any, data: Record | str | Path, *,
     ro = as_record(runout) if runout is not None else None
     comps = compare_model(mf, record, ro, part, x0)
     warnings = [w for w in file_warnings(mf) if w.split(":", 1)[0] in comps]
-    res = ComparisonResult(comps, describe_source(record.meta), warnings=warnings)
+    ys = {}
+    if yardstick and part == "validation" and x0 == "estimation":
+        from rigd.ident.compare import yardsticks
+
+        ys = yardsticks(mf, record, ro, {n: float(np.mean(c.fit)) for n, c in comps.items()})
+        warnings += [f"{n}: {y.warning()}" for n, y in ys.items()
+                     if y is not None and y.warning()]
+    res = ComparisonResult(comps, describe_source(record.meta), warnings=warnings,
+                           yardstick=ys)
     if report:
         res.report = str(write_compare_page(comps, report, title or f"{mf.source} vs "
                                             f"{record.source}", warnings=warnings))

@@ -52,6 +52,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"[{name}] " + ", ".join(f"{o}: fit {f:.2f} %, residual rms "
                                           f"{c.residual[o]['rms']:.4g}"
                                           for o, f in zip(c.data.output_names, c.fit)))
+        for name, ys in res.yardstick.items():
+            if ys is not None:
+                print(f"[{name}] yardstick: {ys.describe()}")
         for w in res.warnings:
             print(f"WARNING {w}")
         if args.report:

@@ -68,6 +68,8 @@ def summary(out: dict) -> str:
         fits = ", ".join(f"{k}: {v} %" for k, v in o["validation_fit_by_modes"].items())
         lines.append(f"base model order [{sub}]: {o['modes']} mode(s) (validation fit by "
                      f"number of modes: {fits}; {o['reason']})")
+    for sub, y in (out.get("yardstick") or {}).items():
+        lines.append(f"yardstick [{sub}]: {y['text']}")
     lines += [f"   WARNING {n}" for n in out.get("notes", []) if "WARNING" in n]
     steps = out.get("steps", [])
     for sub, seq in (steps.items() if isinstance(steps, dict) else [("", steps)]):

@@ -67,7 +67,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_plain_csv_arguments(p)
 
 
-def _print_human(model, out) -> None:
+def _print_human(model, out, yardstick: dict | None = None) -> None:
     split = model.split or {}
     if "fraction" in split or "validation" not in split:
         part = f"last {100 * (1 - split.get('fraction', 2 / 3)):.0f} %"
@@ -79,6 +79,11 @@ def _print_human(model, out) -> None:
               + ", ".join(f"{o} {v:.2f} %" for o, v in zip(fp["outputs"], fp["validation"]))
               + "   (estimation: " + ", ".join(f"{v:.2f} %" for v in fp["estimation"]) + ")",
               file=out)
+        ys = (yardstick or {}).get(name)
+        if ys is not None:
+            print(f"  yardstick: {ys.describe()}", file=out)
+            if ys.warning():
+                print(f"  WARNING: {ys.warning()}", file=out)
         if "input_hold" in fp:
             print(f"  inputs between samples: {_hold_text(fp['input_hold'])}", file=out)
         for n, v, s in zip(sm.structure.names, sm.theta, sm.std):
@@ -144,7 +149,7 @@ def run(args: argparse.Namespace) -> int:
         print()
     else:
         print_source(idf.source)
-        _print_human(idf.model, sys.stdout)
+        _print_human(idf.model, sys.stdout, idf.yardstick)
         if args.out:
             print(f"model written to {args.out}")
     return 0

@@ -14,6 +14,7 @@ from typing import Any
 from rigd.diagnose.engine import MAX_STEPS, SubDiagnosis, diagnose_data
 from rigd.ident.hold import choose_hold
 from rigd.ident.mechanical import structure_for
+from rigd.ident.yardstick import measure
 
 #: longest stretch analysed (samples); longer records are analysed on a window
 MAX_SAMPLES = 40_000
@@ -50,6 +51,8 @@ class Diagnosis:
             "tests": {p.submodel: p.tests for p in self.parts},
             "analysed_samples": {p.submodel: list(p.window) for p in self.parts},
             "order": {p.submodel: p.order for p in self.parts if p.order is not None},
+            "yardstick": {p.submodel: p.yardstick.to_json() for p in self.parts
+                          if p.yardstick is not None},
             "notes": list(self.notes),
         }
 
@@ -71,7 +74,8 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                     effects: list[str] | None = None, refit: bool = True,
                     max_samples: int = MAX_SAMPLES, options=None,
                     hold: str = "auto", split: float | None = None,
-                    max_steps: int = MAX_STEPS, order: str | int = "auto") -> Diagnosis:
+                    max_steps: int = MAX_STEPS, order: str | int = "auto",
+                    yardstick: bool = True) -> Diagnosis:
     """Diagnose a :class:`rigd.data.Record` (prefilters of §4.4, then each sub-model).
 
     The base model of each sub-model is what ``rigd identify --method oe`` fits on the same
@@ -90,6 +94,11 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
     carries, output-error refinement, kept while it adds ≥ 0.5 validation points), so the
     effects are sought on the best linear model of the class; or the number of modes.
     A higher order than one mode per output is reported (note and ``order`` in the JSON).
+
+    ``yardstick``: fit a plain ARX and a subspace model on the same split
+    (:mod:`rigd.ident.yardstick`): reported beside the base model (``yardstick`` in the
+    JSON, a warning when the base is worse) and the measure of what is reachable for the
+    structure left unexplained (:mod:`rigd.diagnose.unexplained`).
     """
     from rigd.errors import InputError
     from rigd.ident.workflow import DEFAULT_SPLIT, prepare
@@ -140,9 +149,12 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                              f"base model has {chosen.modes} modes (fit "
                              f"{chosen.fits[structure.base.n]:.2f} % with "
                              f"{structure.base.n})")
+        # the yardstick: what a plain linear model reaches on the same split (also the
+        # measure of what is reachable for the unexplained structure)
+        ys = measure(data.u, data.y, est, val, float("nan"), data.fs) if yardstick else None
         sd = diagnose_data(data, sub, structure=structure, est=est, val=val, effects=effects,
                            refit=refit, max_steps=max_steps, theta0=theta0,
-                           offsets=offsets, start=window[0],
+                           offsets=offsets, start=window[0], yardstick=ys,
                            # a hold chosen by the linear base is asked again with the effects
                            other_hold=({"zoh": "foh", "foh": "zoh"}[choice.hold]
                                        if choice.source == "fit" else None))
@@ -156,6 +168,8 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                 break
             notes += [f"{sub}: {what}: WARNING: {w}" for w in model_warnings(st.structure,
                                                                             st.theta)]
+        if ys is not None and ys.warning():
+            notes.append(f"{sub}: base model: WARNING: {ys.warning()}")
         sd.window = window
         parts.append(sd)
     return Diagnosis(parts, record.source, notes)

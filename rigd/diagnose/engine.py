@@ -88,6 +88,9 @@ class SubDiagnosis:
     order: dict[str, Any] | None = None
     #: what the engine decided along the way (e.g. the input hold asked again)
     notes: list[str] = field(default_factory=list)
+    #: what a plain ARX and a subspace model reach on the same split
+    #: (:class:`rigd.ident.yardstick.Yardstick`, ``model_fit`` = the base model's fit)
+    yardstick: Any = None
 
     @property
     def final(self) -> Step:
@@ -227,7 +230,8 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                   refit: bool = True, max_nfev: int | None = None,
                   theta0: np.ndarray | None = None,
                   max_steps: int = MAX_STEPS, offsets: dict[str, float] | None = None,
-                  start: int = 0, other_hold: str | None = None) -> SubDiagnosis:
+                  start: int = 0, other_hold: str | None = None,
+                  yardstick=None) -> SubDiagnosis:
     """Diagnose one sub-model on identification data by forward selection.
 
     Like a stepwise regression: fit the base model; test every effect on its residual
@@ -264,6 +268,9 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         Prefilter offsets per channel (levels under ``unexplained`` in the record's units).
     start : int
         Index of ``data``'s first sample in the record (samples under ``unexplained``).
+    yardstick : rigd.ident.yardstick.Yardstick, optional
+        Black-box references on the same split: what is reachable (``unexplained``); its
+        ``model_fit`` is set to the base model's fit.
 
     Returns
     -------
@@ -359,8 +366,10 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
     # a partial "cannot tell" (slow creep) is void once the effect was found
     cannot = [c for c in cannot if not (c.partial and c.effect in {f.effect for f in added})]
+    if yardstick is not None:
+        yardstick.model_fit = fp_base
     sd = SubDiagnosis(submodel, fp_base, added + findings, cannot, [], ctx0, {}, refits,
-                      (0, data.n), steps, notes=notes)
+                      (0, data.n), steps, notes=notes, yardstick=yardstick)
     _tests_and_unexplained(sd, offsets, start)
     return sd
 
@@ -396,19 +405,24 @@ def _tests_and_unexplained(sd: SubDiagnosis, offsets: dict[str, float] | None = 
     rb = (ctx.y - yb)[v]
     sig = {f.effect for f in sd.findings if f.significant}
     final_tests = _corr_tests(ctx, rb)
-    lev = U.level(rb / np.maximum(np.std(ctx.y[v], axis=0), 1e-300),
-                  ctx.y[v] / np.maximum(np.std(ctx.y[v], axis=0), 1e-300))
+    reach = (sd.yardstick.reachable(sd.final.fit_percent) if sd.yardstick is not None
+             else None)
+    w = 1.0 / np.maximum(np.std(ctx.y[v], axis=0), 1e-300)
+    lev = U.level(rb * w, ctx.y[v] * w, None if reach is None else reach["residual"] * w)
     tests["final_model"] = dict(final_tests, level={
         "rms_over_noise": round(min(lev["ratio"], 1e6), 3),
         "structured_share": round(lev["structured_share"], 4),
-        "worth_fit_points": round(U.worth(lev, ctx.y[v], rb), 3)})
+        "worth_fit_points": round(U.worth(lev, ctx.y[v], rb), 3),
+        **({"reachable_fit_points": round(reach["fit"] - reach["model_fit"], 3)}
+           if reach is not None else {})})
     skip = ([k * ctx.omega_hz for k in (1, 2)]
             if ctx.omega_hz > 0 and "runout" in sig else None)
     unexplained = U.report(rb, ctx.y[v], yb[v], ctx.u[v], ctx.fs, final_tests,
                            model_resonances(sd.final.structure, sd.final.theta),
                            ctx.output_names or [ctx.label(i) for i in range(ctx.ny)],
                            ctx.input_names or [ctx.label(j, "in") for j in range(ctx.nu)],
-                           skip_hz=skip, offsets=offsets, start=start + (v.start or 0))
+                           skip_hz=skip, offsets=offsets, start=start + (v.start or 0),
+                           reference=reach)
     if unexplained and not sig:   # structured, no effect found: a force outside the
         fr = P.dry_friction(ctx, P_LEVEL)   # catalogue? (rigd.diagnose.probes)
         if fr is not None:

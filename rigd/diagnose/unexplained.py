@@ -60,9 +60,15 @@ def noise_rms(x: np.ndarray, max_order: int = 4) -> float:
     return best
 
 
-def level(r: np.ndarray, y: np.ndarray) -> dict[str, Any]:
+def level(r: np.ndarray, y: np.ndarray, ref: np.ndarray | None = None) -> dict[str, Any]:
     """Residual level against the noise estimate, all outputs pooled (r, y: (n, ny), each
     column in the same units).
+
+    The noise estimate of each output is the smaller of the difference-based estimates
+    (:func:`noise_rms`) of the output and of the residual and, when given, the rms of
+    ``ref`` (n, ny): the residual of a reference model on the same samples (a black-box
+    model, :mod:`rigd.ident.yardstick`). What a reference reaches is not noise: a
+    difference-based estimate alone counts a fast response the model misses as noise.
 
     Returns ``{"rms", "noise_rms", "ratio", "structured_share"}``: ``structured_share`` is
     the share of the residual energy above the noise estimate (0..1).
@@ -70,7 +76,13 @@ def level(r: np.ndarray, y: np.ndarray) -> dict[str, Any]:
     r = np.atleast_2d(np.asarray(r, float).T).T
     y = np.atleast_2d(np.asarray(y, float).T).T
     ms = float(np.mean(np.sum((r - r.mean(axis=0)) ** 2, axis=1)))
-    nv = float(sum(min(noise_rms(y[:, i]), noise_rms(r[:, i])) ** 2 for i in range(r.shape[1])))
+    cap = [math.inf] * r.shape[1]
+    if ref is not None:
+        ref = np.atleast_2d(np.asarray(ref, float).T).T
+        if ref.shape == r.shape and np.all(np.isfinite(ref)):
+            cap = [float(np.std(ref[:, i])) for i in range(r.shape[1])]
+    nv = float(sum(min(noise_rms(y[:, i]), noise_rms(r[:, i]), cap[i]) ** 2
+                   for i in range(r.shape[1])))
     ratio = math.sqrt(ms / nv) if nv > 0 else math.inf
     share = min(max(1.0 - nv / ms, 0.0), 1.0) if ms > 0 else 0.0
     return {"rms": math.sqrt(ms), "noise_rms": math.sqrt(nv), "ratio": ratio,
@@ -354,7 +366,8 @@ def _band_suggestion(b: dict[str, Any], resonances: list[float], nyq: float) -> 
 def report(r: np.ndarray, y: np.ndarray, yhat: np.ndarray, u: np.ndarray, fs: float,
            tests: dict[str, Any], resonances: list[float], out_names: list[str],
            in_names: list[str], skip_hz: list[float] | None = None,
-           offsets: dict[str, float] | None = None, start: int = 0) -> list[dict[str, Any]]:
+           offsets: dict[str, float] | None = None, start: int = 0,
+           reference: dict[str, Any] | None = None) -> list[dict[str, Any]]:
     """Unexplained structure of a residual ``r`` = ``y`` − ``yhat`` (validation part).
 
     Parameters
@@ -377,6 +390,11 @@ def report(r: np.ndarray, y: np.ndarray, yhat: np.ndarray, u: np.ndarray, fs: fl
         Prefilter offsets per channel, added back so levels are in the record's units.
     start : int
         Index of the first sample of ``r`` in the record (times and samples reported).
+    reference : dict, optional
+        What is reachable: ``{"residual": (n, ny), "fit": %, "model_fit": %, "label": str}``
+        of the best black-box reference on the same split (:mod:`rigd.ident.yardstick`).
+        Its residual caps the noise estimate, and a model ≥ ``MIN_WORTH`` points below it
+        always has structure left (a 9 % fit is never "nothing unexplained").
 
     Returns
     -------
@@ -391,32 +409,51 @@ def report(r: np.ndarray, y: np.ndarray, yhat: np.ndarray, u: np.ndarray, fs: fl
     r, y, yhat, u = (np.atleast_2d(np.asarray(x, float).T).T for x in (r, y, yhat, u))
     offsets = offsets or {}
     w = 1.0 / np.maximum(np.std(y, axis=0), 1e-300)
-    lev = level(r * w, y * w)
+    ref_r = reference.get("residual") if reference else None
+    lev = level(r * w, y * w, None if ref_r is None else np.asarray(ref_r, float) * w)
+    gap = (float(reference["fit"]) - float(reference["model_fit"])) if reference else 0.0
+    why = _why(tests, lev, reference if gap >= MIN_WORTH else None)
+    if not why or (worth(lev, y, r) < MIN_WORTH and gap < MIN_WORTH):
+        return []
+    found = _band_entries(r * w, fs, lev, resonances, skip_hz)
+    found += _amplitude_entries(r, y, yhat, u, out_names, in_names, w, offsets)
+    found += _segment_entry(r * w, fs, start)
+    found += _direction_entry(r * w, u, in_names)
+    return [_head(lev, why, found)] + found
+
+
+def _why(tests: dict[str, Any], lev: dict[str, Any],
+         reference: dict[str, Any] | None) -> list[str]:
+    """Why the residual counts as structured (empty: it does not)."""
     white = [(k, v["outside"]) for k, v in tests.get("whiteness", {}).items()
              if not v["passed"]]
     cross = [(k, v["outside"]) for k, v in tests.get("cross_correlation", {}).items()
              if not v["passed"]]
-    loud = lev["ratio"] > LEVEL_RATIO
-    if not (white or cross or loud) or worth(lev, y, r) < MIN_WORTH:
-        return []
     why = []
+    if reference is not None:
+        why.append(f"{reference['label']} reaches {reference['fit']:.2f} % on the same split "
+                   f"against this model's {reference['model_fit']:.2f} %")
     if white:
         why.append("whiteness fails (" + ", ".join(f"{k}: {N.share(o)} of lags outside the "
                                                    "99 % bound" for k, o in white) + ")")
     if cross:
         why.append("the residual correlates with the input (" + ", ".join(
             f"{k}: {N.share(o)} of lags" for k, o in cross) + ")")
-    if loud:
+    if lev["ratio"] > LEVEL_RATIO:
         why.append(f"its rms is {lev['ratio']:.1f}× the measurement-noise estimate")
-    total = lev["structured_share"]
-    nyq = fs / 2.0
+    return why
+
+
+def _band_entries(rw: np.ndarray, fs: float, lev: dict[str, Any], resonances: list[float],
+                  skip_hz: list[float] | None) -> list[dict[str, Any]]:
+    """Frequency bands holding the structure (:func:`bands`), run-out harmonics skipped."""
     found = []
-    for b in bands(r * w, fs, lev["noise_rms"] ** 2):
+    for b in bands(rw, fs, lev["noise_rms"] ** 2):
         lo, hi = b["band_hz"]
         if skip_hz and any(lo - 0.03 * h <= h <= hi + 0.03 * h for h in skip_hz):
             continue
         d = b["digits"]
-        sugg = _band_suggestion(b, resonances, nyq)
+        sugg = _band_suggestion(b, resonances, fs / 2.0)
         found.append({
             "where": {"frequency_hz": b["frequency_hz"], "band_hz": b["band_hz"]},
             "share": round(b["share"], 4),
@@ -425,66 +462,93 @@ def report(r: np.ndarray, y: np.ndarray, yhat: np.ndarray, u: np.ndarray, fs: fl
                      f"{fmt(lo, d)}–{fmt(hi, d)} Hz (peak {N.freq(b['frequency_hz'], fs)}"
                      f"; spectral resolution "
                      f"{fmt(b['resolution_hz'], 2)} Hz): {sugg}")})
+    return found
+
+
+def _amplitude_entries(r, y, yhat, u, out_names, in_names, w,
+                       offsets: dict[str, float]) -> list[dict[str, Any]]:
+    """Where in amplitude the error lives (:func:`amplitude`), in the record's units."""
+    found = []
     for a in amplitude(r, y, yhat, u, out_names, in_names, w):
         off = float(offsets.get(a["of"], 0.0))
         if a["kind"] == "saturation":
-            a["limit"] += off
-            a["model_extreme"] += off
-            a["range"] = [v + off for v in a["range"]]
-            sugg = ("a saturation outside the catalogue (overflow, end stop, clipping, a "
-                    "limited actuator); repeat at amplitudes that stay below the limit, or "
-                    "model the limit")
-            ext = "maximum" if a["side"] == "top" else "minimum"
-            text = (f"{N.share(a['share'])} of the error energy lies where the model's "
-                    f"{a['of']} goes past the measured {ext}: "
-                    f"the measured {a['of']} flattens at {a['limit']:.4g} ({N.share(a['pile'])} "
-                    f"of the samples within the {a['side']} 3 % of its range) while the model "
-                    f"reaches {a['model_extreme']:.4g}: {sugg}")
-            where = {"amplitude_range": [float(f"{v:.6g}") for v in a["range"]],
-                     "of": a["of"], "variable": "output", "saturation": a["side"]}
-        else:
-            big = a["kind"] == "large amplitude"
-            sugg = ("an amplitude-dependent effect outside the catalogue (saturation, "
-                    "softening, a limit)" if big else
-                    "an effect at small amplitude (dead zone, friction, backlash, "
-                    "quantisation)") + "; repeat the experiment at another amplitude"
-            lo, hi = a["range"]
-            a["centre"] += off
-            text = (f"{N.share(a['share'])} of the error energy lies at "
-                    f"{'large' if big else 'small'} {a['variable']} amplitude "
-                    f"(|{a['of']} − {a['centre']:.4g}| in {lo:.4g}..{hi:.4g}, a quarter of the "
-                    f"samples), where the error is {a['ratio']:.1f}× "
-                    f"{'what the amplitude alone gives' if big else 'its average'}: {sugg}")
-            where = {"amplitude_range": [float(f"{lo:.6g}"), float(f"{hi:.6g}")],
-                     "of": a["of"], "variable": a["variable"], "about": a["centre"],
-                     "amplitude": "large" if big else "small"}
+            found.append(_saturation_entry(a, off))
+            continue
+        big = a["kind"] == "large amplitude"
+        sugg = ("an amplitude-dependent effect outside the catalogue (saturation, "
+                "softening, a limit)" if big else
+                "an effect at small amplitude (dead zone, friction, backlash, "
+                "quantisation)") + "; repeat the experiment at another amplitude"
+        lo, hi = a["range"]
+        a["centre"] += off
+        text = (f"{N.share(a['share'])} of the error energy lies at "
+                f"{'large' if big else 'small'} {a['variable']} amplitude "
+                f"(|{a['of']} − {a['centre']:.4g}| in {lo:.4g}..{hi:.4g}, a quarter of the "
+                f"samples), where the error is {a['ratio']:.1f}× "
+                f"{'what the amplitude alone gives' if big else 'its average'}: {sugg}")
+        where = {"amplitude_range": [float(f"{lo:.6g}"), float(f"{hi:.6g}")],
+                 "of": a["of"], "variable": a["variable"], "about": a["centre"],
+                 "amplitude": "large" if big else "small"}
         found.append({"where": where, "share": round(a["share"], 4), "suggests": sugg,
                       "text": text})
-    seg = segments(r * w)
-    if seg is not None:
-        a, b = (v + start for v in seg["samples"])
-        sugg = ("something changed during the record (a disturbance, a drift, another "
-                "operating state); look at that stretch and repeat the experiment")
-        found.append({"where": {"samples": [a, b],
-                                "time_s": [float(f"{a / fs:.6g}"), float(f"{b / fs:.6g}")]},
-                      "share": round(seg["share"], 4), "suggests": sugg,
-                      "text": (f"{N.share(seg['share'])} of the error energy lies in "
-                               f"samples {a}..{b} (t = {a / fs:.4g}..{b / fs:.4g} s of the "
-                               f"record): "
-                               f"{sugg}")})
-    dr = direction(r * w, u, in_names)
-    if dr is not None:
-        sugg = ("direction-dependent physics outside the catalogue (friction, hysteresis "
-                "in another place, different filling and emptying paths); a slow triangle "
-                "input would show it")
-        found.append({"where": {"direction": f"{dr['input']} {dr['worse']}"},
-                      "share": round(dr["share"], 4), "suggests": sugg,
-                      "text": (f"the error is {dr['ratio']:.1f}× larger while {dr['input']} "
-                               f"{dr['worse']} than the other way ({N.share(dr['share'])} of "
-                               f"the error energy): {sugg}")})
+    return found
+
+
+def _saturation_entry(a: dict[str, Any], off: float) -> dict[str, Any]:
+    a["limit"] += off
+    a["model_extreme"] += off
+    a["range"] = [v + off for v in a["range"]]
+    sugg = ("a saturation outside the catalogue (overflow, end stop, clipping, a "
+            "limited actuator); repeat at amplitudes that stay below the limit, or "
+            "model the limit")
+    ext = "maximum" if a["side"] == "top" else "minimum"
+    text = (f"{N.share(a['share'])} of the error energy lies where the model's "
+            f"{a['of']} goes past the measured {ext}: "
+            f"the measured {a['of']} flattens at {a['limit']:.4g} ({N.share(a['pile'])} "
+            f"of the samples within the {a['side']} 3 % of its range) while the model "
+            f"reaches {a['model_extreme']:.4g}: {sugg}")
+    where = {"amplitude_range": [float(f"{v:.6g}") for v in a["range"]],
+             "of": a["of"], "variable": "output", "saturation": a["side"]}
+    return {"where": where, "share": round(a["share"], 4), "suggests": sugg, "text": text}
+
+
+def _segment_entry(rw: np.ndarray, fs: float, start: int) -> list[dict[str, Any]]:
+    seg = segments(rw)
+    if seg is None:
+        return []
+    a, b = (v + start for v in seg["samples"])
+    sugg = ("something changed during the record (a disturbance, a drift, another "
+            "operating state); look at that stretch and repeat the experiment")
+    return [{"where": {"samples": [a, b],
+                       "time_s": [float(f"{a / fs:.6g}"), float(f"{b / fs:.6g}")]},
+             "share": round(seg["share"], 4), "suggests": sugg,
+             "text": (f"{N.share(seg['share'])} of the error energy lies in "
+                      f"samples {a}..{b} (t = {a / fs:.4g}..{b / fs:.4g} s of the "
+                      f"record): {sugg}")}]
+
+
+def _direction_entry(rw: np.ndarray, u: np.ndarray, in_names: list[str]
+                     ) -> list[dict[str, Any]]:
+    dr = direction(rw, u, in_names)
+    if dr is None:
+        return []
+    sugg = ("direction-dependent physics outside the catalogue (friction, hysteresis "
+            "in another place, different filling and emptying paths); a slow triangle "
+            "input would show it")
+    return [{"where": {"direction": f"{dr['input']} {dr['worse']}"},
+             "share": round(dr["share"], 4), "suggests": sugg,
+             "text": (f"the error is {dr['ratio']:.1f}× larger while {dr['input']} "
+                      f"{dr['worse']} than the other way ({N.share(dr['share'])} of "
+                      f"the error energy): {sugg}")}]
+
+
+def _head(lev: dict[str, Any], why: list[str], found: list[dict[str, Any]]
+          ) -> dict[str, Any]:
+    """The summary entry: why the residual is structured and where it lives."""
+    total = lev["structured_share"]
     places = "; ".join(f["text"].split(":")[0] for f in found) or (
         "spread over frequency, amplitude, time and direction: no narrower place found")
-    head = {"where": {"residual": "structured",
+    return {"where": {"residual": "structured",
                       "rms_over_noise": round(min(lev["ratio"], 1e6), 3)},
             "share": round(total, 4),
             "suggests": ("a physical effect outside the catalogue" if found else
@@ -492,4 +556,3 @@ def report(r: np.ndarray, y: np.ndarray, yhat: np.ndarray, u: np.ndarray, fs: fl
             "text": (f"the final model's residual is structured ({'; '.join(why)}): about "
                      f"{N.share(total)} of the error energy is above the noise estimate and "
                      f"no catalogue effect removed it. Where: {places}")}
-    return [head] + found

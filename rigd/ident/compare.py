@@ -157,6 +157,29 @@ def _run_on(model: ModelFile, sm, data: IdData, need: int, where: str):
     return data.slice(a, b), theta, ysim[a - s0:b - s0]
 
 
+def yardsticks(model: ModelFile, record: Record, runout: Record | None,
+               fits: dict[str, float]) -> dict[str, Any]:
+    """The yardstick (:func:`rigd.ident.yardstick.measure`) of each sub-model in ``fits``
+    (its validation fit, %) on ``record`` with the model file's split: a plain ARX and a
+    subspace model fitted on the same estimation part, scored on the same validation part.
+    A sub-model whose parts do not allow it (validation before estimation) maps to None."""
+    from rigd.ident.yardstick import measure
+
+    out: dict[str, Any] = {}
+    for name, fp in fits.items():
+        sm = model.submodels[name]
+        ins = list(getattr(sm.structure, "input_names", []))
+        outs = list(getattr(sm.structure, "output_names", []))
+        rec = record if (name != "generic" or record.is_generic) else dataclasses.replace(
+            record, meta={**record.meta, "inputs": ins, "outputs": outs})
+        data, _ = prepare(rec, name, _options_from(model, name), runout,
+                          min_samples=samples_needed(sm.structure))
+        est = slice(*_part(model, "estimation", data.n, record.source))
+        val = slice(*_part(model, "validation", data.n, record.source))
+        out[name] = measure(data.u, data.y, est, val, fp, data.fs)
+    return out
+
+
 def summary(comps: dict[str, Comparison]) -> dict[str, Any]:
     """JSON summary: fit per output and residual statistics per sub-model."""
     if len(comps) == 1:
