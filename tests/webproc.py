@@ -64,32 +64,49 @@ def config_folder(tmp: Path) -> Path:
 
 
 class WebProcess:
-    """``rigd web --listen 127.0.0.1:0`` as a process; ``url`` and ``token`` once serving."""
+    """``rigd web --listen 127.0.0.1:0`` as a process; ``url``, ``token`` (control) and
+    ``read_token`` (``--read-token-file``) once serving.
+
+    ``args`` replace or add options (``{"--listen": "0.0.0.0:0", "--insecure": None}``);
+    ``preexec_fn`` runs in the child before ``rigd web`` starts (e.g. a descriptor limit).
+    """
 
     def __init__(self, tmp: Path, socket: str, runs_dir: Path, config_dir: Path,
-                 timeout: float = 60.0):
-        self.token_file = tmp / "web-token"
+                 timeout: float = 60.0, args: dict | None = None, preexec_fn=None,
+                 name: str = "web"):
+        self.token_file = tmp / f"{name}-token"
+        self.read_token_file = tmp / f"{name}-read-token"
         self.lines: list[str] = []
         self._serving = threading.Event()
+        opts = {"--listen": "127.0.0.1:0", "--socket": socket, "--runs-dir": str(runs_dir),
+                "--config-dir": str(config_dir), "--token-file": str(self.token_file),
+                "--read-token-file": str(self.read_token_file),
+                "--timeout": "60"}                  # a busy shared test machine
+        opts.update(args or {})
+        argv = [RIGD, "web"]
+        for k, v in opts.items():
+            argv += [k] if v is None else [k, v]
         self.proc = subprocess.Popen(
-            [RIGD, "web", "--listen", "127.0.0.1:0", "--socket", socket, "--runs-dir",
-             str(runs_dir), "--config-dir", str(config_dir), "--token-file",
-             str(self.token_file), "--timeout", "60"],   # a busy shared test machine
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-            text=True, cwd=str(tmp))
+            argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+            text=True, cwd=str(tmp), preexec_fn=preexec_fn)
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
         if not self._serving.wait(timeout):
             self.stop()
             raise AssertionError(f"rigd web did not start: {self.lines}")
-        line = next(x for x in self.lines if "serving http://" in x)
+        line = next(x for x in self.lines if "serving http" in x)
         self.url = line.split("serving ", 1)[1].split()[0].rstrip("/")
         self.token = self.token_file.read_text().strip()
+        self.read_token = self.read_token_file.read_text().strip()
+
+    def auth(self, read: bool = False) -> dict[str, str]:
+        """The ``Authorization`` header of the control (or the read-only) token."""
+        return {"Authorization": f"Bearer {self.read_token if read else self.token}"}
 
     def _read(self):
         for line in self.proc.stderr:
             self.lines.append(line.rstrip("\n"))
-            if "serving http://" in line:
+            if "serving http" in line:
                 self._serving.set()
         self._serving.set()      # exited: wake the waiter
 
@@ -106,13 +123,13 @@ class WebProcess:
 
 
 @contextlib.contextmanager
-def daemon_and_web(tmp: Path):
+def daemon_and_web(tmp: Path, **web_kwargs):
     """A real ``rigd run`` (:func:`start_daemon`) and a real ``rigd web`` in front of it on
-    ``tmp``; yields ``(daemon, web)`` and stops both (``web.proc.returncode`` tells how
-    ``rigd web`` ended)."""
+    ``tmp`` (``web_kwargs`` go to :class:`WebProcess`); yields ``(daemon, web)`` and stops
+    both (``web.proc.returncode`` tells how ``rigd web`` ended)."""
     d = start_daemon(tmp)
     try:
-        web = WebProcess(tmp, d.sock, tmp / "runs", config_folder(tmp))
+        web = WebProcess(tmp, d.sock, tmp / "runs", config_folder(tmp), **web_kwargs)
         try:
             yield d, web
         finally:

@@ -5,8 +5,8 @@
 
 A separate process, a client of the daemon's control socket. Reach it from another machine
 through an SSH tunnel (``ssh -L 8080:127.0.0.1:8080 rig``), not by listening on a public
-address. State-changing requests need the token printed at start (kept in ``--token-file``,
-mode 0600).
+address. Every request but the page itself needs the token printed at start (kept in
+``--token-file``, mode 0600) or, for reads only, the ``--read-token-file`` token.
 """
 
 from __future__ import annotations
@@ -19,6 +19,10 @@ import sys
 from pathlib import Path
 
 from rigd.errors import InputError
+from rigd.web.guard import HEADER_TIMEOUT_S, MAX_HEAD
+
+#: connections accepted at a time
+BACKLOG = 64
 
 HELP = "web console: live view, control and runs in a browser (127.0.0.1:8080)"
 
@@ -34,6 +38,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "controller YAMLs offered on the page (default config)")
     p.add_argument("--token-file", help="file holding the token (created with a new token, "
                    "mode 0600, when absent; default ~/.config/rigd/web-token)")
+    p.add_argument("--read-token-file", metavar="F", help="file holding a read-only token "
+                   "(GET only: status, stream, runs, records; no command), created like "
+                   "--token-file when absent; default: no read-only token")
+    p.add_argument("--tls-cert", metavar="PEM", help="serve HTTPS with this certificate "
+                   "(chain) file; needs --tls-key")
+    p.add_argument("--tls-key", metavar="PEM", help="private key of --tls-cert")
+    p.add_argument("--insecure", action="store_true", help="serve plain HTTP on a "
+                   "non-loopback --listen address anyway (a warning is printed)")
+    p.add_argument("--allow-host", action="append", default=[], metavar="NAME",
+                   help="also accept this Host header name (repeatable; the listen address "
+                   "is always accepted)")
+    p.add_argument("--header-timeout", type=float, default=HEADER_TIMEOUT_S, metavar="S",
+                   help="seconds a connection may take to send a request head, and a request "
+                   f"its body (default {HEADER_TIMEOUT_S:g})")
     p.add_argument("--film-gap-um", type=float, default=25.0, metavar="UM",
                    help="radial film gap drawn around the orbit, µm (default 25, the rig's)")
     p.add_argument("--timeout", type=float, default=10.0, metavar="S",
@@ -49,13 +67,75 @@ def parse_listen(text: str) -> tuple[str, int]:
     return host, int(port)
 
 
-def loopback_hosts(host: str) -> tuple[str, ...] | None:
-    """Host names accepted when serving on a loopback address (None: any, e.g. 0.0.0.0)."""
+LOOPBACK_NAMES = ("127.0.0.1", "localhost", "::1")
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` (an address or ``localhost``) is a loopback address."""
     try:
-        loopback = ipaddress.ip_address(host).is_loopback
+        return ipaddress.ip_address(host).is_loopback
     except ValueError:
-        loopback = host == "localhost"
-    return ("127.0.0.1", "localhost", "::1", "[::1]") if loopback else None
+        return host.lower() == "localhost"
+
+
+def is_wildcard(host: str) -> bool:
+    """Whether ``host`` is ``0.0.0.0`` or ``::`` (every address of the machine)."""
+    try:
+        return ipaddress.ip_address(host).is_unspecified
+    except ValueError:
+        return False
+
+
+def _machine_names() -> set[str]:
+    names = {socket.gethostname(), socket.getfqdn()}
+    for name in list(names):
+        try:
+            names |= {ai[4][0] for ai in socket.getaddrinfo(name, None)}
+        except OSError:
+            pass
+    return names
+
+
+def allowed_hosts(host: str, extra: list[str] | tuple[str, ...] = ()) -> tuple[str, ...]:
+    """``Host`` header names accepted when listening on ``host`` (lower case, no port).
+
+    A loopback address: the loopback names; another address: that address (or name); a
+    wildcard (``0.0.0.0``, ``::``): the loopback names, the machine's host name, its fully
+    qualified name and their addresses. Always the ``extra`` names (``--allow-host``). A page
+    of another domain that an attacker re-points at the rig (DNS rebinding) sends its own
+    name and is refused.
+    """
+    names = {host.lower()} | {e.lower().strip("[]") for e in extra}
+    if is_loopback(host) or is_wildcard(host):
+        names |= set(LOOPBACK_NAMES)
+    if is_wildcard(host):
+        names |= {n.lower() for n in _machine_names()}
+    return tuple(sorted(names))
+
+
+def check_transport(host: str, port: int, args: argparse.Namespace) -> bool:
+    """Whether to serve TLS; InputError for a non-loopback address without TLS (unless
+    ``--insecure``, which prints a warning) or an incomplete or unreadable certificate/key.
+    """
+    import ssl
+
+    if bool(args.tls_cert) != bool(args.tls_key):
+        raise InputError("--tls-cert and --tls-key go together")
+    if args.tls_cert:
+        try:
+            ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(
+                args.tls_cert, args.tls_key)
+        except (OSError, ssl.SSLError, ValueError) as exc:
+            raise InputError(f"cannot use --tls-cert/--tls-key: {exc}") from None
+        return True
+    if is_loopback(host):
+        return False
+    if not args.insecure:
+        raise InputError(f"--listen {host}:{port} is not a loopback address: give "
+                         "--tls-cert/--tls-key (or --insecure to serve plain HTTP anyway)")
+    print(f"rigd web: WARNING: --insecure: plain HTTP on {host}:{port}: the tokens, the "
+          "session cookie and the rig's data cross the network unencrypted", file=sys.stderr)
+    return False
 
 
 def _bind(host: str, port: int) -> socket.socket:
@@ -67,7 +147,7 @@ def _bind(host: str, port: int) -> socket.socket:
     except OSError as exc:
         s.close()
         raise InputError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
-    s.listen(128)
+    s.listen(BACKLOG)
     return s
 
 
@@ -76,8 +156,12 @@ def run(args: argparse.Namespace) -> int:
 
     from rigd.web.app import Settings, build_app
     from rigd.web.auth import load_or_create_token
+    from rigd.web.conn import guarded_protocol
 
     host, port = parse_listen(args.listen)
+    if not 0 < args.header_timeout <= 3600:
+        raise InputError(f"--header-timeout {args.header_timeout:g}: expected 0 < S <= 3600")
+    tls = check_transport(host, port, args)
     runs_dir, config_dir = Path(args.runs_dir), Path(args.config_dir)
     if not config_dir.is_dir():
         raise InputError("no such folder (--config-dir)", str(config_dir))
@@ -87,19 +171,35 @@ def run(args: argparse.Namespace) -> int:
     if not args.token_file:
         token_file.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
     token, created = load_or_create_token(token_file)
+    read_token, read_created = (load_or_create_token(args.read_token_file)
+                                if args.read_token_file else (None, False))
+    if read_token is not None and read_token == token:
+        raise InputError("holds the control token: the read-only token must differ",
+                         args.read_token_file)
     sock = _bind(host, port)
     port = sock.getsockname()[1]
     if created:
         print(f"rigd web: new token (kept in {token_file}, mode 0600): {token}", file=sys.stderr)
     else:
         print(f"rigd web: token from {token_file}", file=sys.stderr)
-    print(f"rigd web: serving http://{host}:{port}/ (daemon {args.socket}, runs {runs_dir}, "
-          f"config {config_dir})", file=sys.stderr, flush=True)
+    if read_created:
+        print(f"rigd web: new read-only token (kept in {args.read_token_file}, mode 0600): "
+              f"{read_token}", file=sys.stderr)
+    elif read_token is not None:
+        print(f"rigd web: read-only token from {args.read_token_file}", file=sys.stderr)
+    url_host = f"[{host}]" if ":" in host else host
+    scheme = "https" if tls else "http"
+    print(f"rigd web: serving {scheme}://{url_host}:{port}/ (daemon {args.socket}, "
+          f"runs {runs_dir}, config {config_dir})", file=sys.stderr, flush=True)
     app = build_app(Settings(socket=args.socket, runs_dir=runs_dir.resolve(),
                              config_dir=config_dir.resolve(), token=token,
+                             read_token=read_token, secure=tls,
+                             request_timeout_s=args.header_timeout,
                              timeout_s=args.timeout, film_gap_um=args.film_gap_um,
-                             allowed_hosts=loopback_hosts(host)))
-    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False,
-                                           timeout_graceful_shutdown=2))
+                             allowed_hosts=allowed_hosts(host, args.allow_host)))
+    server = uvicorn.Server(uvicorn.Config(
+        app, log_level="warning", access_log=False, timeout_graceful_shutdown=2,
+        http=guarded_protocol(args.header_timeout), h11_max_incomplete_event_size=MAX_HEAD,
+        backlog=BACKLOG, ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key))
     server.run(sockets=[sock])
     return 0

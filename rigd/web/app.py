@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import json
-import re
-import time
+import math
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -12,8 +11,6 @@ from typing import Any
 
 from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
-from starlette.middleware import Middleware
-from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
 from starlette.routing import Mount, Route
@@ -23,12 +20,13 @@ from rigd import __version__
 from rigd.configio import read_yaml
 from rigd.errors import InputError
 from rigd.experiments.schemas import load_experiment, validate_spec
-from rigd.fileio import atomic_write_text
 from rigd.service.safe_request import SafeWordClient, SafeWordUnavailable
 from rigd.web import runs as runs_mod
 from rigd.web import sse
-from rigd.web.auth import MAX_BODY, Guard
+from rigd.web.auth import Tokens
 from rigd.web.ctl import COMMANDS, Daemon, DaemonDown, DaemonRefused, DaemonSilent
+from rigd.web.files import file_response, save_upload, upload_name, yaml_files
+from rigd.web.guard import BODY_TIMEOUT_S, MAX_BODY, Guard
 from rigd.web.paths import PathRefused, resolve_inside, split_rooted
 
 STATIC = Path(str(resources.files("rigd.web") / "static"))
@@ -38,8 +36,10 @@ MAX_STREAMS = 256
 PAGE_CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
             "img-src 'self' data: blob:; connect-src 'self'; frame-ancestors 'none'; "
             "base-uri 'none'; form-action 'none'")
-#: uploaded file names: plain words, dots, dashes
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
+#: every other response: nothing may load or run, no framing
+DEFAULT_CSP = "default-src 'none'; frame-ancestors 'none'; base-uri 'none'; form-action 'none'"
+#: deepest JSON request body (the commands' bodies are 3 levels deep)
+MAX_JSON_DEPTH = 16
 
 
 @dataclass
@@ -53,13 +53,19 @@ class Settings:
     runs_dir, config_dir : Path
         The only folders whose files are served or named in requests.
     token : str
-        The Bearer token of state-changing requests.
+        The control token: every request (``Authorization: Bearer``).
+    read_token : str, optional
+        The read-only token: GET/HEAD only (403 on a command); None: none.
+    secure : bool
+        Served over TLS (the session cookie gets ``Secure``).
+    request_timeout_s : float
+        Seconds a request body may take to arrive (408 beyond).
     film_gap_um : float
         Radial film gap, µm: the circle drawn around the orbit.
     allowed_hosts : tuple of str, optional
-        Accepted ``Host`` header names (without port); None accepts any. ``rigd web`` on a
-        loopback address accepts only loopback names: a web page whose domain an attacker
-        re-points to 127.0.0.1 (DNS rebinding) cannot read the console's answers.
+        Accepted ``Host`` header names (without port); None accepts any. ``rigd web`` accepts
+        only the names of its listen address (and ``--allow-host``): a web page whose domain
+        an attacker re-points to the rig (DNS rebinding) cannot read the console's answers.
     timeout_s : float
         Reply timeout of daemon requests, s.
     """
@@ -72,6 +78,16 @@ class Settings:
     max_body: int = MAX_BODY
     film_gap_um: float = 25.0
     allowed_hosts: tuple[str, ...] | None = None
+    read_token: str | None = None
+    secure: bool = False
+    request_timeout_s: float = BODY_TIMEOUT_S
+
+
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text!r} is not a finite number")
+    return value
 
 
 def _err(status: int, message: str) -> JSONResponse:
@@ -89,11 +105,29 @@ async def _json_body(request: Request) -> dict[str, Any]:
         return {}
     try:
         body = json.loads(raw)
+    except RecursionError:
+        body = None
     except (ValueError, UnicodeDecodeError) as exc:
         raise InputError(f"request body is not JSON: {exc}") from None
+    if body is None or json_depth(body) > MAX_JSON_DEPTH:
+        raise InputError(f"request body nested deeper than {MAX_JSON_DEPTH} levels")
     if not isinstance(body, dict):
         raise InputError("request body must be a JSON object")
     return body
+
+
+def json_depth(obj: Any) -> int:
+    """Nesting depth of a parsed JSON value (a scalar is 0), without recursion."""
+    depth, level = 0, [(obj, 0)]
+    while level:
+        value, d = level.pop()
+        if isinstance(value, (dict, list)):
+            depth = max(depth, d + 1)
+            if d + 1 > MAX_JSON_DEPTH:
+                return d + 1
+            level.extend((v, d + 1) for v in (value.values() if isinstance(value, dict)
+                                               else value))
+    return depth
 
 
 def _upload(body: dict[str, Any]) -> tuple[str, str] | None:
@@ -103,43 +137,12 @@ def _upload(body: dict[str, Any]) -> tuple[str, str] | None:
         return None
     if not isinstance(up, dict) or not isinstance(up.get("text"), str):
         raise InputError("upload must be {\"name\": ..., \"text\": ...}")
-    name = Path(str(up.get("name") or "upload.yaml")).name
-    if not _NAME.match(name):
-        raise InputError(f"upload name {name[:60]!r}: letters, digits, '.', '_', '-' only")
-    return name, up["text"]
-
-
-def _save_upload(settings: Settings, kind: str, name: str, text: str) -> Path:
-    """Keep an upload in ``<runs>/uploads/`` (the daemon reads it from there; a record of what
-    was run)."""
-    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-    path = settings.runs_dir / "uploads" / f"{stamp}-{kind}-{name}"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, text)
-    return path.resolve()
-
-
-def _yaml_files(roots: dict[str, Path]) -> dict[str, list[str]]:
-    out: dict[str, list[str]] = {}
-    for key, root in roots.items():
-        out[key] = []
-        if not root.is_dir():
-            continue
-        base = root.resolve()
-        for p in sorted(root.rglob("*.yaml")):
-            rel = p.relative_to(root).as_posix()
-            if key == "runs" and "controller" not in rel:
-                continue
-            if not p.resolve().is_relative_to(base):
-                continue  # a symlink out of the folder is not offered
-            out[key].append(f"{key}/{rel}")
-            if len(out[key]) >= runs_mod.MAX_LIST:
-                break
-    return out
+    return upload_name(up.get("name")), up["text"]
 
 
 def build_app(settings: Settings) -> Starlette:
-    """The ASGI app, wrapped in the token/size :class:`~rigd.web.auth.Guard`."""
+    """The ASGI app, wrapped in the request :class:`~rigd.web.guard.Guard` (host, token or
+    session, sizes)."""
     daemon = Daemon(settings.socket, settings.timeout_s)
     roots = {"config": settings.config_dir, "runs": settings.runs_dir}
     hub = sse.StreamHub(settings.socket, settings.timeout_s, MAX_STREAMS)
@@ -199,15 +202,21 @@ def build_app(settings: Settings) -> Starlette:
             return _err(404, f"no command {name!r} (known: {', '.join(COMMANDS)})")
         try:
             body = await _json_body(request)
-            args = await run_in_threadpool(_command_args, name, body)
+            args, kept = await run_in_threadpool(_command_args, name, body)
         except PathRefused as exc:
             return _err(400, f"{name}: {exc}")
         except InputError as exc:
             return _err(400, f"{name}: {exc}")
-        return await call(COMMANDS[name], **args)
+        except OSError as exc:
+            return _err(400, f"{name}: {exc.strerror or exc}")
+        answer = await call(COMMANDS[name], **args)
+        if kept is not None and answer.status_code not in (200, 504):
+            kept.unlink(missing_ok=True)   # refused (or never sent): a rejected upload is not kept
+        return answer
 
-    def _command_args(name: str, body: dict[str, Any]) -> dict[str, Any]:
-        """The daemon request of ``POST /api/<name>``, validated here first."""
+    def _command_args(name: str, body: dict[str, Any]) -> tuple[dict[str, Any], Path | None]:
+        """The daemon request of ``POST /api/<name>``, validated here first, and the upload
+        it keeps (None: none)."""
         allowed = {"load": {"path", "upload"}, "start": {"path", "upload"},
                    "op": {"omega_rpm", "p_inj_bar"}}.get(name, set())
         extra = sorted(set(body) - allowed)
@@ -215,9 +224,9 @@ def build_app(settings: Settings) -> Starlette:
             raise InputError(f"unknown field {extra[0]!r}"
                              + (f" (allowed: {', '.join(sorted(allowed))})" if allowed else ""))
         if name == "op":
-            return {k: body.get(k) for k in ("omega_rpm", "p_inj_bar")}
+            return {k: body.get(k) for k in ("omega_rpm", "p_inj_bar")}, None
         if name not in ("load", "start"):
-            return {}
+            return {}, None
         up = _upload(body)
         if (up is None) == (body.get("path") is None):
             raise InputError("give exactly one of 'path' (config/... or runs/...) or 'upload'")
@@ -225,24 +234,24 @@ def build_app(settings: Settings) -> Starlette:
             if up is not None:
                 # the CLI's loader, on the uploaded text: same checks, same one-line errors
                 validate_spec(read_yaml(up[0], up[1]))
-                path = _save_upload(settings, "experiment", *up)
-            else:
-                path = split_rooted(body["path"], roots)
-                load_experiment(path)
-            return {"path": str(path)}
-        if up is not None:
-            path = _save_upload(settings, "controller", *up)
-        else:
+                path = save_upload(settings.runs_dir, "experiment", *up)
+                return {"path": str(path)}, path
             path = split_rooted(body["path"], roots)
-            if not path.is_file():
-                raise InputError(f"no such file {body['path']!r}")
-        return {"path": str(path)}
+            load_experiment(path)
+            return {"path": str(path)}, None
+        if up is not None:
+            path = save_upload(settings.runs_dir, "controller", *up)
+            return {"path": str(path)}, path
+        path = split_rooted(body["path"], roots)
+        if not path.is_file():
+            raise InputError(f"no such file {body['path']!r}")
+        return {"path": str(path)}, None
 
     async def files(request: Request) -> Response:
         """YAML files to choose from: every one in the config folder (experiments,
         controllers), and those of the runs folder with ``controller`` in their path (what
         ``rigd design`` and uploads leave there), as ``config/...`` / ``runs/...``."""
-        return JSONResponse(await run_in_threadpool(_yaml_files, roots))
+        return JSONResponse(await run_in_threadpool(yaml_files, roots, runs_mod.MAX_LIST))
 
     async def runs(request: Request) -> Response:
         return JSONResponse(await run_in_threadpool(runs_mod.list_runs, settings.runs_dir))
@@ -254,8 +263,8 @@ def build_app(settings: Settings) -> Starlette:
             if not path.is_file():
                 return _err(404, "no such record")
             points = int(q.get("points", "2000"))
-            t0 = float(q["t0"]) if q.get("t0") else None
-            t1 = float(q["t1"]) if q.get("t1") else None
+            t0 = _finite(q["t0"]) if q.get("t0") else None
+            t1 = _finite(q["t1"]) if q.get("t1") else None
             chans = [c for c in q.get("channels", "").split(",") if c] or None
         except PathRefused as exc:
             return _err(404, str(exc))
@@ -263,8 +272,8 @@ def build_app(settings: Settings) -> Starlette:
             return _err(400, f"bad query: {exc}")
         try:
             view = await run_in_threadpool(runs_mod.record_view, path, points, t0, t1, chans)
-        except InputError as exc:
-            return _err(400, str(exc))
+        except (InputError, OSError, ValueError) as exc:
+            return _err(400, f"cannot open the record: {exc}")
         return JSONResponse(view)
 
     async def run_file(request: Request) -> Response:
@@ -274,7 +283,7 @@ def build_app(settings: Settings) -> Starlette:
             return _err(404, str(exc))
         if not path.is_file():
             return _err(404, "no such file")
-        return FileResponse(path)
+        return file_response(settings.runs_dir, path)
 
     async def stream(request: Request) -> Response:
         q = request.query_params
@@ -310,17 +319,16 @@ def build_app(settings: Settings) -> Starlette:
         Route("/runs/{path:path}", run_file),
         Route("/api/{name}", command, methods=["POST"]),
     ]
-    middleware = [Middleware(SecurityHeaders)]
-    if settings.allowed_hosts is not None:
-        middleware.insert(0, Middleware(TrustedHostMiddleware,
-                                        allowed_hosts=list(settings.allowed_hosts)))
-    app = Starlette(routes=routes, middleware=middleware)
-    return Guard(app, settings.token, settings.max_body)
+    app = Starlette(routes=routes)
+    tokens = Tokens(settings.token, settings.read_token, settings.secure)
+    return SecurityHeaders(Guard(app, tokens, settings.max_body, settings.allowed_hosts,
+                                 settings.request_timeout_s))
 
 
 class SecurityHeaders:
-    """``nosniff`` and no framing on every response (report pages under ``/runs/`` keep
-    their inline scripts: the content security policy is the console page's only)."""
+    """``nosniff``, no framing and a content security policy on every response: the page's
+    own (:data:`PAGE_CSP`, report pages :data:`REPORT_CSP`) or :data:`DEFAULT_CSP` (nothing
+    may load or run) on everything else, the guard's answers included."""
 
     def __init__(self, app):
         self.app = app
@@ -328,9 +336,11 @@ class SecurityHeaders:
     async def __call__(self, scope, receive, send):
         async def send_with_headers(message):
             if message["type"] == "http.response.start":
-                message.setdefault("headers", [])
-                message["headers"] = list(message["headers"]) + [
-                    (b"x-content-type-options", b"nosniff"), (b"x-frame-options", b"DENY")]
+                headers = list(message.get("headers", []))
+                extra = [(b"x-content-type-options", b"nosniff"), (b"x-frame-options", b"DENY")]
+                if not any(k.lower() == b"content-security-policy" for k, _ in headers):
+                    extra.append((b"content-security-policy", DEFAULT_CSP.encode()))
+                message["headers"] = headers + extra
             await send(message)
 
         await self.app(scope, receive, send_with_headers)

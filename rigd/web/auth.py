@@ -1,28 +1,44 @@
-"""The console's token and the request guards.
+"""The console's tokens and sessions.
 
-Every state-changing request (any method but GET/HEAD/OPTIONS) must carry
-``Authorization: Bearer <token>``; without it (or with a wrong one) the answer is 401 and the
-request never reaches a route, so nothing changes. No cookie carries authority, so a page of
-another origin cannot make the browser send the token (CSRF-safe: the page keeps the token in
-``sessionStorage`` and adds the header itself). Request bodies are limited
-(:data:`MAX_BODY`; 413 beyond).
+Two tokens (docs/web.md, "Security"): the **control** token (``--token-file``) allows every
+request; the optional **read** token (``--read-token-file``) allows reads only (GET/HEAD)
+and is answered 403 on a command. Either is sent as ``Authorization: Bearer <token>``.
+
+A browser's ``EventSource`` and a report page opened from a link cannot send that header, so
+``POST /api/login`` with either token in the header answers a **session cookie**
+(``rigd_session``: random, ``HttpOnly``, ``SameSite=Strict``, ``Secure`` under TLS, 12 h)
+that carries *read* access only: a command always needs the control token in the header, so a
+page of another origin that makes the browser send the cookie changes nothing (no CSRF), and
+no token ever appears in a URL (URLs end up in logs and browser history).
 """
 
 from __future__ import annotations
 
+import enum
+import hashlib
 import hmac
-import json
 import os
 import secrets
 import stat
+import time
 from pathlib import Path
 
 from rigd.errors import InputError
 
-#: largest accepted request body, bytes (an uploaded experiment or controller YAML is a few kB)
-MAX_BODY = 1 << 20
+#: name of the session cookie
+COOKIE = "rigd_session"
+#: life of a session, s
+SESSION_S = 12 * 3600
+#: sessions kept at once (the oldest is dropped beyond)
+MAX_SESSIONS = 256
 
-SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+
+class Access(enum.IntEnum):
+    """What a request may do."""
+
+    NONE = 0
+    READ = 1          # GET/HEAD of everything behind the token
+    CONTROL = 2       # and the commands
 
 
 def new_token() -> str:
@@ -56,6 +72,8 @@ def load_or_create_token(path: str | Path) -> tuple[str, bool]:
         return token, True
     try:
         st = p.stat()
+        if not stat.S_ISREG(st.st_mode) or st.st_size > 4096:
+            raise InputError("token file must be a regular file of one line", str(p))
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read the token file: {exc}", str(p)) from None
@@ -76,66 +94,69 @@ def token_ok(header: str | None, token: str) -> bool:
     return hmac.compare_digest(given, token.encode("utf-8"))
 
 
-async def _reply(send, status: int, message: str, extra: list | None = None) -> None:
-    body = json.dumps({"error": message}).encode()
-    headers = [(b"content-type", b"application/json"),
-               (b"content-length", str(len(body)).encode())] + (extra or [])
-    await send({"type": "http.response.start", "status": status, "headers": headers})
-    await send({"type": "http.response.body", "body": body})
+def _digest(text: str) -> bytes:
+    return hashlib.sha256(text.encode("utf-8", "replace")).digest()
 
 
-class Guard:
-    """ASGI middleware: the token on state-changing requests, then the body size limit.
+class Tokens:
+    """The tokens of one ``rigd web`` and its read sessions (in memory: a restart ends them).
 
     Parameters
     ----------
-    app : ASGI app
-    token : str
-    max_body : int
-        Bytes; a longer body (declared or streamed) is refused with 413 before any route runs.
+    control : str
+        Token of every request.
+    read : str, optional
+        Token of reads only (GET/HEAD); None: no read-only token.
+    secure : bool
+        Serving over TLS: the session cookie gets ``Secure``.
     """
 
-    def __init__(self, app, token: str, max_body: int = MAX_BODY):
-        self.app = app
-        self.token = token
-        self.max_body = max_body
+    def __init__(self, control: str, read: str | None = None, secure: bool = False):
+        if read is not None and hmac.compare_digest(read.encode(), control.encode()):
+            raise InputError("the read-only token must differ from the control token")
+        self.control, self.read, self.secure = control, read, secure
+        self._sessions: dict[bytes, float] = {}     # sha256(session id) -> expiry (monotonic)
 
-    async def __call__(self, scope, receive, send):
-        if scope["type"] != "http":
-            return await self.app(scope, receive, send)
-        headers = {k.decode("latin-1").lower(): v.decode("latin-1")
-                   for k, v in scope.get("headers", [])}
-        if scope["method"] not in SAFE_METHODS and not token_ok(headers.get("authorization"),
-                                                                self.token):
-            return await _reply(send, 401, "missing or wrong token (Authorization: Bearer "
-                                "<token>, printed by rigd web at start)",
-                                [(b"www-authenticate", b"Bearer")])
-        declared = headers.get("content-length")
-        if declared is not None:
-            try:
-                too_big = int(declared) > self.max_body
-            except ValueError:
-                return await _reply(send, 400, "bad Content-Length")
-            if too_big:
-                return await _reply(send, 413, f"request body over {self.max_body} bytes")
-        if scope["method"] in SAFE_METHODS:
-            return await self.app(scope, receive, send)
-        # state-changing requests: read the (small) body here, counting, before any route runs
-        chunks, seen = [], 0
-        while True:
-            message = await receive()
-            if message["type"] == "http.disconnect":
-                return
-            body = message.get("body", b"")
-            seen += len(body)
-            if seen > self.max_body:
-                return await _reply(send, 413, f"request body over {self.max_body} bytes")
-            chunks.append(body)
-            if not message.get("more_body", False):
-                break
-        replay = [{"type": "http.request", "body": b"".join(chunks), "more_body": False}]
+    def of_header(self, header: str | None) -> Access:
+        """The access an ``Authorization`` header gives."""
+        if token_ok(header, self.control):
+            return Access.CONTROL
+        if self.read is not None and token_ok(header, self.read):
+            return Access.READ
+        return Access.NONE
 
-        async def replay_receive():
-            return replay.pop() if replay else await receive()
+    def new_session(self) -> str:
+        """A new read session; returns its ``Set-Cookie`` header value."""
+        now = time.monotonic()
+        self._sessions = {k: t for k, t in self._sessions.items() if t > now}
+        while len(self._sessions) >= MAX_SESSIONS:
+            self._sessions.pop(min(self._sessions, key=self._sessions.__getitem__))
+        sid = secrets.token_urlsafe(32)
+        self._sessions[_digest(sid)] = now + SESSION_S
+        return (f"{COOKIE}={sid}; Path=/; HttpOnly; SameSite=Strict; Max-Age={SESSION_S}"
+                + ("; Secure" if self.secure else ""))
 
-        await self.app(scope, replay_receive, send)
+    def drop_session(self, cookie_header: str | None) -> str:
+        """End the session named in a ``Cookie`` header; returns a ``Set-Cookie`` value that
+        clears the cookie."""
+        sid = session_id(cookie_header)
+        if sid is not None:
+            self._sessions.pop(_digest(sid), None)
+        return f"{COOKIE}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0"
+
+    def session_ok(self, cookie_header: str | None) -> bool:
+        """Whether a ``Cookie`` header carries a live session."""
+        sid = session_id(cookie_header)
+        if sid is None:
+            return False
+        expiry = self._sessions.get(_digest(sid))
+        return expiry is not None and expiry > time.monotonic()
+
+
+def session_id(cookie_header: str | None) -> str | None:
+    """The ``rigd_session`` value of a ``Cookie`` header (None when absent)."""
+    for part in (cookie_header or "").split(";"):
+        name, sep, value = part.strip().partition("=")
+        if sep and name == COOKIE and value:
+            return value
+    return None

@@ -11,6 +11,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+#: longest request path, characters
+MAX_PATH = 1024
+
 
 class PathRefused(Exception):
     """A request path that leaves its root or is malformed (-> HTTP 404/400)."""
@@ -23,13 +26,20 @@ def resolve_inside(root: str | Path, rel: str) -> Path:
     """
     if not isinstance(rel, str) or not rel or "\x00" in rel or "\\" in rel:
         raise PathRefused("bad path")
+    if len(rel) > MAX_PATH:
+        raise PathRefused(f"path over {MAX_PATH} characters")
     if rel.startswith("/") or os.path.isabs(rel):
         raise PathRefused("absolute paths are not served")
     parts = rel.split("/")
     if any(p in ("", ".", "..") for p in parts[:-1]) or parts[-1] in (".", ".."):
         raise PathRefused("'..', '.' and empty path components are not allowed")
-    base = Path(root).resolve()
-    real = (base / rel.rstrip("/")).resolve()
+    if any(len(p.encode("utf-8", "surrogateescape")) > 255 for p in parts):
+        raise PathRefused("a path component over 255 bytes")
+    try:
+        base = Path(root).resolve()
+        real = (base / rel.rstrip("/")).resolve()
+    except (OSError, RuntimeError) as exc:       # a name too long, a symlink loop
+        raise PathRefused(f"bad path: {getattr(exc, 'strerror', None) or exc}") from None
     if real != base and base not in real.parents:
         raise PathRefused("path leaves its folder")
     return real

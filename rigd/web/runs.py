@@ -3,6 +3,8 @@ decimated server-side (min/max per bucket) so that a long record opens fast and 
 
 from __future__ import annotations
 
+import os
+import stat
 from collections.abc import Iterable
 from datetime import datetime
 from pathlib import Path
@@ -14,11 +16,16 @@ from rigd.data import h5io
 from rigd.data.io import load_record
 from rigd.data.manifest import MANIFEST, read_manifest
 from rigd.errors import InputError
+from rigd.web.files import UPLOADS, walk
 
 #: record files the console opens (HDF5 recordings and interchange CSV)
 RECORD_SUFFIXES = (".h5", ".hdf5", ".csv")
 #: at most this many run directories and files per run are listed
 MAX_LIST = 2000
+#: largest manifest.json read, bytes
+MAX_MANIFEST = 8 << 20
+#: largest CSV record opened (read whole), bytes; HDF5 recordings are read in blocks
+MAX_CSV = 256 << 20
 
 
 def _duration_s(man: dict[str, Any]) -> float | None:
@@ -41,13 +48,8 @@ def _operating_point(man: dict[str, Any]) -> dict[str, Any] | None:
 
 
 def _files(run: Path, suffixes: tuple[str, ...]) -> list[str]:
-    out: list[str] = []
-    for p in sorted(run.rglob("*")):
-        if p.suffix.lower() in suffixes and p.is_file():
-            out.append(p.relative_to(run).as_posix())
-            if len(out) >= MAX_LIST:
-                break
-    return out
+    """Files of a run with one of ``suffixes`` (relative paths; symlinks not followed)."""
+    return [p.relative_to(run).as_posix() for p in walk(run, suffixes, MAX_LIST)]
 
 
 def summarize(run: Path) -> dict[str, Any]:
@@ -55,8 +57,13 @@ def summarize(run: Path) -> dict[str, Any]:
     record files and HTML pages (relative paths); ``error`` when the manifest is unreadable."""
     entry: dict[str, Any] = {"name": run.name, "records": _files(run, RECORD_SUFFIXES),
                              "pages": _files(run, (".html",))}
-    if not (run / MANIFEST).exists():
+    try:
+        st = (run / MANIFEST).lstat()
+    except OSError:
         entry["error"] = "no manifest.json"
+        return entry
+    if not stat.S_ISREG(st.st_mode) or st.st_size > MAX_MANIFEST:
+        entry["error"] = f"manifest.json is not a regular file of at most {MAX_MANIFEST} bytes"
         return entry
     try:
         man = read_manifest(run)
@@ -73,12 +80,15 @@ def summarize(run: Path) -> dict[str, Any]:
 
 
 def list_runs(runs_dir: str | Path) -> list[dict[str, Any]]:
-    """Every sub-folder of the runs folder (newest name first), summarised."""
+    """Every sub-folder of the runs folder (newest name first), summarised; symlinks,
+    dot-names and the folder of kept uploads are not listed."""
     root = Path(runs_dir)
     if not root.is_dir():
         return []
-    dirs = sorted((p for p in root.iterdir() if p.is_dir() and not p.name.startswith(".")),
-                  key=lambda p: p.name, reverse=True)
+    with os.scandir(root) as it:
+        dirs = sorted((Path(e.path) for e in it if e.is_dir(follow_symlinks=False)
+                       and not e.name.startswith(".") and e.name != UPLOADS),
+                      key=lambda p: p.name, reverse=True)
     return [summarize(p) for p in dirs[:MAX_LIST]]
 
 
@@ -189,6 +199,8 @@ def record_view(path: str | Path, points: int = 2000, t0: float | None = None,
                       for s in range(start, stop, BLOCK_ROWS))
             idx, lo, hi = minmax_blocks(blocks, start, stop, points, len(cols))
     else:
+        if Path(path).stat().st_size > MAX_CSV:
+            raise InputError(f"CSV record over {MAX_CSV >> 20} MiB: not opened here", str(path))
         rec = load_record(path)
         n, fs = rec.n, rec.fs
         start, stop = _window(n, fs, t0, t1, path)

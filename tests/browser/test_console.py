@@ -34,12 +34,13 @@ def _wait(browser, cond, timeout=60, what=""):
 
 
 def _open(browser, web, token=None):
+    """The console page, logged in with ``token`` (default: the control token) typed in its
+    token box: every read needs a token (docs/web.md, Security)."""
     browser.get(web.url + "/")
-    if token is not None:
-        box = browser.find_element(By.ID, "token")
-        box.clear()
-        box.send_keys(token)
-        browser.find_element(By.ID, "token-save").click()
+    box = browser.find_element(By.ID, "token")
+    box.clear()
+    box.send_keys(token or web.token)
+    browser.find_element(By.ID, "token-save").click()
     _wait(browser, lambda drv: drv.execute_script("return window.rigd.mode") == "stream",
           what="live stream connected")
 
@@ -103,15 +104,23 @@ def test_enable_from_the_page_enables_kinf(browser, screenshot, rig):
              what="K∞ disabled")
 
 
-def test_enable_without_the_token_is_401_and_nothing_changes(browser, rig):
+def test_page_without_a_token_shows_nothing_and_asks_for_it(browser, rig):
+    _, web, _ = rig
+    browser.get(web.url + "/")
+    _wait(browser, lambda drv: "enter the token" in _message(browser)[0], what="token asked")
+    assert _js(browser, "window.rigd.mode") == "connecting"
+    assert _js(browser, "window.rigd.updates") == 0
+    assert browser.console_errors() == []         # nothing fetched: no 401 logged
+
+
+def test_enable_with_the_read_only_token_is_403_and_nothing_changes(browser, rig):
     d, web, _ = rig
     d.ctl("disable")
-    _open(browser, web)                         # no token in this tab
-    assert _js(browser, "sessionStorage.getItem('rigd-token')") is None
+    _open(browser, web, token=web.read_token)   # the live view reads; commands are refused
     browser.find_element(By.ID, "enable").click()
-    _wait(browser, lambda drv: "(HTTP 401)" in _message(browser)[0], what="401 on the page")
+    _wait(browser, lambda drv: "(HTTP 403)" in _message(browser)[0], what="403 on the page")
     text, cls = _message(browser)
-    assert "error" in cls and "token" in text
+    assert "error" in cls and "read-only" in text
     # the same request as the page sends it, without the header
     status = browser.execute_async_script(
         "const done = arguments[0];"
@@ -121,9 +130,9 @@ def test_enable_without_the_token_is_401_and_nothing_changes(browser, rig):
     st = d.ctl_json("status")
     assert not st["controller"]["requested"] and not st["controller"]["enabled"]
     assert browser.find_element(By.ID, "kinf").text.startswith("off")
-    # the page's fetch of a 401 is logged by Chromium as a failed resource load: expected here
+    # the page's fetches of a 403/401 are logged by Chromium as failed loads: expected here
     errors = browser.take_console_errors()
-    assert errors and all("401" in e for e in errors), errors
+    assert errors and all("403" in e or "401" in e for e in errors), errors
 
 
 def test_invalid_experiment_upload_is_one_line_and_the_daemon_is_unharmed(

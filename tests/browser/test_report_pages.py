@@ -176,6 +176,12 @@ def test_reports_work_served_by_rigd_web(browser, screenshot, diagnose_report, t
     th.start()
     try:
         WebDriverWait(browser.driver, WAIT_S).until(lambda d: server.started)
+        # reads need the token: the console page's login exchange sets the session cookie
+        browser.get(f"http://127.0.0.1:{port}/")
+        assert browser.execute_async_script(
+            "const done = arguments[1]; fetch('/api/login', {method: 'POST', headers: "
+            "{Authorization: 'Bearer ' + arguments[0]}}).then(r => done(r.status));",
+            settings.token) == 200
         _open(browser, f"http://127.0.0.1:{port}/runs/{out.name}/index.html")
         browser.find_element(By.CSS_SELECTOR, "#figures summary").click()
         WebDriverWait(browser.driver, WAIT_S).until(lambda d: d.execute_script(

@@ -7,11 +7,12 @@ import stat
 
 import pytest
 from starlette.testclient import TestClient
-from webkit import TOKEN, auth
+from webkit import READ_TOKEN, TOKEN, auth
 
 from rigd.errors import InputError
 from rigd.web.app import Settings, build_app
-from rigd.web.auth import MAX_BODY, load_or_create_token, token_ok
+from rigd.web.auth import load_or_create_token, token_ok
+from rigd.web.guard import MAX_BODY
 
 COMMANDS = ["enable", "disable", "reset", "load", "op", "start", "stop", "safe"]
 
@@ -23,6 +24,7 @@ def test_no_or_wrong_token_is_401_and_nothing_reaches_the_daemon(site, name, hea
     client, loop, exps, _ = site
     body = {"op": {"omega_rpm": 1000, "p_inj_bar": 4},
             "load": {"path": "config/k.yaml"}}.get(name, {})
+    del client.headers["Authorization"]
     headers = {"Authorization": header} if header is not None else {}
     r = client.post(f"/api/{name}", json=body, headers=headers)
     assert r.status_code == 401
@@ -42,16 +44,59 @@ def test_with_the_token_the_command_reaches_the_daemon(site):
 
 def test_cookies_carry_no_authority(site):
     client, loop, _, _ = site
+    del client.headers["Authorization"]
     client.cookies.set("token", TOKEN)
     r = client.post("/api/enable", headers={"Cookie": f"Authorization=Bearer {TOKEN}"})
     assert r.status_code == 401 and loop.calls == []
 
 
-def test_reads_need_no_token(site):
-    client, _, _, _ = site
+def test_reads_with_either_token(site):
+    client, loop, _, _ = site
     r = client.get("/api/status")
     assert r.status_code == 200 and r.json()["running"] is True
     assert r.json()["nan_field"] is None     # strict JSON, as `rigd ctl status --json`
+    r = client.get("/api/status", headers=auth(READ_TOKEN))
+    assert r.status_code == 200 and r.json()["running"] is True
+    r = client.post("/api/enable", headers=auth(READ_TOKEN))
+    assert r.status_code == 403 and "read-only" in r.json()["error"]
+    assert loop.calls == [] and not loop.enabled
+
+
+@pytest.mark.parametrize("url", ["/api/status", "/api/faults", "/api/timing", "/api/experiment",
+                                 "/api/stream", "/api/runs", "/api/files", "/api/console",
+                                 "/api/runs/r/rec.csv", "/runs/r/index.html", "/runs/r/k.yaml"])
+def test_every_read_without_a_token_is_401(site, url):
+    client, _, _, settings = site
+    (settings.runs_dir / "r").mkdir()
+    (settings.runs_dir / "r" / "index.html").write_text("<p>report</p>")
+    (settings.runs_dir / "r" / "k.yaml").write_text("A: [[0.5]]\n")
+    del client.headers["Authorization"]
+    for headers in ({}, auth("wrong-token-0123456789"), {"Cookie": "rigd_session=forged"}):
+        r = client.get(url, headers=headers)
+        assert r.status_code == 401, (url, headers)
+        assert "report" not in r.text and "0.5" not in r.text
+    assert client.get("/").status_code == 200           # the page itself: no rig data
+    assert client.get("/static/app.js").status_code == 200
+
+
+def test_login_gives_a_read_only_session_cookie(site):
+    client, loop, _, _ = site
+    del client.headers["Authorization"]
+    assert client.post("/api/login").status_code == 401
+    r = client.post("/api/login", headers=auth(READ_TOKEN))
+    assert r.status_code == 200 and r.json() == {"access": "read"}
+    cookie = r.headers["set-cookie"]
+    for attr in ("rigd_session=", "HttpOnly", "SameSite=Strict", "Path=/"):
+        assert attr in cookie, cookie
+    assert READ_TOKEN not in cookie and TOKEN not in cookie
+    assert client.get("/api/status").status_code == 200     # the cookie, no header
+    # the cookie carries reads only, even from the control token: no CSRF
+    r = client.post("/api/login", headers=auth())
+    assert r.status_code == 200 and r.json() == {"access": "control"}
+    assert client.post("/api/enable").status_code == 401
+    assert loop.calls == []
+    assert client.post("/api/logout").status_code == 200
+    assert client.get("/api/status").status_code == 401
 
 
 def test_body_over_the_limit_is_413_before_anything_runs(site):
@@ -89,7 +134,7 @@ def test_bad_requests_are_one_line_400(site):
 def test_daemon_not_reachable_is_503_one_line(tmp_path):
     s = Settings(socket=str(tmp_path / "none.sock"), runs_dir=tmp_path, config_dir=tmp_path,
                  token=TOKEN)
-    with TestClient(build_app(s)) as client:
+    with TestClient(build_app(s), headers=auth()) as client:
         for r in (client.get("/api/status"), client.post("/api/enable", headers=auth())):
             assert r.status_code == 503
             err = r.json()["error"]

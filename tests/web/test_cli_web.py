@@ -6,10 +6,10 @@ import socket
 
 import pytest
 from starlette.testclient import TestClient
-from webkit import TOKEN
+from webkit import TOKEN, auth
 
 from rigd.cli import main
-from rigd.cli.web import loopback_hosts, parse_listen
+from rigd.cli.web import LOOPBACK_NAMES, allowed_hosts, parse_listen
 from rigd.web.app import Settings, build_app
 
 
@@ -21,7 +21,8 @@ def test_parse_listen():
             parse_listen(bad)
 
 
-@pytest.mark.parametrize("case", ["listen", "config", "token_mode", "port_taken"])
+@pytest.mark.parametrize("case", ["listen", "config", "token_mode", "port_taken",
+                                  "not_loopback", "tls_half", "read_same", "header_timeout"])
 def test_start_up_errors_are_one_line_exit_2(case, tmp_path, capsys):
     (tmp_path / "config").mkdir()
     args = ["web", "--socket", str(tmp_path / "s.sock"), "--runs-dir", str(tmp_path / "runs"),
@@ -38,6 +39,20 @@ def test_start_up_errors_are_one_line_exit_2(case, tmp_path, capsys):
         (tmp_path / "tok").write_text("x" * 40 + "\n")
         os.chmod(tmp_path / "tok", 0o644)
         needle = "chmod 600"
+    elif case == "not_loopback":
+        args[-1] = "0.0.0.0:0"
+        needle = "is not a loopback address: give --tls-cert/--tls-key (or --insecure"
+    elif case == "tls_half":
+        args += ["--tls-key", str(tmp_path / "k.pem")]
+        needle = "--tls-cert and --tls-key go together"
+    elif case == "read_same":
+        (tmp_path / "tok").write_text("x" * 40 + "\n")
+        os.chmod(tmp_path / "tok", 0o600)
+        args += ["--read-token-file", str(tmp_path / "tok")]
+        needle = "the read-only token must differ"
+    elif case == "header_timeout":
+        args += ["--header-timeout", "0"]
+        needle = "--header-timeout 0: expected 0 < S <= 3600"
     else:
         held = socket.socket()
         held.bind(("127.0.0.1", 0))
@@ -53,25 +68,28 @@ def test_start_up_errors_are_one_line_exit_2(case, tmp_path, capsys):
     assert err.startswith("rigd web: ") and needle in err and len(err.splitlines()) == 1, err
 
 
-def test_loopback_only_accepts_loopback_host_names(tmp_path):
-    assert loopback_hosts("0.0.0.0") is None and loopback_hosts("192.168.1.5") is None
-    hosts = loopback_hosts("127.0.0.1")
-    assert hosts == loopback_hosts("::1") == loopback_hosts("localhost")
+def test_only_the_listen_address_names_are_accepted(tmp_path):
+    assert allowed_hosts("192.168.1.5") == ("192.168.1.5",)
+    assert allowed_hosts("192.168.1.5", ["Rig.Example"]) == ("192.168.1.5", "rig.example")
+    anywhere = allowed_hosts("0.0.0.0")
+    assert set(LOOPBACK_NAMES) <= set(anywhere) and socket.gethostname().lower() in anywhere
+    hosts = allowed_hosts("127.0.0.1")
+    assert set(hosts) == set(LOOPBACK_NAMES) == set(allowed_hosts("localhost"))
     s = Settings(socket=str(tmp_path / "none.sock"), runs_dir=tmp_path, config_dir=tmp_path,
                  token=TOKEN, allowed_hosts=hosts)
     app = build_app(s)
-    with TestClient(app, base_url="http://attacker.example:8080") as client:
+    with TestClient(app, base_url="http://attacker.example:8080", headers=auth()) as client:
         r = client.get("/api/status")
         assert r.status_code == 400 and "daemon" not in r.text
     for base in ("http://127.0.0.1:8080", "http://localhost:8080"):
-        with TestClient(app, base_url=base) as client:
+        with TestClient(app, base_url=base, headers=auth()) as client:
             assert client.get("/api/status").status_code == 503    # past the check: no daemon
 
 
 def test_security_headers(tmp_path):
     s = Settings(socket=str(tmp_path / "none.sock"), runs_dir=tmp_path, config_dir=tmp_path,
                  token=TOKEN)
-    with TestClient(build_app(s)) as client:
+    with TestClient(build_app(s), headers=auth()) as client:
         page = client.get("/")
         csp = page.headers["content-security-policy"]
         assert "script-src 'self'" in csp and "frame-ancestors 'none'" in csp

@@ -8,7 +8,7 @@ import threading
 
 import pytest
 from starlette.testclient import TestClient
-from webkit import TOKEN
+from webkit import TOKEN, auth
 from webproc import sse_events
 
 from rigd.web.app import Settings, build_app
@@ -67,7 +67,7 @@ def test_stream_payloads_are_relayed_unchanged(tmp_path):
                "min": {"e_x": [i - 1.0], "e_y": [0.5]}, "max": {"e_x": [i + 1.0], "e_y": [0.7]},
                "status": {"seq": 100 * i, "k_on": i % 2 == 1}} for i in range(5)]
     srv = PushServer(tmp_path / "d.sock", frames)
-    with TestClient(build_app(_settings(tmp_path, srv.path))) as client:
+    with TestClient(build_app(_settings(tmp_path, srv.path)), headers=auth()) as client:
         events = _events(client, "/api/stream?rate_hz=25&points=100&channels=e_x,e_y")
     srv.close()
     assert srv.requests == [{"id": 1, "cmd": "stream.subscribe", "rate_hz": 25.0,
@@ -84,7 +84,7 @@ def test_a_stopped_push_is_one_error_event_not_a_silent_stream(tmp_path):
     frames = [{"seq": 1, "n": 1, "min": {"e_x": [0.0]}, "max": {"e_x": [1.0]}}]
     stop = {"id": None, "ok": False, "error": "push stopped: internal error: ValueError: x"}
     srv = PushServer(tmp_path / "d.sock", frames, then=stop)
-    with TestClient(build_app(_settings(tmp_path, srv.path))) as client:
+    with TestClient(build_app(_settings(tmp_path, srv.path)), headers=auth()) as client:
         events = _events(client)
     srv.close()
     assert [e for _, e in events[1:2]] == frames
@@ -102,20 +102,22 @@ def test_stream_body_slices_only_pushed_lines():
 @pytest.mark.parametrize("refuse", ["unknown command 'stream.subscribe' (known: ping, ...)"])
 def test_refused_subscription_is_one_error_event(tmp_path, refuse):
     srv = PushServer(tmp_path / "d.sock", [], refuse=refuse)
-    with TestClient(build_app(_settings(tmp_path, srv.path))) as client:
+    with TestClient(build_app(_settings(tmp_path, srv.path)), headers=auth()) as client:
         events = _events(client)
     srv.close()
     assert events == [("error", {"error": f"daemon stream unavailable: {refuse}"})]
 
 
 def test_no_daemon_is_one_error_event(tmp_path):
-    with TestClient(build_app(_settings(tmp_path, tmp_path / "none.sock"))) as client:
+    app = build_app(_settings(tmp_path, tmp_path / "none.sock"))
+    with TestClient(app, headers=auth()) as client:
         events = _events(client)
     assert len(events) == 1 and events[0][0] == "error"
     assert "daemon not reachable" in events[0][1]["error"] and "none.sock" in events[0][1]["error"]
 
 
 def test_bad_stream_query_is_400(tmp_path):
-    with TestClient(build_app(_settings(tmp_path, tmp_path / "none.sock"))) as client:
+    app = build_app(_settings(tmp_path, tmp_path / "none.sock"))
+    with TestClient(app, headers=auth()) as client:
         r = client.get("/api/stream?rate_hz=fast")
     assert r.status_code == 400 and "bad query" in r.json()["error"]

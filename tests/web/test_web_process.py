@@ -13,14 +13,14 @@ from webproc import daemon_and_web, sse_events, wait_for
 def rig(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("webrig")
     with daemon_and_web(tmp) as (d, web), \
-            httpx.Client(base_url=web.url, timeout=60) as http:
+            httpx.Client(base_url=web.url, timeout=60, headers=web.auth()) as http:
         yield d, web, http
     # uvicorn re-raises SIGTERM after its clean shutdown: -15 is a clean stop
     assert web.proc.returncode in (0, -15), web.lines
 
 
 def _auth(web):
-    return {"Authorization": f"Bearer {web.token}"}
+    return web.auth()
 
 
 def _keys(obj, prefix=""):
@@ -92,10 +92,12 @@ def test_without_the_token_401_and_nothing_changes(rig):
     before = d.ctl_json("status")["last_frame"]["omega_rpm"]
     for name, body in [("enable", {}), ("op", {"omega_rpm": 3333, "p_inj_bar": 4}),
                        ("safe", {})]:
-        r = http.post(f"/api/{name}", json=body)
+        r = httpx.post(f"{web.url}/api/{name}", json=body, timeout=60)
         assert r.status_code == 401, name
         r = http.post(f"/api/{name}", json=body, headers={"Authorization": "Bearer nope"})
         assert r.status_code == 401, name
+        r = http.post(f"/api/{name}", json=body, headers=web.auth(read=True))
+        assert r.status_code == 403 and "read-only" in r.json()["error"], name
     st = d.ctl_json("status")
     assert not st["controller"]["requested"] and st["fault"]["code"] == 0
     assert st["last_frame"]["omega_rpm"] == before
@@ -111,7 +113,7 @@ def test_raw_paths_never_leave_the_folders(rig, raw):
     _, web, _ = rig
     u = urlsplit(web.url)
     conn = http.client.HTTPConnection(u.hostname, u.port, timeout=30)
-    conn.request("GET", raw)               # http.client sends the path as is
+    conn.request("GET", raw, headers=web.auth())   # http.client sends the path as is
     resp = conn.getresponse()
     body = resp.read().decode("utf-8", "replace")
     conn.close()

@@ -2,6 +2,7 @@
 ``from conftest import`` is ambiguous once several test folders have a conftest.py)."""
 
 TOKEN = "t0ken-for-the-tests-0123456789"
+READ_TOKEN = "read-0nly-t0ken-for-the-tests-0123"
 
 
 class FakeExperiments:

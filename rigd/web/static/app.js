@@ -35,11 +35,25 @@ function say(text, kind) {
 
 function token() { return sessionStorage.getItem("rigd-token") || ""; }
 
+// Reads need the token too (docs/web.md, Security): every fetch sends it as the
+// Authorization header, and login() exchanges it (POST /api/login) for a read-only session
+// cookie (HttpOnly, SameSite=Strict) that the EventSource and the report links carry. Nothing
+// is fetched before a login succeeded: the page itself holds no rig data.
+async function login() {
+  if (!token()) return false;
+  try {
+    const r = await fetch("/api/login", {method: "POST", headers: {"Authorization": "Bearer " + token()}});
+    return r.ok;
+  } catch (e) {
+    return false;
+  }
+}
+
 async function api(path, body) {
   const opts = {method: body === undefined ? "GET" : "POST", headers: {}};
+  if (token()) opts.headers["Authorization"] = "Bearer " + token();
   if (body !== undefined) {
     opts.headers["Content-Type"] = "application/json";
-    opts.headers["Authorization"] = "Bearer " + token();
     opts.body = JSON.stringify(body);
   }
   let r;
@@ -73,9 +87,14 @@ async function fileText(input) {
 // ---------------------------------------------------------------- controls
 function wireControls() {
   $("token").value = token();
-  $("token-save").onclick = () => {
+  $("token-save").onclick = async () => {
     sessionStorage.setItem("rigd-token", $("token").value.trim());
-    say("token kept for this tab (sessionStorage); sent as Authorization: Bearer", "ok");
+    if (await login()) {
+      say("token kept for this tab (sessionStorage); sent as Authorization: Bearer", "ok");
+      start();
+    } else {
+      say("login: token refused (HTTP 401): use the token rigd web printed at start", "error");
+    }
   };
   $("token").addEventListener("keydown", (e) => { if (e.key === "Enter") $("token-save").click(); });
   $("safe").onclick = () => command("safe", {}, "SAFE: safe state latched (reset, then enable, to leave it)");
@@ -439,8 +458,16 @@ async function openRecord(run, file, t0, t1) {
 }
 
 // ---------------------------------------------------------------- start
+let started = false;
 async function main() {
   wireControls();
+  if (await login()) start();
+  else say("enter the token printed by rigd web (or its read-only token) and press Keep", "error");
+}
+
+async function start() {
+  if (started) return;
+  started = true;
   const c = await api("/api/console");
   if (c.ok && c.body.film_gap_um) rigd.filmGap = c.body.film_gap_um;
   rigd.buf = newBuffers();
