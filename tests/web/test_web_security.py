@@ -3,6 +3,7 @@
 session cookie carries reads only. Every row of docs/web.md's attack table names its test."""
 
 import json
+import ssl
 
 import httpx2 as httpx
 import numpy as np
@@ -385,7 +386,8 @@ def test_tls_serves_https_and_the_cookie_is_secure(rig, cert):
     web = _other_web(rig, "tls", {"--tls-cert": str(crt), "--tls-key": str(key)})
     try:
         assert web.url.startswith("https://127.0.0.1:")
-        with httpx.Client(base_url=web.url, timeout=60, verify=str(crt)) as https:
+        trust = ssl.create_default_context(cafile=str(crt))
+        with httpx.Client(base_url=web.url, timeout=60, verify=trust) as https:
             assert https.get("/api/status").status_code == 401
             r = https.post("/api/login", headers=web.auth(read=True))
             assert r.status_code == 200 and "; Secure" in r.headers["set-cookie"]
@@ -434,8 +436,9 @@ def test_non_loopback_listen_needs_tls_or_insecure(rig, cert):
     try:
         assert not any("WARNING" in x for x in web.lines)
         port = web.url.rsplit(":", 1)[1]
-        with httpx.Client(base_url=f"https://127.0.0.1:{port}", timeout=60,
-                          verify=str(cert[0]), headers=web.auth()) as https:
+        trust = ssl.create_default_context(cafile=str(cert[0]))
+        with httpx.Client(base_url=f"https://127.0.0.1:{port}", timeout=60, verify=trust,
+                          headers=web.auth()) as https:
             assert https.get("/api/status").status_code == 200
     finally:
         web.stop()
