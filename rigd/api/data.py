@@ -96,8 +96,9 @@ def apply_range(record: Record, rng: str | slice | None) -> Record:
 
 def load(path: str | Path, *, fs: str | float | None = None,
          inputs: str | list[str] | None = None, outputs: str | list[str] | None = None,
-         range: str | slice | None = None) -> Record:  # noqa: A002 - the CLI's name
-    """Load a record: an HDF5 recording, an interchange CSV, or a plain CSV.
+         range: str | slice | None = None,  # noqa: A002 - the CLI's name
+         var: str | None = None, time_column: str | int | None = None) -> Record:
+    """Load a record: an HDF5 recording, an interchange CSV, a plain CSV or a MATLAB file.
 
     Parameters
     ----------
@@ -111,6 +112,10 @@ def load(path: str | Path, *, fs: str | float | None = None,
         Input (excitation) and output (response) columns of a plain CSV.
     range : str or slice, optional
         Use only samples ``START:STOP`` (e.g. ``"40000:"``).
+    var, time_column : str, optional
+        MATLAB ``.mat`` files (v5 or v7.3): the matrix holding the samples and its 1-based
+        time column (else ``fs``); ``inputs``/``outputs`` are then 1-based columns (``"2:4"``)
+        or names of variables of the file (:mod:`rigd.data.matio`).
 
     Returns
     -------
@@ -124,7 +129,14 @@ def load(path: str | Path, *, fs: str | float | None = None,
         Missing or malformed file, ``inputs``/``outputs`` without ``fs``, a bad range.
     """
     from rigd.data.io import load_record
+    from rigd.data.matio import is_mat
 
+    if is_mat(path):
+        rec = load_record(path, fs=None if fs is None else parse_fs(fs), inputs=inputs,
+                          outputs=outputs, var=var, time_column=time_column)
+        return apply_range(rec, range)
+    if var is not None or time_column is not None:
+        raise InputError("--var/--time-column apply to MATLAB .mat files only", str(path))
     if fs is None:
         if inputs or outputs:
             raise InputError("--inputs/--outputs are for plain CSV files and need --fs")

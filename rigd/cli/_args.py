@@ -43,12 +43,24 @@ def add_plain_csv_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--fs", help="sample rate, Hz (number or ratio, e.g. 10000000/16384)")
     g.add_argument("--inputs", help="comma-separated input columns")
     g.add_argument("--outputs", help="comma-separated output columns")
+    add_mat_arguments(p)
+
+
+def add_mat_arguments(p: argparse.ArgumentParser) -> None:
+    """``--var/--time-column`` for MATLAB files (with ``--inputs``/``--outputs`` as 1-based
+    columns and ``--fs`` when there is no time column)."""
+    g = p.add_argument_group("MATLAB .mat files (v5 or v7.3): --inputs/--outputs are 1-based "
+                             "columns of --var (2:4 or 2,5) or names of variables of the file")
+    g.add_argument("--var", metavar="NAME", help="the matrix holding the samples, one a row "
+                   "(needed when the file holds several)")
+    g.add_argument("--time-column", metavar="N", help="1-based column of --var holding the "
+                   "time in seconds (gives the sample rate; else give --fs)")
 
 
 def load_options(args: argparse.Namespace) -> dict[str, Any]:
     """The keyword arguments of :func:`rigd.api.load` given on the command line."""
     return {"fs": args.fs, "inputs": args.inputs, "outputs": args.outputs,
-            "range": args.range}
+            "range": args.range, "var": args.var, "time_column": args.time_column}
 
 
 def print_source(info: dict[str, Any], file: Any = None) -> None:

@@ -7,13 +7,13 @@ import argparse
 import json
 
 from rigd.api.data import source_text
-from rigd.cli._args import add_order_argument, load_options
+from rigd.cli._args import add_mat_arguments, add_order_argument, load_options
 
 HELP = "diagnose a model on a record: where it fails, which physical effect is missing"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("data", metavar="DATA", help="record (HDF5 recording or CSV)")
+    p.add_argument("data", metavar="DATA", help="record (HDF5 recording, CSV or MATLAB .mat)")
     p.add_argument("--runout", metavar="RUNOUT_DATA",
                    help="run-out record at the same operating point (run-out filter, §4.4)")
     p.add_argument("--report", metavar="DIR", help="write the report into DIR: index.html "
@@ -43,6 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "ratio, e.g. 10000000/16384)")
     p.add_argument("--inputs", help="input columns of a plain CSV (comma separated)")
     p.add_argument("--outputs", help="output columns of a plain CSV (comma separated)")
+    add_mat_arguments(p)
 
 
 def run(args: argparse.Namespace) -> int:

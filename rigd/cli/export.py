@@ -2,6 +2,7 @@
 
     rigd export REC.h5 --csv OUT.csv [--columns e_x,e_y,...]
     rigd export --from-csv RAW.csv --fs 10000000/16384 --inputs V1 --outputs V2 -o OUT.csv
+    rigd export DATA.mat --var NAME --time-column 1 --inputs 2:3 --outputs 4 -o OUT.csv
 """
 
 from __future__ import annotations
@@ -10,11 +11,13 @@ import argparse
 
 from rigd.errors import InputError
 
-HELP = "export a recording (HDF5 or CSV) to the interchange CSV, or convert a plain CSV"
+HELP = ("export a recording (HDF5, CSV or MATLAB .mat) to the interchange CSV, or convert a "
+        "plain CSV")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("record", nargs="?", help="recording to export (HDF5 or interchange CSV)")
+    p.add_argument("record", nargs="?", help="recording to export (HDF5, interchange CSV, or "
+                   "MATLAB .mat with --var/--inputs/--outputs/--time-column or --fs)")
     p.add_argument("--csv", metavar="OUT", help="output interchange CSV")
     p.add_argument("--columns", help="comma-separated channels to export (default: all)")
     g = p.add_argument_group("converting a plain CSV (no rig-data metadata, e.g. Silverbox)")
@@ -26,6 +29,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--omega-rpm", type=float, help="shaft speed, rpm (rotor data)")
     g.add_argument("--p-inj-bar", type=float, help="injection pressure, bar (rotor data)")
     g.add_argument("--kind", help="record kind (prbs, runout, impact, free)")
+    m = p.add_argument_group("MATLAB .mat record (v5 or v7.3): --fs/--inputs/--outputs as "
+                             "above, columns 1-based (2:4) or variable names")
+    m.add_argument("--var", metavar="NAME", help="the matrix holding the samples, one a row")
+    m.add_argument("--time-column", metavar="N", help="1-based time column of --var (s)")
     g.add_argument("-o", "--out", metavar="OUT", help="output interchange CSV (same as --csv)")
 
 
@@ -55,10 +62,27 @@ def run(args: argparse.Namespace) -> int:
     else:
         if not args.record:
             raise InputError("no recording given (or use --from-csv RAW)", "arguments")
-        for opt in ("fs", "inputs", "outputs", "omega_rpm", "p_inj_bar", "kind"):
-            if getattr(args, opt) is not None:
-                raise InputError(f"--{opt.replace('_', '-')} applies only with --from-csv",
+        from pathlib import Path
+
+        from rigd.data.matio import is_mat
+
+        if not Path(args.record).exists():
+            raise InputError("no such file", args.record)
+        mat = is_mat(args.record)
+        for opt in ("fs", "inputs", "outputs", "omega_rpm", "p_inj_bar", "kind", "var",
+                    "time_column"):
+            if getattr(args, opt) is not None and not (
+                    mat and opt in ("fs", "inputs", "outputs", "var", "time_column")):
+                where = "a MATLAB .mat record or --from-csv" if opt in ("fs", "inputs",
+                                                                        "outputs") else \
+                    "a MATLAB .mat record" if opt in ("var", "time_column") else "--from-csv"
+                raise InputError(f"--{opt.replace('_', '-')} applies only with {where}",
                                  "arguments")
-        n = export_csv(args.record, out, columns=_split(args.columns))
+        opts = None
+        if mat:
+            opts = {"var": args.var, "inputs": args.inputs, "outputs": args.outputs,
+                    "time_column": args.time_column,
+                    "fs": None if args.fs is None else parse_fs(args.fs)}
+        n = export_csv(args.record, out, columns=_split(args.columns), mat=opts)
     print(f"wrote {out} ({n} rows)")
     return 0

@@ -1,7 +1,8 @@
 """Export a record to the interchange CSV, streaming: memory stays bounded by one row block.
 
 * HDF5 recording -> CSV: the frames are read and written ``block_rows`` rows at a time.
-* CSV (interchange or plain, with ``fs``) -> CSV: the record is read (strictly) and re-written.
+* CSV (interchange or plain, with ``fs``) or MATLAB .mat -> CSV: the record is read (strictly)
+  and re-written.
 
 Every file is written atomically (temporary file + rename): on any error no output appears.
 Numbers use the shortest round-trip ``repr``, so the CSV reads back bit-for-bit.
@@ -30,8 +31,9 @@ def _check_out(src: Path, out: Path) -> None:
 
 
 def export_csv(src: str | Path, out: str | Path, *, columns: list[str] | None = None,
-               block_rows: int = BLOCK_ROWS) -> int:
-    """Write the record at ``src`` (HDF5 or CSV) to ``out`` as an interchange CSV.
+               block_rows: int = BLOCK_ROWS, mat: dict[str, Any] | None = None) -> int:
+    """Write the record at ``src`` (HDF5, CSV or MATLAB .mat) to ``out`` as an interchange
+    CSV.
 
     Parameters
     ----------
@@ -40,6 +42,9 @@ def export_csv(src: str | Path, out: str | Path, *, columns: list[str] | None = 
         Only these channels (``t`` is always written first if the record has it).
     block_rows : int
         Rows per block: the memory bound.
+    mat : dict, optional
+        A MATLAB file's options (``var``, ``inputs``, ``outputs``, ``time_column``, ``fs``:
+        :func:`rigd.data.matio.read_mat`).
 
     Returns
     -------
@@ -74,7 +79,7 @@ def export_csv(src: str | Path, out: str | Path, *, columns: list[str] | None = 
                                           rec.blocks(block_rows, idx), str(src))
     from rigd.data.io import load_record
 
-    record = load_record(src)
+    record = load_record(src, **(mat or {}))
     if columns:
         record = _select(record, columns)
     record.check_finite(list(record.columns), "the export (choose --columns to leave it out)")

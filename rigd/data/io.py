@@ -11,14 +11,18 @@ from rigd.errors import InputError
 
 def load_record(path: str | Path, *, fs: float | None = None,
                 inputs: list[str] | str | None = None, outputs: list[str] | str | None = None,
-                meta: dict[str, Any] | None = None) -> Record:
-    """Load a measurement record from an HDF5 recording or a CSV file.
+                meta: dict[str, Any] | None = None, var: str | None = None,
+                time_column: str | int | None = None) -> Record:
+    """Load a measurement record from an HDF5 recording, a CSV file or a MATLAB file.
 
     The format is recognised by content: the HDF5 signature means a rigd recording
     (:func:`rigd.data.h5io.read_h5`); anything else is read as the strict interchange CSV
     (:func:`rigd.data.csvio.read_csv`). Passing ``fs`` reads a *plain* CSV without rig-data
     metadata instead (:func:`rigd.data.rawcsv.read_raw_csv`, e.g. the Silverbox file), with
     ``inputs``/``outputs`` (generic record) or ``meta={"omega_rpm":..,"p_inj_bar":..}``.
+    A MATLAB file (``MATLAB`` text header: v5/v7, or v7.3 = HDF5 behind it) is read by
+    :func:`rigd.data.matio.read_mat` with ``var``, ``inputs``/``outputs`` (1-based columns or
+    variable names), ``time_column`` and/or ``fs``.
 
     Parameters
     ----------
@@ -30,6 +34,8 @@ def load_record(path: str | Path, *, fs: float | None = None,
         Input/output columns of a plain CSV (generic record).
     meta : dict, optional
         Extra metadata of a plain CSV.
+    var, time_column : optional
+        MATLAB files only: the matrix holding the samples, the 1-based time column.
 
     Returns
     -------
@@ -41,13 +47,21 @@ def load_record(path: str | Path, *, fs: float | None = None,
         Missing/unreadable file, or any breach of the format: one message naming the file,
         the line (CSV) and the problem.
     """
-    from rigd.data import csvio, h5io, rawcsv
+    from rigd.data import csvio, h5io, matio, rawcsv
 
     p = Path(path)
     if not p.exists():
         raise InputError("no such file", str(path))
     if p.is_dir():
         raise InputError("is a directory, not a data file", str(path))
+    if matio.is_mat(p):
+        return matio.read_mat(p, var=var, inputs=inputs, outputs=outputs,
+                              time_column=time_column, fs=fs, meta=meta)
+    if var is not None or time_column is not None:
+        raise InputError("--var/--time-column apply to MATLAB .mat files only", str(path))
+    if p.suffix.lower() == ".mat":
+        raise InputError("named like a MATLAB file but has no MAT-file header (v4 files are "
+                         "not read: save with -v7 or -v7.3)", str(path))
     if h5io.is_hdf5(p):
         if fs is not None or inputs or outputs:
             raise InputError("fs/inputs/outputs options apply to plain CSV files only, not to "
