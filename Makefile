@@ -6,7 +6,7 @@ STAMP   := $(VENV)/.installed
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test lint bench venv clean
+.PHONY: demo test lint bench peers-deps venv clean
 
 venv: $(STAMP)
 
@@ -54,6 +54,11 @@ test: lint
 
 bench: $(STAMP)
 	@$(BIN)/python -m bench
+
+# `python -m bench peers` compares with SysIdentPy's NARX: its wheel caps numpy at 2.3.5
+# (metadata only; it runs on the pinned 2.4.6), so it is installed without its dependencies
+peers-deps: $(STAMP)
+	$(BIN)/pip install --no-deps -c constraints.txt sysidentpy
 
 clean:
 	rm -rf $(VENV) demo-out build *.egg-info

@@ -159,67 +159,86 @@ def n4sid(u: np.ndarray, y: np.ndarray, order: int | str = "auto",
     feedthrough : bool
         Estimate D (else D = 0).
     """
-    u, y = as_2d(u), as_2d(y)
-    n, nu = u.shape
-    ny = y.shape[1]
     top = max_order if order == "auto" else int(order)
     if top < 1:
         raise ValueError(f"order must be >= 1, got {order}")
-    i = int(horizon or default_horizon(n, nu, ny, top))
-    u0, y0 = u.mean(0), y.mean(0)
-    su, sy = np.maximum(u.std(0), 1e-300), np.maximum(y.std(0), 1e-300)
-    du, dy = (u - u0) / su, (y - y0) / sy
-    j = n - 2 * i + 1
-    r1, r2, r3 = i * nu, i * (nu + ny), i * ny
-    if j < 2 * (r1 + r2 + r3):
-        raise ValueError(f"record too short for a subspace estimate with horizon {i} "
-                         f"({n} samples)")
-    R = stacked_r(_hankel_rows([(du, i), (du, 0), (dy, 0), (dy, i)], i), j, r1 + r2 + r3)
-    L = R.T
-    L22 = L[r1:r1 + r2, r1:r1 + r2]
-    L32 = L[r1 + r2:, r1:r1 + r2]
-    U1, sv, _ = np.linalg.svd(L32, full_matrices=False)
+    dec = _Decomposition(u, y, top, horizon, fs, feedthrough)
+    sv = dec.sv
     nx = order_from_sv(sv, min(max_order, len(sv) - 1)) if order == "auto" else int(order)
-    if nx >= r3:
-        raise ValueError(f"order {nx} needs a horizon above {nx // ny} (is {i})")
-    s_half = np.sqrt(sv[:nx])
-    Gam = U1[:, :nx] * s_half                    # extended observability (scaled data)
-    A = np.linalg.lstsq(Gam[:-ny], Gam[ny:], rcond=None)[0]   # shift invariance
-    C = Gam[:ny]
-    Mx = np.linalg.pinv(Gam) @ L32 @ np.linalg.pinv(L22, rcond=1e-10)   # X = Mx W_p
-    past = _hankel_rows([(du, 0), (dy, 0)], i)
-    X = past(0, j) @ Mx.T                       # (j, nx): state at t = i + c
-    t = np.arange(i, i + j - 1)
-    # B, D (A and C fixed) from [x(t+1) − A x(t); y(t) − C x(t)] = [B; D] u(t)
-    T = np.hstack([X[1:] - X[:-1] @ A.T, dy[t] - X[:-1] @ C.T])
-    BD = np.linalg.lstsq(du[t], T, rcond=None)[0].T
-    B, D = BD[:nx], BD[nx:] if feedthrough else np.zeros((ny, nu))
-    res = T - du[t] @ np.vstack([B, D]).T
-    K = _kalman_gain(A, C, res[:, :nx], res[:, nx:])
-    scaled = LinearModel(A, B, C, D, K, np.zeros(nx), np.zeros(nu), np.zeros(ny), fs)
-    scaled.fit_x0(du, dy)
-    if nx and np.max(np.abs(np.linalg.eigvals(A))) < 1.0:
-        try:
-            B2, D2, x02 = _refine_bd(A, C, du, dy)
-            if not feedthrough:
-                D2 = np.zeros_like(D2)
-            alt = LinearModel(A, B2, C, D2, K, x02, scaled.u0, scaled.y0, fs)
-            if np.mean(fit_percent(dy, alt.simulate(du))) > \
-                    np.mean(fit_percent(dy, scaled.simulate(du))):
-                scaled = alt
-        except (np.linalg.LinAlgError, ValueError):
-            pass
-    m = scaled   # back to the record's units
-    model = LinearModel(m.A, m.B / su, m.C * sy[:, None], m.D * sy[:, None] / su,
-                        m.K / sy, m.x0, u0, y0, fs)
-    return SubspaceResult(model, sv, nx, i)
+    return SubspaceResult(dec.model(nx), sv, nx, dec.i)
+
+
+class _Decomposition:
+    """Steps 1–2 of the module docstring (LQ and SVD, shared by every order) and
+    :meth:`model` (steps 3–4 for one order)."""
+
+    def __init__(self, u, y, top, horizon, fs, feedthrough):
+        u, y = as_2d(u), as_2d(y)
+        n, nu = u.shape
+        ny = y.shape[1]
+        i = self.i = int(horizon or default_horizon(n, nu, ny, top))
+        self.u0, self.y0 = u.mean(0), y.mean(0)
+        self.su, self.sy = np.maximum(u.std(0), 1e-300), np.maximum(y.std(0), 1e-300)
+        self.du, self.dy = (u - self.u0) / self.su, (y - self.y0) / self.sy
+        j = self.j = n - 2 * i + 1
+        r1, r2, r3 = i * nu, i * (nu + ny), i * ny
+        if j < 2 * (r1 + r2 + r3):
+            raise ValueError(f"record too short for a subspace estimate with horizon {i} "
+                             f"({n} samples)")
+        R = stacked_r(_hankel_rows([(self.du, i), (self.du, 0), (self.dy, 0), (self.dy, i)],
+                                   i), j, r1 + r2 + r3)
+        L = R.T
+        self.L22 = L[r1:r1 + r2, r1:r1 + r2]
+        self.L32 = L[r1 + r2:, r1:r1 + r2]
+        self.L22p = np.linalg.pinv(self.L22, rcond=1e-10)
+        self.U1, self.sv, _ = np.linalg.svd(self.L32, full_matrices=False)
+        self.Wp = _hankel_rows([(self.du, 0), (self.dy, 0)], i)(0, j)   # (j, r2) past data
+        self.fs, self.feedthrough, self.r3 = fs, feedthrough, r3
+
+    def model(self, nx: int) -> LinearModel:
+        """The order-``nx`` model in the record's units."""
+        du, dy, i, j, fs = self.du, self.dy, self.i, self.j, self.fs
+        nu, ny = du.shape[1], dy.shape[1]
+        if not 1 <= nx < self.r3:
+            raise ValueError(f"order {nx} needs 1 <= order < horizon·outputs ({self.r3})")
+        s_half = np.sqrt(self.sv[:nx])
+        Gam = self.U1[:, :nx] * s_half               # extended observability (scaled data)
+        A = np.linalg.lstsq(Gam[:-ny], Gam[ny:], rcond=None)[0]   # shift invariance
+        C = Gam[:ny]
+        Mx = np.linalg.pinv(Gam) @ self.L32 @ self.L22p      # X = Mx W_p
+        X = self.Wp @ Mx.T                            # (j, nx): state at t = i + c
+        t = np.arange(i, i + j - 1)
+        # B, D (A and C fixed) from [x(t+1) − A x(t); y(t) − C x(t)] = [B; D] u(t)
+        T = np.hstack([X[1:] - X[:-1] @ A.T, dy[t] - X[:-1] @ C.T])
+        BD = np.linalg.lstsq(du[t], T, rcond=None)[0].T
+        B = BD[:nx]
+        D = BD[nx:] if self.feedthrough else np.zeros((ny, nu))
+        res = T - du[t] @ np.vstack([B, D]).T
+        K = _kalman_gain(A, C, res[:, :nx], res[:, nx:])
+        m = LinearModel(A, B, C, D, K, np.zeros(nx), np.zeros(nu), np.zeros(ny), fs)
+        m.fit_x0(du, dy)
+        if np.max(np.abs(np.linalg.eigvals(A))) < 1.0:
+            try:
+                B2, D2, x02 = _refine_bd(A, C, du, dy)
+                if not self.feedthrough:
+                    D2 = np.zeros_like(D2)
+                alt = LinearModel(A, B2, C, D2, K, x02, m.u0, m.y0, fs)
+                if np.mean(fit_percent(dy, alt.simulate(du))) > \
+                        np.mean(fit_percent(dy, m.simulate(du))):
+                    m = alt
+            except (np.linalg.LinAlgError, ValueError):
+                pass
+        su, sy = self.su, self.sy      # back to the record's units
+        return LinearModel(m.A, m.B / su, m.C * sy[:, None], m.D * sy[:, None] / su,
+                           m.K / sy, m.x0, self.u0, self.y0, fs)
 
 
 def select_subspace(u: np.ndarray, y: np.ndarray, orders=tuple(range(1, 21)),
                     fs: float | None = None) -> tuple[SubspaceResult, dict[int, float]]:
     """Subspace model with the order chosen on the estimation data (u, y) alone: each order
     is fitted on the first two thirds and scored by the free-run fit on the last third
-    (:func:`~rigd.ident.lti.linear.heldout`); the best is refitted on all of (u, y).
+    (:func:`~rigd.ident.lti.linear.heldout`); the best is refitted on all of (u, y). One
+    decomposition serves every order (horizon for the largest).
 
     Returns the result and the check fit (%) of every order tried (−inf: diverged).
     """
@@ -229,19 +248,22 @@ def select_subspace(u: np.ndarray, y: np.ndarray, orders=tuple(range(1, 21)),
     cut = (2 * len(u)) // 3
     top = max(orders)
     scores: dict[int, float] = {}
-    for nx in orders:
+    try:
+        dec = _Decomposition(u[:cut], y[:cut], top, None, fs, True)
+    except (ValueError, np.linalg.LinAlgError):
+        dec = None
+    for nx in orders if dec is not None else ():
         try:
-            r = n4sid(u[:cut], y[:cut], nx, fs=fs,
-                      horizon=default_horizon(cut, u.shape[1], y.shape[1], top))
+            fit, _ = heldout(dec.model(nx), u, y, cut)
         except (ValueError, np.linalg.LinAlgError):
             continue
-        fit, _ = heldout(r.model, u, y, cut)
         scores[int(nx)] = float(np.mean(fit))
     if not scores:
         raise ValueError(f"record too short for any subspace order in {tuple(orders)} "
                          f"({len(u)} samples)")
     best = max(scores, key=lambda k: (scores[k], -k))
-    return n4sid(u, y, best, fs=fs), scores
+    full = _Decomposition(u, y, top, None, fs, True)
+    return SubspaceResult(full.model(best), full.sv, best, full.i), scores
 
 
 def continuous_modes(A: np.ndarray, fs: float) -> list[tuple[float, float]]:
