@@ -18,11 +18,13 @@ and the generated records of ``tests/gen`` (estimation the first 2/3, validation
 Validation outputs are never used: the peers' validation run starts from the state at the end
 of the estimation part when the validation part follows it (:func:`rigd.ident.lti.heldout`),
 else (Silverbox) from rest. ``RIGD_PEERS`` (comma-separated record names) restricts the
-records; ``RIGD_PEERS_DIAGNOSE=0`` skips rigd's diagnosis.
+records; ``RIGD_PEERS_DIAGNOSE=0`` skips rigd's diagnosis. Each record's row is also printed on
+stderr as it completes (``bench peers: row {...}``).
 """
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 import time
@@ -47,14 +49,10 @@ DAISY = {"pHdata": (None, "2:3", "4", 0.1), "cstr": (None, "2", "3:4", 1 / 6.0),
 
 
 def _records():
-    """(name, Record, est slice, val slice) of every record, generated ones last."""
+    """(name, Record, est slice, val slice) of every record: DaISy, Silverbox, generated."""
     from rigd.api.data import load
     from rigd.data.record import Record
 
-    sb = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
-    if sb.exists():
-        rec = load(sb, fs="610.3515625", inputs="V1", outputs="V2")
-        yield "silverbox", rec, slice(40600, rec.n), slice(0, 40000)
     for name, (tcol, ins, outs, fs) in DAISY.items():
         path = SHARED / "data" / "daisy" / f"{name}.mat"
         if path.exists():
@@ -62,6 +60,10 @@ def _records():
                        fs=None if fs is None else repr(fs))
             cut = (2 * rec.n) // 3
             yield f"daisy/{name}", rec, slice(0, cut), slice(cut, rec.n)
+    sb = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
+    if sb.exists():
+        rec = load(sb, fs="610.3515625", inputs="V1", outputs="V2")
+        yield "silverbox", rec, slice(40600, rec.n), slice(0, 40000)
     sys.path.insert(0, str(ROOT))
     from tests.gen import linear, nonlinear
 
@@ -239,6 +241,7 @@ def run() -> dict:
         row["narx"] = (_timed(_narx, u, y, est, val) if have_narx else
                        {"status": "sysidentpy not installed (make peers-deps)"})
         table[name] = row
+        print(f"bench peers: row {json.dumps({name: row})}", file=sys.stderr, flush=True)
     return {"peers": table}
 
 
@@ -263,8 +266,6 @@ def markdown(table: dict) -> str:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    import json
-
     res = run()
     print(json.dumps(res, indent=2))
     print(markdown(res["peers"]), file=sys.stderr)
