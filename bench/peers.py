@@ -100,8 +100,8 @@ def _timed(fn, *args):
 
 
 def _linear_peer(select, u, y, est, val):
+    from rigd.ident.figures import fit_percent
     from rigd.ident.lti import heldout
-    from rigd.ident.pem import fit_percent
 
     model, order = select(u[est], y[est])
     if val.start == est.stop:
@@ -154,7 +154,7 @@ def _narx_output(u, y, est, val):
     """Held-out free-run prediction of one output y (n,) by the FROLS NARX chosen on est."""
     from math import comb
 
-    from rigd.ident.pem import fit_percent
+    from rigd.ident.figures import fit_percent
 
     ue, ye = u[est], y[est]
     cut = (2 * len(ue)) // 3
@@ -183,7 +183,7 @@ def _narx_output(u, y, est, val):
 
 
 def _narx(u, y, est, val):
-    from rigd.ident.pem import fit_percent
+    from rigd.ident.figures import fit_percent
 
     u0, y0 = u[est].mean(0), y[est].mean(0)
     du, dy = u - u0, y - y0

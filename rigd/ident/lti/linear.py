@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rigd.ident.pem import fit_percent
+from rigd.ident.figures import fit_percent
 from rigd.ident.sim_kernels import lsim_kernel, predict_kernel
 
 

@@ -26,9 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from rigd.ident.figures import fit_percent
 from rigd.ident.lti.linear import LinearModel, as_2d
 from rigd.ident.lti.lsq import solve_r, stacked_r
-from rigd.ident.pem import fit_percent
 
 #: largest order considered by ``order="auto"``
 MAX_ORDER = 30
