@@ -32,8 +32,11 @@ from rigd.web.paths import PathRefused, resolve_inside, split_rooted
 STATIC = Path(str(resources.files("rigd.web") / "static"))
 #: SSE clients at once (multiplexed onto at most rigd.web.sse.MAX_FEEDS daemon connections)
 MAX_STREAMS = 256
-#: the console page loads only its own files (Plotly adds inline styles)
-PAGE_CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+#: the console page loads only its own files (Plotly adds inline styles; its WebGL traces,
+#: regl, build their draw calls with ``Function``: 'unsafe-eval', while script sources stay
+#: this server's files only — no inline or injected script runs)
+PAGE_CSP = ("default-src 'self'; script-src 'self' 'unsafe-eval'; "
+            "style-src 'self' 'unsafe-inline'; "
             "img-src 'self' data: blob:; connect-src 'self'; frame-ancestors 'none'; "
             "base-uri 'none'; form-action 'none'")
 #: every other response: nothing may load or run, no framing
@@ -130,6 +133,15 @@ def json_depth(obj: Any) -> int:
     return depth
 
 
+def _number(body: dict[str, Any], key: str) -> float:
+    """``body[key]`` as a finite number; missing, empty, a string or a bool is refused (an
+    empty form field must never become 0 rpm)."""
+    v = body.get(key)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise InputError(f"{key}: a finite number is required, got {json.dumps(v)[:40]}")
+    return float(v)
+
+
 def _upload(body: dict[str, Any]) -> tuple[str, str] | None:
     """``(name, text)`` of an uploaded file in the body (``{"upload": {"name", "text"}}``)."""
     up = body.get("upload")
@@ -224,7 +236,7 @@ def build_app(settings: Settings) -> Starlette:
             raise InputError(f"unknown field {extra[0]!r}"
                              + (f" (allowed: {', '.join(sorted(allowed))})" if allowed else ""))
         if name == "op":
-            return {k: body.get(k) for k in ("omega_rpm", "p_inj_bar")}, None
+            return {k: _number(body, k) for k in ("omega_rpm", "p_inj_bar")}, None
         if name not in ("load", "start"):
             return {}, None
         up = _upload(body)
@@ -309,6 +321,7 @@ def build_app(settings: Settings) -> Starlette:
         Mount("/static", StaticFiles(directory=STATIC), name="static"),
         Route("/api/console", console),
         Route("/api/status", query_route("status")),
+        Route("/api/ping", query_route("ping")),
         Route("/api/timing", query_route("timing")),
         Route("/api/faults", query_route("faults")),
         Route("/api/experiment", query_route("experiment.status")),
