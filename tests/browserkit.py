@@ -7,45 +7,16 @@ browser download at run time); ``.ci/run`` installs both with apt-get when absen
 
 from __future__ import annotations
 
-import os
-import shutil
-import subprocess
-from functools import cache
 from pathlib import Path
 
 from testpaths import ROOT
 
+from bench.chromium import find_chromium
+
+__all__ = ["find_chromium", "report_header", "screenshot_path", "skip_reason"]
+
 ARTIFACTS = ROOT / "test-artifacts"
 SCREENSHOTS = ARTIFACTS / "screenshots"
-
-
-def _first_executable(*candidates: str | None) -> str | None:
-    for c in candidates:
-        if c and os.path.isfile(c) and os.access(c, os.X_OK):
-            return c
-    return None
-
-
-@cache
-def find_chromium() -> tuple[str | None, str | None, str | None]:
-    """``(chromium, chromedriver, version)``; a missing part is ``None``.
-
-    ``RIGD_CHROMIUM`` / ``RIGD_CHROMEDRIVER`` override the paths (e.g. to check the skip).
-    """
-    env_c, env_d = os.environ.get("RIGD_CHROMIUM"), os.environ.get("RIGD_CHROMEDRIVER")
-    chromium = (_first_executable(env_c) if env_c is not None else _first_executable(
-        "/usr/bin/chromium", shutil.which("chromium"), shutil.which("chromium-browser")))
-    driver = (_first_executable(env_d) if env_d is not None else _first_executable(
-        "/usr/bin/chromedriver", shutil.which("chromedriver")))
-    version = None
-    if chromium and driver:
-        try:
-            out = subprocess.run([driver, "--version"], capture_output=True, text=True,
-                                 timeout=30).stdout.split()
-            version = out[1] if len(out) > 1 else "?"
-        except (OSError, subprocess.SubprocessError):
-            driver = None
-    return chromium, driver, version
 
 
 def skip_reason() -> str | None:

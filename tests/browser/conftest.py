@@ -19,7 +19,9 @@ reason (also printed in pytest's header).
 from __future__ import annotations
 
 import pytest
-from browserkit import find_chromium, screenshot_path, skip_reason
+from browserkit import screenshot_path, skip_reason
+
+from bench.chromium import make_driver
 
 # pytest's header line ("browser tests: run with chromium X" / "... SKIPPED (...)") comes
 # from tests/conftest.py: a hook here would only run when pytest starts in tests/browser.
@@ -57,54 +59,13 @@ class Browser:
         return errors
 
 
-#: seconds for one WebDriver command (starting Chromium included): generous, the machine may
-#: be a busy shared one; a test waits on conditions, this only bounds a hung browser
-COMMAND_TIMEOUT_S = 300
-
-
-def _make_driver():
-    from selenium import webdriver
-    from selenium.webdriver.chrome.options import Options
-    from selenium.webdriver.chrome.service import Service
-    from selenium.webdriver.chromium.remote_connection import ChromiumRemoteConnection
-    from selenium.webdriver.remote.client_config import ClientConfig
-    from selenium.webdriver.remote.file_detector import UselessFileDetector
-
-    chromium, chromedriver, _ = find_chromium()
-    options = Options()
-    options.binary_location = chromium
-    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                "--window-size=1400,1000", "--no-first-run", "--disable-extensions",
-                "--disable-background-networking"):
-        options.add_argument(arg)
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    service = Service(chromedriver)
-    service.start()
-    try:
-        conn = ChromiumRemoteConnection(
-            remote_server_addr=service.service_url, vendor_prefix="goog", browser_name="chrome",
-            ignore_proxy=True, client_config=ClientConfig(
-                remote_server_addr=service.service_url, keep_alive=True,
-                timeout=COMMAND_TIMEOUT_S))
-        driver = webdriver.Remote(command_executor=conn, options=options)
-    except BaseException:
-        service.stop()
-        raise
-    # the driver is local: file inputs get the path itself (a Remote driver would upload the
-    # file through the Grid-only se/file command)
-    driver.file_detector = UselessFileDetector()
-    driver.set_page_load_timeout(120)
-    driver.set_script_timeout(120)
-    return driver, service
-
-
 @pytest.fixture
 def browser():
     """A fresh headless Chromium per test; fails the test on untaken console errors."""
     reason = skip_reason()
     if reason:
         pytest.skip(reason)
-    driver, service = _make_driver()
+    driver, service = make_driver()
     b = Browser(driver)
     try:
         yield b
