@@ -18,6 +18,7 @@ from typing import Any, TypeVar
 import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
+from rigd import bounded
 from rigd.errors import InputError
 
 M = TypeVar("M", bound=BaseModel)
@@ -87,27 +88,27 @@ class LoadedYaml:
         return line
 
 
-def read_text(path: str | Path) -> str:
-    """Read a UTF-8 text file; :class:`InputError` naming the file if it cannot be read."""
-    try:
-        return Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("no such file", str(path)) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read: {exc}", str(path)) from None
+def read_text(path: str | Path, limit: int = bounded.MAX_YAML_BYTES,
+              what: str = "file") -> str:
+    """Read a UTF-8 text file, a regular one of at most ``limit`` bytes
+    (:func:`rigd.bounded.read_text`); :class:`InputError` naming the file otherwise."""
+    return bounded.read_text(path, limit, what)
 
 
-def read_yaml(path: str | Path, text: str | None = None) -> LoadedYaml:
+def read_yaml(path: str | Path, text: str | None = None, *,
+              limit: int = bounded.MAX_YAML_BYTES, what: str = "file") -> LoadedYaml:
     """Safe-load a YAML file (or ``text`` attributed to ``path``), keeping line numbers.
+
+    The file must be a regular file of at most ``limit`` bytes, checked before it is read.
 
     Raises
     ------
     InputError
-        The file is missing, unreadable, not YAML, or empty.
+        The file is missing, unreadable, not a regular file, too large, not YAML, or empty.
     """
     path = str(path)
     if text is None:
-        text = read_text(path)
+        text = read_text(path, limit, what)
     loader = _LineLoader(text)
     loader._rigd_lines = {}  # type: ignore[attr-defined]
     try:

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from pydantic import Field, field_validator
 
+from rigd.bounded import MAX_CONTROLLER_BYTES
 from rigd.configio import StrictModel, dump_yaml, read_yaml, validate
 from rigd.errors import InputError
 
@@ -171,7 +172,7 @@ def load_controller(path: str | Path, *, expected_fs_hz: float | None = None,
     InputError
         With the file (and line/key where known) and the problem.
     """
-    loaded = read_yaml(path, text)
+    loaded = read_yaml(path, text, limit=MAX_CONTROLLER_BYTES, what="controller file")
     spec = validate(loaded, ControllerFile)
     where = str(path)
     A = _as_matrix("A", spec.A, where) if spec.A else np.zeros((0, 0))

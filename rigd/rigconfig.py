@@ -16,6 +16,7 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
+from rigd.bounded import MAX_CONFIG_BYTES
 from rigd.configio import LoadedYaml, StrictModel, read_text, read_yaml, validate
 from rigd.errors import InputError
 from rigd.frame import IN_NAMES
@@ -271,7 +272,7 @@ def load_config(path: str | Path, *, text: str | None = None,
     """
     path = str(path)
     if text is None:
-        text = read_text(path)
+        text = read_text(path, MAX_CONFIG_BYTES, "config file")
     loaded = read_yaml(path, text)
     if not isinstance(loaded.data, dict):
         raise InputError("a rig config must be a mapping of sections", path)

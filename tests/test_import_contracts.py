@@ -71,3 +71,24 @@ def test_a_forbidden_import_breaks_its_contract(tree, where, code, contract):
     broken = res.stdout[res.stdout.index("Broken contracts"):]
     assert contract in broken, res.stdout
     assert "_probe" in broken
+
+
+@pytest.mark.parametrize("module, code", [
+    ("rigd/service/daemon.py", "from rigd.service.reader import read_controller"),
+    ("rigd/service/bridge.py", "from rigd.service import frontend"),
+    ("rigd/service/protocol.py", "import rigd.service.reader"),
+])
+def test_the_loops_process_importing_a_file_reader_breaks_its_contract(tree, module, code):
+    """daemon, bridge, protocol run in the loop's process: importing the readers (directly or
+    through the socket process's module) breaks "The loop's process never imports ..."."""
+    target = tree / module
+    saved = target.read_text()
+    target.write_text(saved + f"\n{code}  # noqa: E402\n")
+    try:
+        res = _lint(tree)
+    finally:
+        target.write_text(saved)
+    assert res.returncode != 0
+    broken = res.stdout[res.stdout.index("Broken contracts"):]
+    assert "The loop's process never imports the file readers" in broken, res.stdout
+    assert module.removesuffix(".py").replace("/", ".") in broken

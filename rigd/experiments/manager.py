@@ -11,9 +11,10 @@ import threading
 from pathlib import Path
 from typing import Any
 
+from rigd.bounded import confined
 from rigd.errors import InputError
 from rigd.experiments.manifest import Manifest
-from rigd.experiments.runner import load, run_experiment
+from rigd.experiments.runner import Experiment, load, run_experiment
 
 
 class ExperimentManager:
@@ -37,19 +38,34 @@ class ExperimentManager:
         self._manifest: Manifest | None = None
 
     def start(self, path: str | None = None, spec: dict | None = None,
-              run_dir: str | None = None) -> dict[str, Any]:
+              run_dir: str | None = None, experiment: Experiment | None = None
+              ) -> dict[str, Any]:
         """Validate and start an experiment; returns ``{"run_dir", "name", "kind", "total"}``.
+
+        Parameters
+        ----------
+        path, spec : str, dict
+            The experiment YAML or an inline spec (read and validated here), or
+        experiment : rigd.experiments.runner.Experiment
+            one already read and validated (by the daemon's socket process: nothing is read
+            or parsed in the loop's process).
+        run_dir : str, optional
+            Must lie inside the runs folder (symlinks resolved).
 
         Raises
         ------
         InputError
-            Another experiment is running, or the spec is invalid.
+            Another experiment is running, the run folder is outside the runs folder, or the
+            spec is invalid.
         """
+        if run_dir is not None:
+            run_dir = str(confined(run_dir, self.runs_root, "experiment.start: run_dir"))
         with self._lock:
             if self._thread is not None and self._thread.is_alive():
                 raise InputError("an experiment is already running (experiment.stop first)",
                                  "experiment.start")
-            exp = load(spec if spec is not None else path)
+            exp = experiment if experiment is not None else load(
+                spec if spec is not None else path)
             self._stop.clear()
             started = threading.Event()
             self._state = {"state": "starting", "name": exp.name, "kind": exp.spec.kind,

@@ -15,7 +15,8 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from rigd.configio import LoadedYaml, StrictModel, read_yaml, validate
+from rigd.bounded import MAX_EXPERIMENT_BYTES
+from rigd.configio import LoadedYaml, StrictModel, read_text, read_yaml, validate
 from rigd.errors import InputError
 
 Axis = Literal["x", "y"]
@@ -266,13 +267,7 @@ def validate_spec(loaded: LoadedYaml) -> tuple[Any, PointSpec | None]:
 
 def load_experiment(path: str | Path) -> tuple[Any, PointSpec | None, str]:
     """Read and validate an experiment YAML file: ``(spec, sweep_point_spec, yaml_text)``."""
-    text = None
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("no such file", str(path)) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read: {exc}", str(path)) from None
+    text = read_text(path, MAX_EXPERIMENT_BYTES, "experiment file")
     loaded = read_yaml(path, text)
     spec, point = validate_spec(loaded)
     return spec, point, text

@@ -30,7 +30,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from rigd.service import frontend
+from rigd.service import spawned
 from rigd.service.listen import listen
 
 #: snapshot publication rate, Hz (queries are at most this stale)
@@ -47,8 +47,9 @@ class SocketFrontend:
     mode : int
         Its permissions (0o660).
     handle_command : callable
-        ``bytes -> bytes``: one validated command line to its reply line (the daemon's
-        :meth:`Dispatcher.handle_line`); must not raise.
+        ``(bytes[, payload]) -> bytes``: one validated command line (and what the socket
+        process read for it: a packed controller, a validated experiment) to its reply line
+        (the daemon's :meth:`Dispatcher.handle_line`); must not raise.
     snapshot : callable
         ``() -> dict`` with ``status``, ``timing``, ``faults``, ``experiment`` (None when
         experiments are unavailable) and ``info`` (ping fields).
@@ -66,13 +67,18 @@ class SocketFrontend:
     ring : rigd.loop.shared_ring.RingHandle, optional
         The recorder's ring in shared memory; the socket process maps it read-only and serves
         ``stream.subscribe`` from it (without it the stream is refused).
+    fs_hz : float, optional
+        The loop's rate (the socket process refuses controllers for another one).
+    runs_root : str, optional
+        The daemon's runs folder (the socket process refuses a ``run_dir`` outside it).
     """
 
     def __init__(self, path: str, mode: int, handle_command: Callable[[bytes], bytes],
                  snapshot: Callable[[], dict[str, Any]], *, rate_hz: float = SNAPSHOT_HZ,
                  log=None, nice: int = 10, max_clients: int = 64,
                  helper_priority: int | None = None, ring=None,
-                 safe_generation: Callable[[], int] | None = None):
+                 safe_generation: Callable[[], int] | None = None,
+                 fs_hz: float | None = None, runs_root: str | None = None):
         self.path = str(path)
         self.mode = mode
         self.handle_command = handle_command
@@ -82,7 +88,7 @@ class SocketFrontend:
         self.log = log
         self.helper_priority = helper_priority
         self.opts = {"path": self.path, "nice": nice, "max_clients": max_clients,
-                     "ring": ring}
+                     "ring": ring, "fs_hz": fs_hz, "runs_root": runs_root}
         self.ready = threading.Event()
         self.restarts = 0
         self.pid: int | None = None
@@ -132,8 +138,11 @@ class SocketFrontend:
         ctx = multiprocessing.get_context("spawn")
         snap_r, snap_w = ctx.Pipe(duplex=False)
         cmd_here, cmd_there = ctx.Pipe(duplex=True)
-        proc = ctx.Process(target=frontend.main, name="rigd-socket", daemon=True,
-                           args=(self._lsock, snap_r, cmd_there, self.opts))
+        # named by module: this (the loop's) process never imports the socket process's
+        # request handling nor its file readers (import contract, pyproject.toml)
+        proc = ctx.Process(target=spawned.call, name="rigd-socket", daemon=True,
+                           args=("rigd.service.frontend", "main", self._lsock, snap_r,
+                                 cmd_there, self.opts))
         proc.start()
         snap_r.close()
         cmd_there.close()
@@ -228,7 +237,8 @@ class SocketFrontend:
                 continue
             gen = self._generation() if self._generation is not None else None
             deadline = meta.get("deadline") if isinstance(meta, dict) else None
-            self._work.put((conn, tag, line, gen, deadline))
+            payload = meta.get("payload") if isinstance(meta, dict) else None
+            self._work.put((conn, tag, line, gen, deadline, payload))
 
     def _work_run(self) -> None:
         """Worker thread: runs the forwarded commands one after the other (but ``safe``).
@@ -240,7 +250,7 @@ class SocketFrontend:
             item = self._work.get()
             if item is None:
                 return
-            conn, tag, line, gen, deadline = item
+            conn, tag, line, gen, deadline, payload = item
             why = ""
             if deadline is not None and time.monotonic() > deadline:
                 why = "it waited behind other commands past its deadline"
@@ -249,7 +259,8 @@ class SocketFrontend:
             if why:
                 self._reply(conn, tag, _dropped(line, why))
                 continue
-            self._reply(conn, tag, self.handle_command(line, gen, deadline))
+            self._reply(conn, tag, self.handle_command(line, gen, deadline) if payload is None
+                        else self.handle_command(line, gen, deadline, payload))
 
     def _reply(self, conn, tag: int, reply: bytes) -> None:
         snap = self.snapshot()

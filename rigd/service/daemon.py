@@ -19,10 +19,16 @@
 * **SAFE word** (with ``--socket``): ``<socket>.safe``, the socket's permissions, mapped by
   the loop's cycle (:mod:`rigd.loop.safeword`): ``rigd ctl safe`` and ``rigd web`` write
   their SAFE into it directly — no client slot, no worker thread, nothing to wait behind;
-* **SIGHUP**: re-read the config file and the controller, *validated first* (in a worker
-  thread); a bad file is refused with one log line and the loop keeps running untouched; a
-  valid controller is switched bumplessly; other config changes are reported as needing a
-  restart (the loop's structure — drivers, rate, ring size — is fixed while it runs).
+* **SIGHUP**: re-read the config file and the controller, *validated first* — in a spawned
+  helper process (:mod:`rigd.service.spawned`, :func:`rigd.service.reader.reload_files`),
+  never in this one; a bad file is refused with one log line and the loop keeps running
+  untouched; a valid controller comes back packed (its matrices) and is switched bumplessly;
+  other config changes are reported as needing a restart (the loop's structure — drivers,
+  rate, ring size — is fixed while it runs).
+
+Nothing in this process reads or parses a file a client or a signal names: the socket
+process reads ``controller.load``'s and ``experiment.start``'s files, the helper SIGHUP's
+(docs/ARCHITECTURE.md, "The loop's process"; import contract in pyproject.toml).
 
 Latched faults: the loop logs each once (structlog); the daemon drains the loop's fault queue
 into the systemd status line and ``faults`` answers.
@@ -40,9 +46,10 @@ from typing import Any
 from rigd import __version__
 from rigd.errors import InputError
 from rigd.log import get_logger
+from rigd.service import spawned
 from rigd.service.bridge import SocketFrontend, as_helper
 from rigd.service.notify import Notifier
-from rigd.service.protocol import Dispatcher
+from rigd.service.protocol import Dispatcher, unpack_controller
 
 #: the timing statistics in the socket's snapshot are refreshed this often, s
 TIMING_REFRESH_S = 0.2
@@ -105,9 +112,10 @@ class Daemon:
     def __enter__(self) -> Daemon:
         from rigd.experiments.manager import ExperimentManager
 
-        self.experiments = ExperimentManager(self.loop, getattr(self.args, "runs_dir", "runs"),
-                                             log=self.log)
-        self.dispatcher = Dispatcher(self.loop, self.experiments, info=self._info)
+        runs_root = os.path.abspath(getattr(self.args, "runs_dir", None) or "runs")
+        self.experiments = ExperimentManager(self.loop, runs_root, log=self.log)
+        self.dispatcher = Dispatcher(self.loop, self.experiments, info=self._info,
+                                     reads_files=False)
         sock = getattr(self.args, "socket", None)
         if sock:
             try:
@@ -119,7 +127,9 @@ class Daemon:
                                          self._snapshot, log=self.log,
                                          helper_priority=self._helper_priority(),
                                          ring=self._ring(),
-                                         safe_generation=self._safe_generation).start()
+                                         safe_generation=self._safe_generation,
+                                         fs_hz=float(self.loop.fs),
+                                         runs_root=runs_root).start()
             self._attach_safe_word(sock, mode)
         self._faults = self.loop.subscribe()
         if threading.current_thread() is threading.main_thread():
@@ -267,24 +277,22 @@ class Daemon:
         threading.Thread(target=self.reload, name="rigd-reload", daemon=True).start()
 
     def reload(self) -> dict[str, Any]:
-        """Re-read config and controller, validated first; never disturbs the loop on error."""
-        from rigd.rigconfig import load_config
-
+        """Re-read config and controller in a spawned helper process, validated first; the
+        packed controller is switched in; never disturbs the loop on error."""
         with self._reload_lock:
             path = getattr(self.config, "path", None)
             try:
                 if not path or str(path).startswith("<"):
                     raise InputError("the running config was not read from a file", "SIGHUP")
-                new = load_config(path)
-                ctrl = getattr(self.args, "controller", None)
-                if ctrl is None and new.config.controller is not None:
-                    from pathlib import Path
-
-                    c = Path(new.config.controller)
-                    ctrl = str(c if c.is_absolute() else Path(path).parent / c)
-                if ctrl is not None:
-                    self.loop.load_controller(ctrl)   # validates, then switches bumplessly
-                changed = _changed_sections(self.config, new, ignore=("controller",))
+                kind, res = spawned.run("rigd.service.reader", "reload_files", str(path),
+                                        getattr(self.args, "controller", None),
+                                        float(self.loop.fs), self._sections())
+                if kind != "ok":
+                    raise InputError(res)
+                ctrl = res["controller"]
+                if res["packed"] is not None:   # checked again (cheap), switched bumplessly
+                    self.loop.load_controller(unpack_controller(res["packed"]))
+                changed = res["needs_restart"]
                 self.last_reload = {"state": "applied", "controller": ctrl,
                                     "needs_restart": changed, "time": time.time()}
                 self.log.info("reloaded on SIGHUP", controller=ctrl,
@@ -301,6 +309,13 @@ class Daemon:
             if self.server is not None:
                 self.server.publish_now()
             return dict(self.last_reload)
+
+    def _sections(self) -> dict[str, Any]:
+        """The running config's sections as plain values (compared by the SIGHUP helper)."""
+        try:
+            return self.config.config.model_dump(mode="json")
+        except AttributeError:
+            return {}
 
     # --- the service thread: READY, WATCHDOG, STATUS -----------------------------------
     def _service_run(self) -> None:
@@ -370,12 +385,3 @@ class Daemon:
                 exp = f", experiment {es.get('name')} {es.get('state')}"
         return f"{fault}, {ctrl}{exp}"
 
-
-def _changed_sections(old: Any, new: Any, ignore: tuple[str, ...] = ()) -> list[str]:
-    """Top-level config sections that differ between two loaded configs."""
-    try:
-        a = old.config.model_dump(mode="json")
-        b = new.config.model_dump(mode="json")
-    except AttributeError:
-        return []
-    return sorted(k for k in set(a) | set(b) if k not in ignore and a.get(k) != b.get(k))

@@ -23,6 +23,12 @@ connections. Here, in a process of its own — its own interpreter lock, a lower
   included), a sender thread writes to the daemon and a receiver thread completes the futures
   as the replies come back (or with an error after :data:`COMMAND_TIMEOUT_S`). ``safe`` is
   never refused by the rate limit (the safety button must always get through).
+* the files named by ``controller.load`` and ``experiment.start`` are read here, by a reader
+  thread (:mod:`rigd.service.reader`: regular files only, size limits checked before
+  reading, parsed and validated — at most :data:`MAX_READS` waiting); only the result, packed
+  (a controller as its matrices, an experiment as its validated spec), is forwarded with the
+  command: the loop's process never reads, parses nor validates a file a client names. A
+  ``run_dir`` outside the daemon's runs folder (symlinks resolved) is refused here too.
 
 The process ignores SIGINT, SIGTERM and SIGHUP (the daemon handles them and stops this process
 itself) and exits when its connection to the daemon closes (the daemon died or stopped).
@@ -36,12 +42,13 @@ import queue
 import signal
 import threading
 import time
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
+from rigd.errors import InputError
 from rigd.loop.shared_ring import RingReader
 from rigd.plain import plain
-from rigd.service import protocol
+from rigd.service import protocol, reader
 from rigd.service.protocol import RequestError, check_paths, error, parse_envelope
 from rigd.service.server import ControlServer
 from rigd.service.stream import StreamHub
@@ -65,6 +72,12 @@ MAX_COMMANDS_PER_S = 50.0
 #: command is refused at once (the daemon runs them one after the other)
 MAX_IN_FLIGHT = 32
 
+#: commands whose file is read and validated here before they are forwarded
+READ_FIRST = ("controller.load", "experiment.start")
+
+#: files being read (or waiting to be) at once, all clients together; beyond, refused at once
+MAX_READS = 4
+
 
 class SnapshotHandler:
     """``handle_line`` of the socket process: answer queries from the snapshot, forward commands.
@@ -83,13 +96,22 @@ class SnapshotHandler:
         A forwarded command not answered by the daemon within this time gets an error reply.
     ring : rigd.loop.shared_ring.RingHandle, optional
         The recorder's ring (``stream.subscribe``); None: the stream is refused.
+    fs_hz : float, optional
+        The loop's rate: a controller for another rate is refused here.
+    runs_root : str, optional
+        The daemon's runs folder: an ``experiment.start`` ``run_dir`` outside it is refused
+        here (None: left to the daemon).
     """
 
     def __init__(self, cmd_conn, clients=lambda: 0,
                  max_commands_per_s: float = MAX_COMMANDS_PER_S,
                  max_in_flight: int = MAX_IN_FLIGHT, timeout_s: float = COMMAND_TIMEOUT_S,
-                 ring=None):
+                 ring=None, fs_hz: float | None = None, runs_root: str | None = None):
         self.cmd_conn = cmd_conn
+        self.fs_hz = fs_hz
+        self.runs_root = runs_root
+        self._reader = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rigd-reader")
+        self._reading = 0
         self.streams = StreamHub(RingReader(ring) if ring is not None else None,
                                  lambda: self._snap)
         self.clients = clients
@@ -120,6 +142,7 @@ class SnapshotHandler:
     def close(self, timeout: float = 5.0) -> None:
         """Stop the sender; commands still waiting get an error reply."""
         self._outq.put(None)
+        self._reader.shutdown(wait=False, cancel_futures=True)
         self._fail_all("the socket process is stopping")
         self._threads[0].join(timeout)
 
@@ -171,12 +194,14 @@ class SnapshotHandler:
                     raise RequestError(str(exc), req_id) from None
                 return protocol.ok(req_id, result), sub
             if cmd not in QUERIES:
-                check_paths(cmd, args)       # the last refusal that needs no loop state
+                check_paths(cmd, args, self.runs_root)  # refusals that need no loop state
                 if cmd != "safe" and not self._take_token():
                     self.throttled += 1
                     raise RequestError(f"{cmd}: too many commands (more than {self.rate:g} "
                                        f"per second from all clients); not run, try again",
                                        req_id)
+                if cmd in READ_FIRST:
+                    return self._read_then_forward(line, req_id, cmd, args, timeout_s)
                 return self._forward(line, req_id, cmd, timeout_s)
             if not self._have.wait(10.0):
                 raise RequestError("the daemon has not published its state yet")
@@ -203,9 +228,59 @@ class SnapshotHandler:
         self._tokens -= 1.0
         return True
 
+    def _read_then_forward(self, line: bytes, req_id: Any, cmd: str, args,
+                           timeout_s: float | None = None) -> Future | bytes:
+        """Read and validate the command's file (or inline spec) in the reader thread, then
+        forward the command with the packed result; a future of the reply line (an error
+        line at once if :data:`MAX_READS` reads are already waiting)."""
+        with self._plock:
+            if self._reading >= MAX_READS:
+                return error(req_id, f"{cmd}: {self._reading} files are already being read; "
+                                     f"not run, try again")
+            self._reading += 1
+        out: Future = Future()
+        t0 = time.monotonic()
+
+        def work() -> None:
+            try:
+                if cmd == "controller.load":
+                    payload = reader.read_controller(args.path, self.fs_hz)
+                else:
+                    payload = reader.read_experiment(args.path, args.spec)
+            except InputError as exc:
+                out.set_result(error(req_id, str(exc)))
+                return
+            except Exception as exc:  # noqa: BLE001 - a bug is reported to its client only
+                out.set_result(error(req_id, f"{cmd}: internal error: "
+                                             f"{type(exc).__name__}: {exc}"))
+                return
+            finally:
+                with self._plock:
+                    self._reading -= 1
+            # the client's wait started when it asked: the reading counts against it
+            left = (self.timeout_s if timeout_s is None else timeout_s) - (time.monotonic() - t0)
+            if left <= 0:
+                out.set_result(error(req_id, f"{cmd}: dropped, not run: reading the file took "
+                                             f"longer than the client waits"))
+                return
+            fwd = self._forward(line, req_id, cmd, left, payload)
+            if isinstance(fwd, bytes):
+                out.set_result(fwd)
+            else:
+                fwd.add_done_callback(lambda f: out.set_result(f.result()))
+
+        try:
+            self._reader.submit(work)
+        except RuntimeError:      # shut down: the process is stopping
+            with self._plock:
+                self._reading -= 1
+            return error(req_id, "the socket process is stopping")
+        return out
+
     def _forward(self, line: bytes, req_id: Any, cmd: str,
-                 timeout_s: float | None = None) -> Future | bytes:
-        """Queue ``line`` for the daemon; a future of its reply line (an error line at once if
+                 timeout_s: float | None = None, payload: Any = None) -> Future | bytes:
+        """Queue ``line`` (with the ``payload`` read for it: a packed controller, a validated
+        experiment) for the daemon; a future of its reply line (an error line at once if
         the channel is closed or too many commands are waiting).
 
         The command's *deadline* (``time.monotonic()``, the same clock in every process) is
@@ -227,7 +302,10 @@ class SnapshotHandler:
             tag = self._tag
             self._pending[tag] = (fut, req_id, deadline + REPLY_GRACE_S)
         self.forwarded += 1
-        self._outq.put(("cmd", tag, line, {"deadline": deadline, "timeout_s": wait}))
+        meta = {"deadline": deadline, "timeout_s": wait}
+        if payload is not None:
+            meta["payload"] = payload
+        self._outq.put(("cmd", tag, line, meta))
         return fut
 
     def _finish(self, tag: int, reply: bytes) -> None:
@@ -296,7 +374,8 @@ def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
     server = ControlServer(opts["path"], lambda line: b"",
                            max_clients=opts.get("max_clients", 64))
     handler = SnapshotHandler(cmd_conn, clients=lambda: server.n_clients,
-                              ring=opts.get("ring"))
+                              ring=opts.get("ring"), fs_hz=opts.get("fs_hz"),
+                              runs_root=opts.get("runs_root"))
     server.handle = handler.handle_line
     # the first snapshot before serving, then tell the daemon we are up
     try:

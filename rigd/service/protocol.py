@@ -8,9 +8,10 @@ the reply echoes the id::
     {"id": 7, "ok": false, "error": "operating_point.set: omega_rpm: Input should be ..."}
 
 Commands and their arguments are the table :data:`COMMANDS` (also in docs/service.md).
-Arguments are validated by a pydantic model per command before anything reaches the loop;
-unknown keys, wrong types and non-finite numbers are refused with one line naming the command
-and the argument.
+Arguments are validated by a pydantic model per command (strict mode: no coercion, so
+``"3000"`` and ``true`` are not numbers) before anything reaches the loop; unknown keys, wrong
+types, non-finite numbers and requests nested deeper than :data:`MAX_DEPTH` are refused with
+one line naming the command and the argument.
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from rigd.bounded import confined
 from rigd.configio import StrictModel
 from rigd.errors import FaultError, InputError
 from rigd.frame import REC, RECORD_NAMES
@@ -29,22 +31,31 @@ from rigd.plain import plain
 
 #: Longest accepted request line, bytes (a longer one is refused and the client dropped).
 MAX_LINE = 64 * 1024
+#: Deepest accepted nesting of a request (objects and arrays), levels
+MAX_DEPTH = 16
 
 
-class NoArgs(StrictModel):
+class Args(StrictModel):
+    """Base of the argument models: unknown keys refused, strict types (no coercion: a string
+    or a boolean is not a number, a number is not a string)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, validate_assignment=True)
+
+
+class NoArgs(Args):
     """A command without arguments."""
 
 
-class LoadArgs(StrictModel):
+class LoadArgs(Args):
     path: str = Field(min_length=1, description="absolute path of a controller YAML")
 
 
-class OperatingPointArgs(StrictModel):
+class OperatingPointArgs(Args):
     omega_rpm: float = Field(ge=0.0, le=100000.0, allow_inf_nan=False, description="Ω, rpm")
     p_inj_bar: float = Field(ge=0.0, le=50.0, allow_inf_nan=False, description="P_I, bar")
 
 
-class ExperimentArgs(StrictModel):
+class ExperimentArgs(Args):
     path: str | None = Field(None, min_length=1, description="experiment YAML (absolute)")
     spec: dict[str, Any] | None = Field(None, description="experiment spec inline")
     run_dir: str | None = Field(None, min_length=1, description="output folder (absolute)")
@@ -56,7 +67,7 @@ class ExperimentArgs(StrictModel):
         return self
 
 
-class StreamArgs(StrictModel):
+class StreamArgs(Args):
     rate_hz: float = Field(50.0, ge=10.0, le=100.0, allow_inf_nan=False,
                            description="updates per second")
     points: int = Field(200, ge=1, le=2000, description="most min/max points per channel "
@@ -78,7 +89,7 @@ class StreamArgs(StrictModel):
 
 
 #: command name -> (argument model, one-line help)
-COMMANDS: dict[str, tuple[type[StrictModel], str]] = {
+COMMANDS: dict[str, tuple[type[Args], str]] = {
     "ping": (NoArgs, "liveness check; returns pid and version"),
     "status": (NoArgs, "loop state: running, cycle, controller, operating point, fault"),
     "timing": (NoArgs, "cycle timing statistics (compute/lateness percentiles, overruns)"),
@@ -155,10 +166,14 @@ def parse_envelope(line: bytes | str) -> tuple[Any, str, StrictModel, float | No
             raise RequestError("request is not UTF-8") from None
     try:
         req = json.loads(line)
-    except (json.JSONDecodeError, RecursionError) as exc:
-        raise RequestError(f"request is not JSON: {getattr(exc, 'msg', exc)}") from None
+    except json.JSONDecodeError as exc:
+        raise RequestError(f"request is not JSON: {exc.msg}") from None
+    except RecursionError:
+        raise RequestError(f"request nests deeper than {MAX_DEPTH} levels") from None
     if not isinstance(req, dict):
         raise RequestError("request must be a JSON object")
+    if _depth(req) > MAX_DEPTH:
+        raise RequestError(f"request nests deeper than {MAX_DEPTH} levels")
     req_id = req.pop("id", None)
     if isinstance(req_id, (dict, list)):
         req_id = None  # only scalar ids are echoed
@@ -185,6 +200,21 @@ def parse_envelope(line: bytes | str) -> tuple[Any, str, StrictModel, float | No
     return req_id, cmd, args, (None if timeout_s is None else float(timeout_s))
 
 
+def _depth(obj: Any) -> int:
+    """Nesting depth of parsed JSON (a scalar: 0), iteratively (no recursion to exhaust)."""
+    deepest, todo = 0, [(obj, 1)]
+    while todo:
+        o, d = todo.pop()
+        if isinstance(o, dict):
+            o = o.values()
+        elif not isinstance(o, list):
+            continue
+        deepest = max(deepest, d)
+        if d <= MAX_DEPTH:          # deeper is refused anyway: no need to walk it all
+            todo.extend((v, d + 1) for v in o)
+    return deepest
+
+
 class Dispatcher:
     """Map validated requests to the loop's command methods and the experiment manager.
 
@@ -199,11 +229,18 @@ class Dispatcher:
         ``experiment.*`` commands reply an error.
     info : callable, optional
         Extra fields for ``ping`` (pid, version, uptime).
+    reads_files : bool
+        True: ``controller.load`` and ``experiment.start`` without a payload read their file
+        here (a dispatcher in a test or tool process). The daemon gives False: in the loop's
+        process files are read by the socket process only (:mod:`rigd.service.reader`), and a
+        command arrives with its *payload* (a packed controller, a validated experiment).
     """
 
     def __init__(self, loop: Any, experiments: Any = None,
-                 info: Callable[[], dict] | None = None, cache_s: float = 0.0):
+                 info: Callable[[], dict] | None = None, cache_s: float = 0.0,
+                 reads_files: bool = True):
         self.loop = loop
+        self.reads_files = reads_files
         #: read-only answers (status, timing, faults) are reused for this long, s: a flood of
         #: queries then costs the loop's process a bounded amount of work (see docs/service.md)
         self.cache_s = cache_s
@@ -216,18 +253,20 @@ class Dispatcher:
         self._deadline: float | None = None
 
     def handle_line(self, line: bytes, gen: int | None = None,
-                    deadline: float | None = None) -> bytes:
+                    deadline: float | None = None, payload: Any = None) -> bytes:
         """Parse, run and answer one request line; never raises.
 
         ``gen`` is the loop's SAFE generation when the request arrived and ``deadline`` the
         ``time.monotonic()`` its caller stops waiting at: a command a SAFE overtook, or not
         applied by then, is dropped, never applied later, and the reply says so.
+        ``payload``: what the socket process read and validated for the command (a packed
+        controller for ``controller.load``, an Experiment for ``experiment.start``).
         """
         req_id = None
         try:
             req_id, cmd, args = parse_request(line)
             self._gen, self._deadline = gen, deadline
-            result = self.run(cmd, args)
+            result = self.run(cmd, args, payload)
             self.served += 1
             return ok(req_id, result)
         except RequestError as exc:
@@ -240,7 +279,7 @@ class Dispatcher:
             self.refused += 1
             return error(req_id, f"internal error: {type(exc).__name__}: {exc}")
 
-    def run(self, cmd: str, args: StrictModel) -> Any:
+    def run(self, cmd: str, args: StrictModel, payload: Any = None) -> Any:
         loop = self.loop
         if cmd == "ping":
             return {"pong": True, **self.info()}
@@ -266,9 +305,14 @@ class Dispatcher:
             self._applied(cmd, loop.enable_controller(on, **when))
             return {"enabled": on}
         check_paths(cmd, args)
+        if cmd in ("controller.load", "experiment.start") and payload is None \
+                and not self.reads_files:
+            raise RequestError(f"{cmd}: not read: files are read by the socket process, and "
+                               f"this request did not come through it")
         if cmd == "controller.load":
             path = args.path
-            self._applied(cmd, loop.load_controller(path, **when))
+            self._applied(cmd, loop.load_controller(
+                path if payload is None else unpack_controller(payload), **when))
             return {"loaded": path}
         if cmd == "operating_point.set":
             self._applied(cmd, loop.set_operating_point(args.omega_rpm, args.p_inj_bar,
@@ -277,6 +321,8 @@ class Dispatcher:
         if self.experiments is None:
             raise RequestError(f"{cmd}: experiments are not available in this daemon")
         if cmd == "experiment.start":
+            if payload is not None:
+                return self.experiments.start(experiment=payload, run_dir=args.run_dir)
             return self.experiments.start(path=args.path, spec=args.spec, run_dir=args.run_dir)
         if cmd == "experiment.status":
             return self.experiments.status()
@@ -377,14 +423,30 @@ class Dispatcher:
         return value
 
 
-def check_paths(cmd: str, args: StrictModel) -> None:
+def unpack_controller(packed: dict[str, Any]):
+    """A :class:`rigd.controller.Controller` from :func:`rigd.service.reader.pack_controller`'s
+    arrays (the loop re-checks shapes, rate, finiteness and stability: cheap, no file)."""
+    from rigd.controller import Controller
+
+    return Controller(*(packed[k] for k in "ABCD"), float(packed["fs_hz"]),
+                      str(packed["source"]))
+
+
+def check_paths(cmd: str, args: StrictModel, runs_root: str | None = None) -> None:
     """Paths in a request must be absolute (the daemon's working directory is not the
-    client's); RequestError otherwise. Part of validation: run before anything reaches the
-    loop (also by the socket process)."""
+    client's), and a ``run_dir`` inside ``runs_root`` (when given; symlinks resolved);
+    RequestError otherwise. Part of validation: run before anything reaches the loop (by the
+    socket process)."""
     for name in ("path", "run_dir"):
         value = getattr(args, name, None)
         if value is not None:
             _absolute(value, f"{cmd}: {name}")
+    run_dir = getattr(args, "run_dir", None)
+    if run_dir is not None and runs_root is not None:
+        try:
+            confined(run_dir, runs_root, f"{cmd}: run_dir")
+        except InputError as exc:
+            raise RequestError(str(exc)) from None
 
 
 def _absolute(path: str, where: str) -> str:

@@ -74,20 +74,21 @@ def test_fault_ends_the_sweep_at_once_and_names_the_fault(tmp_path):
 def test_manager_reports_the_fault_and_starts_the_next_experiment(tmp_path):
     with build_loop(default_config(), clock="lockstep") as lp:
         mgr = ExperimentManager(lp, runs_root=tmp_path / "runs")
-        mgr.start(spec=SWEEP, run_dir=str(tmp_path / "a"))
+        mgr.start(spec=SWEEP, run_dir=str(tmp_path / "runs" / "a"))
         mgr.join(120)
         st = mgr.status()
         assert st["state"] == "failed" and st["fault"]["name"] == "shaft_displacement", st
         assert "shaft_displacement" in st["message"]
-        _check_failed_run(read_manifest(tmp_path / "a"), tmp_path / "a")
+        _check_failed_run(read_manifest(tmp_path / "runs" / "a"), tmp_path / "runs" / "a")
         with pytest.raises(InputError, match="is latched"):
-            mgr.start(spec=SHORT, run_dir=str(tmp_path / "b"))
+            mgr.start(spec=SHORT, run_dir=str(tmp_path / "runs" / "b"))
         lp.run_cycles(2500)
         lp.reset_fault()
         lp.run_cycles(1)
-        mgr.start(spec=SHORT, run_dir=str(tmp_path / "c"))
+        mgr.start(spec=SHORT, run_dir=str(tmp_path / "runs" / "c"))
         mgr.join(120)
         st = mgr.status()
     assert st["state"] == "complete" and st.get("fault") is None, st
-    rec = load_record(tmp_path / "c" / read_manifest(tmp_path / "c")["files"][0]["path"])
+    c = tmp_path / "runs" / "c"
+    rec = load_record(c / read_manifest(c)["files"][0]["path"])
     assert np.all(rec.col("fault") == 0) and np.any(rec.col("x_x") != 0)

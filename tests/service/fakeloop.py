@@ -44,6 +44,9 @@ class FakeLoop:
         self.enabled = bool(on)
 
     def load_controller(self, path):
+        # a path (a Dispatcher reading files itself) or the Controller the socket process
+        # read and packed (its source names the file)
+        path = str(getattr(path, "source", path))
         self._log("load_controller", path)
         if not path.endswith(".yaml"):
             raise InputError("not a controller file", path)
@@ -72,13 +75,26 @@ class GatedLoop(FakeLoop):
         super().load_controller(path)
 
 
+def controller_beside(sock_path: str) -> str:
+    """A valid controller file ``k.yaml`` beside the socket (the socket process reads it)."""
+    from rigd.controller import save_controller
+
+    k = os.path.join(os.path.dirname(sock_path), "k.yaml")
+    if not os.path.exists(k):
+        save_controller(k, [[0.5]], [[0.0, 0.0]], [[0.0], [0.0]], [[0.0, 0.0], [0.0, 0.0]],
+                        fs_hz=5000.0)
+    return k
+
+
 @contextlib.contextmanager
 def gated_frontend(loop: GatedLoop, path: str):
     """The real socket process (rigd.service.bridge.SocketFrontend) on ``path`` with the real
-    Dispatcher in front of ``loop``; yields once it serves, opens the gate and stops it after."""
+    Dispatcher in front of ``loop``; yields once it serves, opens the gate and stops it after.
+    A valid controller waits beside the socket (:func:`controller_beside`)."""
     from rigd.service.bridge import SocketFrontend
     from rigd.service.protocol import Dispatcher
 
+    controller_beside(path)
     disp = Dispatcher(loop, info=lambda: {"pid": os.getpid()})
 
     def snapshot():

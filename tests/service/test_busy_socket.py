@@ -15,7 +15,7 @@ import socket
 import threading
 
 import pytest
-from fakeloop import GatedLoop, gated_frontend
+from fakeloop import GatedLoop, controller_beside, gated_frontend
 
 
 @pytest.fixture()
@@ -57,7 +57,7 @@ class Conn:
 
 def _start_slow_load(path, loop):
     a = Conn(path)
-    a.send({"id": "load", "cmd": "controller.load", "path": "/x/k.yaml"})
+    a.send({"id": "load", "cmd": "controller.load", "path": controller_beside(path)})
     assert loop.entered.wait(30), "the load did not reach the loop"
     return a
 
@@ -81,7 +81,7 @@ def test_status_answered_while_a_slow_load_is_pending(busy):
     assert not loop.gate.is_set() and not a.has_reply() and not c.has_reply()
     assert ("set_operating_point", 1200.0, 4.0) not in loop.calls   # queued behind the load
     loop.gate.set()
-    assert a.reply() == {"id": "load", "ok": True, "result": {"loaded": "/x/k.yaml"}}
+    assert a.reply() == {"id": "load", "ok": True, "result": {"loaded": controller_beside(path)}}
     assert c.reply()["result"] == {"omega_rpm": 1200.0, "p_inj_bar": 4.0}
     # and the next status reflects both commands (the reply carries a fresh snapshot)
     st = b.ask({"id": "s", "cmd": "status"})["result"]
@@ -146,7 +146,7 @@ def test_queries_answered_during_a_hammer_that_forwards_commands(busy):
     for t in threads:
         t.join(30)
     ops = [c for c in loop.calls if c[0] == "set_operating_point"]
-    assert len(ops) == n_clients and loop.calls[0] == ("load_controller", "/x/k.yaml")
+    assert len(ops) == n_clients and loop.calls[0] == ("load_controller", controller_beside(path))
     assert probe.ask({"cmd": "ping"})["result"]["commands_waiting"] == 0
     probe.close()
     a.close()
