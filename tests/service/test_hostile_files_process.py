@@ -57,7 +57,7 @@ def test_hostile_files_are_refused_in_one_line_without_memory_or_stall(tmp_path)
                                                 "device"),
                                   (str(fifo), "must be a regular file, this is a FIFO"),
                                   (str(big), "is 500 MiB, larger than the limit")):
-                r = d.ctl("--timeout", str(PROCESS_S), what, path, check=False)
+                r = d.ctl("--timeout", "300", what, path, check=False)
                 assert r.returncode == 2, (what, path, r.stdout, r.stderr)
                 lines = r.stderr.strip().splitlines()
                 assert len(lines) == 1 and path in lines[0] and problem in lines[0], r.stderr
