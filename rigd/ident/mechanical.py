@@ -23,6 +23,8 @@ import numpy as np
 
 from rigd.ident.iddata import IdData
 from rigd.ident.initial import mechanical_initial
+from rigd.ident.model import LinearPart
+from rigd.ident.readouts import linear_readouts
 from rigd.ident.simulate import Hooks, mechanical_abc, predict_mechanical, simulate_mechanical
 from rigd.ident.structure import Structure
 
@@ -181,27 +183,21 @@ class MechanicalStructure(Structure):
         A, Bc, C = mechanical_abc(K, D, B)
         return A, Bc, C, np.zeros((self.n, self.nu)), x0
 
+    def linear_part(self, theta) -> LinearPart:
+        """The model's linear dynamics (states [p, ṗ]; no delay, no feedthrough)."""
+        A, Bc, C, Dm, _ = self.continuous(theta)
+        return LinearPart(A, Bc, C, Dm, None, (0,) * self.nu, self.hold,
+                          tuple(self.input_names), tuple(self.output_names))
+
     def modes(self, theta):
-        """Modes of A: list of dicts with f_n (Hz), zeta (-), or real poles (rad/s)."""
-        K, D, _, _, _ = self.unpack(theta)
-        A, _, _ = mechanical_abc(K, D, np.zeros((self.n, 1)))
-        lam = np.linalg.eigvals(A)
-        out = []
-        for lm in sorted(lam[lam.imag > 1e-9], key=abs):
-            out.append({"f_n_hz": float(abs(lm) / (2 * np.pi)),
-                        "zeta": float(-lm.real / abs(lm))})
-        real = np.sort(lam[np.abs(lam.imag) <= 1e-9].real)
-        for pole in real:
-            out.append({"pole_rad_s": float(pole)})
-        return out
+        """Modes of A: list of dicts with f_n (Hz), zeta (-), or real poles (rad/s)
+        (:func:`rigd.ident.readouts.modes`)."""
+        from rigd.ident.readouts import modes
+
+        return modes(self.linear_part(theta))
 
     def readouts(self, theta):
-        K, D, B, _, _ = self.unpack(theta)
-        try:
-            G0 = np.linalg.solve(K, B)
-        except np.linalg.LinAlgError:
-            G0 = np.full((self.n, self.nu), np.nan)
-        out = {"modes": self.modes(theta), "static_gain": G0.tolist()}
+        out = linear_readouts(self.linear_part(theta))
         off = self.output_offset(theta)
         if off is not None:
             out["output_offset"] = off.tolist()

@@ -187,6 +187,14 @@ class ModalStructure(Structure):
 
         return (block_diag(*blocks_A), np.vstack(blocks_B), np.hstack(blocks_C), D0)
 
+    def linear_part(self, theta):
+        """The whole linear model (parallel modes included) as a LinearPart."""
+        from rigd.ident.model import LinearPart
+
+        A, B, C, D = self.full_abcd(theta)
+        return LinearPart(A, B, C, D, None, (0,) * self.nu, self.hold,
+                          tuple(self.input_names), tuple(self.output_names))
+
     def ss(self, theta):
         import control
 
@@ -200,9 +208,13 @@ class ModalStructure(Structure):
         return sorted({round(float(abs(v) / (2 * np.pi)), 6) for v in lam if v.imag > 1e-9})
 
     def readouts(self, theta):
-        out = dict(self.base.readouts(np.asarray(theta, float)[:self.nb]))
-        out["modes"] = list(out.get("modes", [])) + [
-            {"f_n_hz": f, "zeta": z, "parallel": True} for f, z, _ in self.modes_of(theta)]
+        """Read-outs of the whole model (parallel modes included: rigd.ident.readouts)."""
+        from rigd.ident.readouts import linear_readouts
+
+        out = linear_readouts(self.linear_part(theta))
+        off = self.output_offset(theta)
+        if off is not None:
+            out["output_offset"] = off.tolist()
         return out
 
     def spec(self):

@@ -166,8 +166,9 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
     if unknown:
         raise InputError(f"cannot fix unknown parameter(s) {sorted(unknown)}")
     free = np.array([n not in fixed for n in structure.names])
-    if method == "oe":  # the disturbance gain plays no role in a simulation
+    if method == "oe":  # the disturbance / innovation gain plays no role in a simulation
         free &= np.array([not n.startswith("bd_") for n in structure.names])
+        free[list(getattr(structure, "noise_index", []))] = False
     scale = _scale(structure, th0)
     off = list(getattr(structure, "offset_index", []))
     if off:   # output offsets (generic): at the outputs' own scale, whatever the start value

@@ -244,3 +244,95 @@ def predict_mechanical(K, D, B, Bdist, x0, u, y, fs, hooks: Hooks | None = None)
     else:
         predict_kernel(Ad, Bd, Kd, C, x0, ue, ym, yhat)
     return yhat if add is None else yhat + add
+
+
+# --------------------------------------------------------------------------------------
+# any linear part (rigd.ident.model.LinearPart): one kernel for every family
+# --------------------------------------------------------------------------------------
+def shift_inputs(u: np.ndarray, delays) -> np.ndarray:
+    """u with column j delayed by ``delays[j]`` samples; before the start each column holds
+    its first value (the record is taken to start at rest on its first input)."""
+    d = np.asarray(delays, int)
+    if not np.any(d):
+        return u
+    out = np.empty_like(u)
+    n = u.shape[0]
+    for j, dj in enumerate(d):
+        dj = min(int(dj), n)
+        out[:dj, j] = u[0, j]
+        out[dj:, j] = u[:n - dj, j]
+    return out
+
+
+def _linear_inputs(lp, u: np.ndarray, hooks: Hooks | None) -> np.ndarray:
+    u = np.ascontiguousarray(u, dtype=float)
+    if hooks is not None:
+        u = hooks.transform_input(u)
+    return np.ascontiguousarray(shift_inputs(u, lp.delays))
+
+
+def _hooks_unsupported(hooks: Hooks | None) -> bool:
+    """True if ``hooks`` ask for a mechanical state-level change (cubic stiffness, K/D/B
+    increments) that a general linear part cannot carry."""
+    return hooks is not None and (hooks.nonlinear or any(
+        h is not None for h in (hooks.dK, hooks.dD, hooks.dB)))
+
+
+def simulate_linear(lp, x0, u, fs, hooks: Hooks | None = None) -> np.ndarray:
+    """Simulated output (n, ny) of a :class:`rigd.ident.model.LinearPart` from state ``x0``.
+
+    A, B are discretised exactly with the part's hold (:func:`rigd.lti.zoh`/:func:`foh`),
+    the per-input delays are input shifts (:func:`shift_inputs`), then the compiled
+    :func:`lsim_kernel` runs; ``y = C x + D u``. ``hooks`` (effects): input delay and
+    transform, extra modes and additive output apply; a mechanical state-level change
+    (cubic stiffness, dK/dD/dB) cannot be carried by a general linear part and gives NaN
+    (the fit treats it as a failed simulation).
+    """
+    uu = _linear_inputs(lp, u, hooks)
+    n, ny = uu.shape[0], lp.ny
+    if _hooks_unsupported(hooks):
+        return np.full((n, ny), np.nan)
+    Ad, Bd, ue = _discrete(np.asarray(lp.A, float), np.asarray(lp.B, float), 1.0 / fs,
+                           lp.hold, uu)
+    y = np.empty((n, ny))
+    lsim_kernel(Ad, Bd, np.ascontiguousarray(lp.C, dtype=float),
+                np.ascontiguousarray(x0, dtype=float), ue, y)
+    if np.any(lp.D):
+        y += uu @ np.asarray(lp.D, float).T
+    if hooks is not None:
+        add = dataclasses.replace(hooks, hold=lp.hold).additive_output(uu, 1.0 / fs, ny)
+        if add is not None:
+            y += add
+    return y
+
+
+def predict_linear(lp, x0, u, y, fs, hooks: Hooks | None = None) -> np.ndarray | None:
+    """One-step-ahead prediction (n, ny) of a linear part with innovation gain ``lp.K``
+    (discrete, nx × ny); ``None`` if the predictor is unstable (spectral radius of
+    Ad − K C ≥ 1). Same discretisation, delays and hooks as :func:`simulate_linear`."""
+    uu = _linear_inputs(lp, u, hooks)
+    n, ny = uu.shape[0], lp.ny
+    if _hooks_unsupported(hooks):
+        return None
+    Ad, Bd, ue = _discrete(np.asarray(lp.A, float), np.asarray(lp.B, float), 1.0 / fs,
+                           lp.hold, uu)
+    C = np.ascontiguousarray(lp.C, dtype=float)
+    Kd = np.zeros((lp.nx, ny)) if lp.K is None else np.ascontiguousarray(lp.K, dtype=float)
+    if not np.all(np.isfinite(Ad)) or (lp.nx and np.max(np.abs(np.linalg.eigvals(
+            Ad - Kd @ C)))) >= 1.0:
+        return None
+    add = None
+    if hooks is not None:
+        add = dataclasses.replace(hooks, hold=lp.hold).additive_output(uu, 1.0 / fs, ny)
+    direct = uu @ np.asarray(lp.D, float).T if np.any(lp.D) else None
+    ym = np.asarray(y, float)
+    for part in (add, direct):
+        if part is not None:
+            ym = ym - part
+    yhat = np.empty((n, ny))
+    predict_kernel(Ad, Bd, Kd, C, np.ascontiguousarray(x0, dtype=float), ue,
+                   np.ascontiguousarray(ym), yhat)
+    for part in (add, direct):
+        if part is not None:
+            yhat += part
+    return yhat

@@ -37,6 +37,8 @@ class Structure:
     x0_index: list[int] = []
     #: indices into theta of constant output offsets (re-estimated on new data like x0)
     offset_index: list[int] = []
+    #: indices into theta used only by the one-step predictor (frozen by an OE fit)
+    noise_index: list[int] = []
     #: names of the extensions applied (empty for a base structure)
     effects: list[str] = []
 
@@ -65,6 +67,10 @@ class Structure:
 
     def ss(self, theta: np.ndarray):
         """The (linear part of the) model as a continuous python-control StateSpace."""
+        raise NotImplementedError
+
+    def linear_part(self, theta: np.ndarray):
+        """The model's linear dynamics, a :class:`rigd.ident.model.LinearPart`."""
         raise NotImplementedError
 
     def readouts(self, theta: np.ndarray) -> dict[str, Any]:
@@ -132,6 +138,7 @@ class HookedStructure(Structure):
             self.names += list(ext.names)
         self.x0_index = list(base.x0_index)
         self.offset_index = list(base.offset_index)
+        self.noise_index = list(getattr(base, "noise_index", []))
         self.effects = [e.name for e in self.extensions]
 
     def split(self, theta: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -173,6 +180,10 @@ class HookedStructure(Structure):
     def ss(self, theta):
         bt, _ = self.split(theta)
         return self.base.ss(bt)
+
+    def linear_part(self, theta):
+        bt, _ = self.split(theta)
+        return self.base.linear_part(bt)
 
     def readouts(self, theta):
         bt, parts = self.split(theta)

@@ -8,7 +8,10 @@
   returning A, B, C, D, K, x0 and the singular values;
 * :mod:`.delay` — per-input delay (:func:`estimate_delays`: ARX impulse response and
   prewhitened cross-correlation, with a confidence);
-* :mod:`.lsq` — least squares by an accumulated QR (memory bounded).
+* :mod:`.lsq` — least squares by an accumulated QR (memory bounded);
+* :mod:`.statespace` — the general LTI model family in real-block modal form
+  (:class:`StateSpaceModel`, a :class:`rigd.ident.model.Model`), start values from
+  :mod:`.modal` (subspace poles, gains by least squares).
 """
 
 from rigd.ident.lti.arx import ArxModel, ArxSelection, fit_arx, select_arx

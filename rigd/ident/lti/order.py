@@ -1,0 +1,1 @@
+"""Delay first, then order: the generic base model chosen from the data (to come)."""
