@@ -62,13 +62,22 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def order_text(o: dict) -> str:
+    """One line: family, states, delays and why (the ``order`` entry of the JSON)."""
+    if "family" not in o:   # written before the model families
+        fits = ", ".join(f"{k}: {v} %" for k, v in o["validation_fit_by_modes"].items())
+        return f"{o['modes']} mode(s) (validation fit by number of modes: {fits}; {o['reason']})"
+    fits = ", ".join(f"{k}: {v} %" for k, v in o.get("validation_fit_by_states", {}).items())
+    return (f"{o['family']}, {o['states']} state(s), {o['modes']} mode(s), input delays "
+            f"{o['delays_samples']} samples ({o['reason']}"
+            + (f"; held-out fit by number of states: {fits}" if fits else "") + ")")
+
+
 def summary(out: dict) -> str:
     """Human-readable summary of the JSON result."""
     lines = [source_text(out.get("source") or {}), f"base model fit: {out['fit_percent']} %"]
     for sub, o in (out.get("order") or {}).items():
-        fits = ", ".join(f"{k}: {v} %" for k, v in o["validation_fit_by_modes"].items())
-        lines.append(f"base model order [{sub}]: {o['modes']} mode(s) (validation fit by "
-                     f"number of modes: {fits}; {o['reason']})")
+        lines.append(f"base model [{sub}]: {order_text(o)}")
     for sub, y in (out.get("yardstick") or {}).items():
         lines.append(f"yardstick [{sub}]: {y['text']}")
     lines += [f"   WARNING {n}" for n in out.get("notes", []) if "WARNING" in n]

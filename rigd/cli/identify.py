@@ -91,14 +91,24 @@ def _print_human(model, out, yardstick: dict | None = None) -> None:
         ro = sm.readouts
         for w in ro.get("warnings", []):
             print(f"  WARNING: {w}", file=out)
+        if "order" in fp:
+            from rigd.cli.diagnose import order_text
+
+            print(f"  base model: {order_text(fp['order'])}", file=out)
         for m in ro.get("modes", []):
             if "f_n_hz" in m:
                 print(f"  mode: f_n = {m['f_n_hz']:.2f} Hz, zeta = {m['zeta']:.4f}", file=out)
+            elif "time_constant_s" in m:
+                print(f"  real pole: time constant {m['time_constant_s']:.4g} s", file=out)
+            elif m.get("integrator"):
+                print("  integrator (pole at 0)", file=out)
         for ax, e in ro.get("axes", {}).items():
             print(f"  valve {ax}: gain {e['gain']:.4g}, f_n = {e['f_n_hz']:.1f} Hz, "
                   f"zeta = {e['zeta']:.3f}, poles {_fmt_poles(e['poles_rad_s'])} rad/s", file=out)
         if "static_gain" in ro:
-            g = np.asarray(ro["static_gain"], dtype=float)
+            g = np.array([[np.inf if v is None else v for v in row]
+                          for row in np.atleast_2d(np.array(ro["static_gain"], dtype=object))],
+                         dtype=float)
             rows = "; ".join(" ".join(f"{v:.4g}" for v in row) for row in np.atleast_2d(g))
             print(f"  static gain (output per input): [{rows}]", file=out)
 

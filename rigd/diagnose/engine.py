@@ -105,19 +105,14 @@ def _fit(structure, data, theta0=None, max_nfev=None, fixed=None):
 
 
 def model_resonances(structure, theta) -> list[float]:
-    """Resonance frequencies (Hz) of the base model's linear part."""
-    if hasattr(structure, "resonances_hz"):  # parallel modes (rigd.ident.order)
-        return [round(f, 3) for f in structure.resonances_hz(theta)]
-    try:
-        if hasattr(structure, "continuous"):
-            A = structure.continuous(theta)[0]
-        else:
-            A = np.asarray(structure.ss(theta).A)
-        lam = np.linalg.eigvals(A)
-        fr = sorted({round(float(abs(lm) / (2 * np.pi)), 3) for lm in lam if lm.imag > 1e-9})
-        return fr
-    except Exception:  # noqa: BLE001 - a structure without a linear part has no resonances
+    """Resonance frequencies (Hz) of the base model's linear part (rigd.ident.readouts)."""
+    from rigd.ident.model import linear_part_of
+    from rigd.ident.readouts import resonances_hz
+
+    lp = linear_part_of(structure, theta)
+    if lp is None or not np.all(np.isfinite(lp.A)):
         return []
+    return sorted({round(f, 3) for f in resonances_hz(lp)})
 
 
 def _val_err(ctx: Context, yhat: np.ndarray) -> float:

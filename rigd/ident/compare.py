@@ -197,16 +197,16 @@ def summary(comps: dict[str, Comparison]) -> dict[str, Any]:
 
 def model_frequency_response(structure, theta, f_hz: np.ndarray) -> np.ndarray:
     """H(j2πf) (nf, ny, nu) of the linear part of ``structure`` at ``theta``."""
-    base = structure
-    while hasattr(base, "effect"):  # effect wrappers; a ModalStructure is a base
-        base = base.base
-    th = np.asarray(theta)[:len(base.names)]
-    A, B, C, D = (base.full_abcd(th) if hasattr(base, "full_abcd")
-                  else base.continuous(th)[:4])
+    from rigd.ident.model import linear_part_of
+
+    lp = linear_part_of(structure, theta)
+    A, B, C, D = (np.asarray(m, float) for m in (lp.A, lp.B, lp.C, lp.D))
     n = A.shape[0]
     out = np.empty((len(f_hz), C.shape[0], B.shape[1]), complex)
     for i, f in enumerate(f_hz):
-        out[i] = C @ np.linalg.solve(2j * np.pi * f * np.eye(n) - A, B) + D
+        # the per-input delays: e^(−j2πf τ_j) on input j
+        ph = np.exp(-2j * np.pi * f * np.asarray(lp.delays, float) / (lp.fs or np.inf))
+        out[i] = (C @ np.linalg.solve(2j * np.pi * f * np.eye(n) - A, B) + D) * ph[None, :]
     return out
 
 

@@ -73,6 +73,14 @@ class StructureSpec(StrictModel):
     #: generic: a constant offset per output is a parameter (``yoff_i``; absent in files
     #: written before it existed, which rebuild without it)
     output_offsets: bool = False
+    #: general LTI / process families (rigd.ident.lti): the rate the poles are relative to,
+    #: block counts, per-input delays (samples), free D, C's normalised rows, process kind
+    fs_hz: float | None = None
+    blocks: dict[str, int] | None = None
+    delays: list[int] | None = None
+    feedthrough: bool = False
+    norm_rows: list[int] | None = None
+    process: str | None = None
 
 
 class SubmodelEntry(StrictModel):
@@ -190,9 +198,21 @@ def rebuild_structure(spec: StructureSpec | dict, where: str = "<model>",
     """
     if isinstance(spec, dict):
         spec = StructureSpec.model_validate(spec)
-    if spec.kind not in ("actuator", "bearing", "generic"):
+    if spec.kind not in ("actuator", "bearing", "generic", "lti", "process"):
         raise InputError(f"unknown structure kind {spec.kind!r}", where)
-    st = structure_for(spec.kind, spec=spec.model_dump())
+    if spec.kind in ("lti", "process"):
+        from rigd.ident.lti.process import ProcessModel
+        from rigd.ident.lti.statespace import StateSpaceModel
+
+        if spec.fs_hz is None:
+            raise InputError(f"a {spec.kind} structure needs fs_hz", where)
+        try:
+            st = (StateSpaceModel if spec.kind == "lti" else ProcessModel).from_spec(
+                spec.model_dump())
+        except ValueError as exc:
+            raise InputError(str(exc), where) from None
+    else:
+        st = structure_for(spec.kind, spec=spec.model_dump())
     if spec.extra_modes:
         if spec.kind != "generic":
             raise InputError("extra_modes is for generic structures only", where)

@@ -15,18 +15,11 @@ import numpy as np
 
 
 def _linear_a(structure, theta) -> np.ndarray | None:
-    base, th = structure, np.asarray(theta, float)
-    while hasattr(base, "effect"):  # effect wrappers: their parameters come last
-        base = base.base
-    th = th[:len(base.names)]
-    try:
-        if hasattr(base, "full_abcd"):
-            return np.asarray(base.full_abcd(th)[0], float)
-        if hasattr(base, "continuous"):
-            return np.asarray(base.continuous(th)[0], float)
-    except (ValueError, np.linalg.LinAlgError):
-        return None
-    return None
+    """Continuous A of the model's linear part (rigd.ident.model.linear_part_of)."""
+    from rigd.ident.model import linear_part_of
+
+    lp = linear_part_of(structure, theta)
+    return None if lp is None else np.asarray(lp.A, float)
 
 
 def unstable_modes(structure, theta) -> list[str]:

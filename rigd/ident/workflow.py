@@ -101,7 +101,9 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData,
     vs = float(np.max(np.std(np.diff(data.y, axis=0), axis=0))) * float(data.fs) or ys
     mech = getattr(base, "base", base)  # a ModalStructure's mechanical part
     half = len(getattr(mech, "x0_index", [])) // 2
-    vel = set(list(getattr(mech, "x0_index", []))[half:])
+    # velocity states [p, ṗ] of a mechanical model; other families: every state at y's scale
+    vel = (set(list(getattr(mech, "x0_index", []))[half:])
+           if callable(getattr(mech, "continuous", None)) else set())
     steps = np.array([vs if i in vel else ys for i in idx]) * 1e-2
     cols = []
     for i, d in zip(idx, steps):

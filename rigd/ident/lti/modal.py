@@ -192,19 +192,55 @@ def match_poles(model, candidates) -> list[complex]:
     return model.poles_c(np.concatenate([th, np.zeros(len(model.names) - len(th))]))
 
 
-def subspace_poles(data, order: int, delays=None) -> list[complex]:
-    """Continuous poles (rad/s) of an ``order``-state subspace model of ``data`` (inputs
-    shifted by ``delays``); [] when the record is too short for that order."""
-    from rigd.ident.subspace import n4sid_a
+def subspace_poles_by_order(data, orders, delays=None) -> dict[int, list[complex]]:
+    """Continuous poles (rad/s) of the subspace models of every order in ``orders`` from ONE
+    decomposition of ``data`` (inputs shifted by ``delays``).
+
+    The LQ decomposition and the SVD of L₃₂ of :func:`rigd.ident.lti.subspace.n4sid` do not
+    depend on the order: each order's A follows from the first ``order`` columns of the
+    extended observability matrix by shift invariance. Only A is needed here (the gains are
+    fitted by :func:`gains_by_least_squares`), so n4sid's B/D/K/x0 steps are skipped. An order
+    the record or horizon cannot support is left out.
+    """
+    from rigd.ident.lti.lsq import stacked_r
+    from rigd.ident.lti.subspace import _hankel_rows, default_horizon
 
     u = np.asarray(data.u, float)
     if delays is not None:
         u = shift_inputs(u, delays)
+    y = np.asarray(data.y, float)
+    n, nu = u.shape
+    ny = y.shape[1]
+    orders = [int(o) for o in orders if int(o) >= 1]
+    if not orders:
+        return {}
+    i = default_horizon(n, nu, ny, max(orders))
+    du = (u - u.mean(0)) / np.maximum(u.std(0), 1e-300)
+    dy = (y - y.mean(0)) / np.maximum(y.std(0), 1e-300)
+    j = n - 2 * i + 1
+    r1, r2, r3 = i * nu, i * (nu + ny), i * ny
+    if j < 2 * (r1 + r2 + r3):
+        return {}
     try:
-        A, _, _ = n4sid_a(u, np.asarray(data.y, float), int(order))
-    except (ValueError, np.linalg.LinAlgError):
-        return []
-    return poles_from_discrete(A, float(data.fs))
+        L = stacked_r(_hankel_rows([(du, i), (du, 0), (dy, 0), (dy, i)], i), j,
+                      r1 + r2 + r3).T
+        U1, sv, _ = np.linalg.svd(L[r1 + r2:, r1:r1 + r2], full_matrices=False)
+    except (np.linalg.LinAlgError, ValueError):
+        return {}
+    out = {}
+    for nx in orders:
+        if nx >= r3 or nx > len(sv):
+            continue
+        Gam = U1[:, :nx] * np.sqrt(sv[:nx])
+        A = np.linalg.lstsq(Gam[:-ny], Gam[ny:], rcond=None)[0]
+        out[nx] = poles_from_discrete(A, float(data.fs))
+    return out
+
+
+def subspace_poles(data, order: int, delays=None) -> list[complex]:
+    """Continuous poles (rad/s) of an ``order``-state subspace model of ``data``
+    (:func:`subspace_poles_by_order`); [] when the record is too short for that order."""
+    return subspace_poles_by_order(data, [order], delays).get(int(order), [])
 
 
 def initial_theta(model, data) -> np.ndarray:

@@ -1,1 +1,323 @@
-"""Delay first, then order: the generic base model chosen from the data (to come)."""
+"""Delay first, then order: the generic base model (family, order, delays) from the data.
+
+:func:`choose_base` is what ``rigd identify`` and ``rigd diagnose`` run on a record that is
+not a rotor's (``generic``):
+
+1. **delays** — per input, before any order is chosen: :func:`rigd.ident.lti.delay.
+   estimate_delays` (ARX impulse response and prewhitened cross-correlation) on the
+   estimation part; the lag of the first response becomes a delay in samples for the hold
+   used (ZOH: nk − 1, FOH: nk);
+2. **order** — for 1, 2, … states: poles of a subspace model of that order (inputs shifted by
+   the delays), gains, initial state and offsets by least squares
+   (:mod:`rigd.ident.lti.modal`); a slow real pole (time constant beyond the estimation
+   part) is also tried as an explicit integrator. Each candidate gets the Bayesian
+   information criterion on the estimation part,
+   BIC = Σ_outputs N·ln(σ²_i) + p·ln(N·ny) (p: parameters, N: samples), and its fit on the
+   held-out part (free run from the estimation part's initial state). The scan stops
+   :data:`PATIENCE` orders after the last BIC improvement, or at ``max_states``;
+3. **family** — the general LTI candidates compete with the grey-box mechanical n-DOF model
+   (one DOF per output, when given) and the low-order process models
+   (:mod:`rigd.ident.lti.process`) by the same criterion: the *admissible* candidates are
+   those whose held-out fit is within :data:`MIN_GAIN` points of the best; among them the
+   lowest BIC wins — unless a model with fewer parameters fits the held-out part at least
+   as well (extra states must pay on data they were not fitted to) — and an admissible
+   grey-box mechanical model is kept (its parameters are physical and the state-level
+   effects need it);
+4. the chosen model (and, for the LTI family, its delays ±1 sample by the estimation cost)
+   is refined by output error (:func:`rigd.ident.pem.fit`).
+
+``order=N`` fits the LTI family with exactly N states, or refuses with the reason
+(:class:`OrderRefused`): never silently another order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from rigd.ident.lti.candidates import MIN_GAIN, Candidate, score
+from rigd.ident.lti.modal import gains_by_least_squares, subspace_poles_by_order
+from rigd.ident.lti.statespace import StateSpaceModel
+
+#: most states tried by ``order="auto"`` (and accepted by ``order=N``)
+MAX_STATES = 30
+#: orders scanned past the last BIC improvement
+PATIENCE = 3
+
+
+class OrderRefused(ValueError):
+    """``order=N`` cannot be fitted; the message says why."""
+
+
+@dataclass
+class BaseChoice:
+    """The chosen base model and how it was chosen (printed, and ``order`` in ``--json``)."""
+
+    structure: Any
+    theta: np.ndarray
+    family: str
+    states: int
+    delays: list[int]
+    candidates: list[Candidate] = field(default_factory=list)
+    reason: str = ""
+    asked: str | int = "auto"
+
+    @property
+    def modes(self) -> int:
+        """Complex pairs (oscillatory modes) of the chosen model."""
+        from rigd.ident.readouts import modes
+
+        lp = self.structure.linear_part(self.theta)
+        return sum(1 for m in modes(lp) if "f_n_hz" in m)
+
+    def describe(self) -> str:
+        fam = {"lti": "general LTI", "mechanical": "mechanical n-DOF",
+               "process": "process"}.get(self.family, self.family)
+        what = (self.structure.describe() if callable(getattr(self.structure, "describe", None))
+                else f"{self.states} states")
+        return (f"{fam} model, {what}, input delays {self.delays} samples "
+                f"({'order asked: ' + str(self.asked) if self.asked != 'auto' else self.reason})")
+
+    def to_json(self) -> dict[str, Any]:
+        by_states: dict[str, float] = {}
+        for c in self.candidates:
+            if c.family == "lti":
+                k = str(c.states)
+                by_states[k] = max(by_states.get(k, -np.inf), round(c.fit_val, 3))
+        return {"modes": self.modes, "family": self.family, "states": self.states,
+                "delays_samples": list(self.delays), "asked": self.asked,
+                "validation_fit_by_modes": {}, "validation_fit_by_states": by_states,
+                "criterion": "BIC on the estimation part; held-out fit within "
+                             f"{MIN_GAIN} points of the best",
+                "candidates": [c.to_json() for c in self.candidates], "reason": self.reason}
+
+
+def input_delays(d_est, hold: str) -> list[int]:
+    """Per-input delay (samples) of the estimation data for a model with input ``hold``."""
+    from rigd.ident.lti.delay import estimate_delays
+
+    est = estimate_delays(np.asarray(d_est.u, float), np.asarray(d_est.y, float))
+    return [int(e.delay_zoh if hold == "zoh" else e.nk) for e in est]
+
+
+def lti_candidates(data, d_est, est, val, states: int, delays, hold,
+                   poles: dict | None = None) -> list[Candidate]:
+    """LTI models of ``states`` states from the subspace poles (``poles``: by order, from
+    :func:`~rigd.ident.lti.modal.subspace_poles_by_order`; computed when not given) and, for
+    a slow real pole, the same with an explicit integrator; gains by least squares."""
+    if poles is None:
+        poles = subspace_poles_by_order(d_est, [states], delays)
+    lam = poles.get(states, [])
+    if len(lam) == 0:
+        return []
+    slow = 2 * np.pi * float(data.fs) / max(d_est.n, 1)
+    variants = [(lam, 0)]
+    reals = [v for v in lam if v.imag == 0]
+    if reals and abs(reals[0].real) < slow:
+        variants.append(([v for v in lam if v is not reals[0]], 1))
+    out = []
+    for poles, ni in variants:
+        pairs = [v for v in poles if v.imag > 0]
+        real = [v for v in poles if v.imag == 0]
+        m = StateSpaceModel(d_est.input_names, d_est.output_names, data.fs, len(pairs),
+                            len(real), ni, delays, hold)
+        if m.nx != states:
+            continue
+        m.set_record(d_est.n)
+        try:
+            th = gains_by_least_squares(m, pairs + real + [0j] * ni, d_est)
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+        th = _clip(m, th)
+        b, fe, fv = score(m, th, data, est, val)
+        out.append(Candidate("lti", states, m, th, b, fe, fv, len(m.names)))
+    return out
+
+
+def _clip(model, theta):
+    lo, hi = model.bounds()
+    return np.clip(theta, np.where(np.isfinite(lo), lo + 1e-9, lo),
+                   np.where(np.isfinite(hi), hi - 1e-9, hi))
+
+
+def _refine(cand: Candidate, data, d_est, est, val, max_nfev) -> Candidate:
+    from rigd.ident.pem import fit
+
+    try:
+        res = fit(cand.structure, d_est, method="oe", theta0=cand.theta, max_nfev=max_nfev)
+    except (np.linalg.LinAlgError, ValueError):
+        return cand
+    b, fe, fv = score(cand.structure, res.theta, data, est, val)
+    if not np.isfinite(b) or b > cand.bic:
+        return cand
+    return Candidate(cand.family, cand.states, cand.structure, res.theta, b, fe, fv, cand.npar)
+
+
+def _delay_search(best: Candidate, data, d_est, est, val) -> Candidate:
+    """The LTI candidate's delays moved sample by sample per input (down first: a
+    higher-order response starts slowly, so its first significant lag can be late) while
+    the BIC at the same number of states improves."""
+    m = best.structure
+    for j in range(m.nu):
+        for step in (-1, 1):
+            while True:
+                dl = list(m.delays)
+                dl[j] += step
+                if dl[j] < 0:
+                    break
+                c = [x for x in lti_candidates(data, d_est, est, val, best.states, dl, m.hold)
+                     if x.structure.ni == m.ni]
+                if not c or c[0].bic >= best.bic:
+                    break
+                best, m = c[0], c[0].structure
+    return best
+
+
+def admissible(cands: list[Candidate]) -> list[Candidate]:
+    """Candidates whose held-out fit is within :data:`MIN_GAIN` of the best one's."""
+    ok = [c for c in cands if np.isfinite(c.bic) and np.isfinite(c.fit_val)]
+    if not ok:
+        return []
+    top = max(c.fit_val for c in ok)
+    return [c for c in ok if c.fit_val >= top - MIN_GAIN]
+
+
+def choose_base(data, est: slice, val: slice, order: str | int = "auto", hold: str = "foh",
+                mechanical=None, mechanical_theta=None, process: bool = True,
+                max_states: int = MAX_STATES, max_nfev: int | None = None) -> BaseChoice:
+    """Family, order and delays of the base model of a generic record (module docstring).
+
+    Parameters
+    ----------
+    data : IdData
+        The whole (prefiltered) record; ``est``/``val`` its estimation/validation parts.
+    order : "auto" or int
+        ``auto``, or the number of states of the LTI model to fit exactly.
+    hold : {"zoh", "foh"}
+        Input between samples.
+    mechanical : Model, optional
+        The grey-box mechanical n-DOF structure to compete (``mechanical_theta``: already
+        fitted on the estimation part).
+    process : bool
+        Let the process family compete (SISO pairs, :mod:`rigd.ident.lti.process`).
+    """
+    d_est = data.slice(est.start, est.stop)
+    delays = input_delays(d_est, hold)
+    want = None if order == "auto" else order
+    if want is not None:
+        return _exact(data, d_est, est, val, want, delays, hold, max_states, max_nfev)
+    cands = _scan(data, d_est, est, val, delays, hold, max_states)
+    ok = [c for c in admissible(cands) if c.family == "lti"]
+    if ok:   # delays checked at the chosen order; changed delays: the order scanned again
+        first = min(ok, key=lambda c: c.bic)
+        moved = _delay_search(first, data, d_est, est, val)
+        if list(moved.structure.delays) != list(delays):
+            delays = list(moved.structure.delays)
+            cands = _scan(data, d_est, est, val, delays, hold, max_states)
+    if process:
+        from rigd.ident.lti.process import process_candidates
+
+        cands += process_candidates(data, d_est, est, val, delays, hold)
+    if mechanical is not None:
+        from rigd.ident.pem import fit
+
+        th = (mechanical_theta if mechanical_theta is not None else
+              fit(mechanical, d_est, method="oe", max_nfev=max_nfev).theta)
+        b, fe, fv = score(mechanical, th, data, est, val)
+        cands.append(Candidate("mechanical", 2 * mechanical.ny, mechanical, np.asarray(th),
+                               b, fe, fv, len(mechanical.names)))
+    return _pick(cands, data, d_est, est, val, max_nfev)
+
+
+def _scan(data, d_est, est, val, delays, hold, max_states) -> list[Candidate]:
+    """LTI candidates of 1, 2, … states until :data:`PATIENCE` orders bring no better BIC."""
+    cands: list[Candidate] = []
+    best_bic, since = np.inf, 0
+    limit = min(max_states, _most_states(d_est))
+    poles = subspace_poles_by_order(d_est, range(1, limit + 1), delays)
+    for n in range(1, limit + 1):
+        got = lti_candidates(data, d_est, est, val, n, delays, hold, poles)
+        cands += got
+        b = min((c.bic for c in got), default=np.inf)
+        if b < best_bic:
+            best_bic, since = b, 0
+        else:
+            since += 1
+            if since >= PATIENCE:
+                break
+    return cands
+
+
+def _pick(cands, data, d_est, est, val, max_nfev) -> BaseChoice:
+    ok = admissible(cands)
+    if not ok:
+        raise OrderRefused("no candidate model could be simulated on this record")
+    # refine (output error): every admissible LTI candidate up to the one the least-squares
+    # scores chose (poles at their subspace values favour more states: the refit decides),
+    # and the best of every other family; then decide on the refined scores
+    best_by_family: dict[str, Candidate] = {}
+    for c in sorted(cands, key=lambda c: c.bic):
+        if np.isfinite(c.bic):
+            best_by_family.setdefault(c.family, c)
+    refined = []
+    lti_ok = [c for c in ok if c.family == "lti"]
+    if lti_ok:
+        top = min(lti_ok, key=lambda c: c.bic).states
+        refined += [_refine(c, data, d_est, est, val, max_nfev)
+                    for c in lti_ok if c.states <= top]
+        best_by_family.pop("lti", None)
+    if "process" in best_by_family:
+        best_by_family["process"] = _refine(best_by_family["process"], data, d_est, est, val,
+                                            max_nfev)
+    final = refined + list(best_by_family.values())
+    ok = admissible(final)
+    mech = [c for c in ok if c.family == "mechanical"]
+    if mech:
+        pick, why = mech[0], (f"the mechanical n-DOF model's held-out fit is within {MIN_GAIN} "
+                              "points of the best")
+    else:
+        pick = min(ok, key=lambda c: c.bic)
+        why = (f"lowest BIC among the models whose held-out fit is within {MIN_GAIN} points of "
+               "the best")
+        # validation check: parameters the held-out part does not pay for are not kept
+        simpler = [c for c in ok if c.npar < pick.npar and c.fit_val >= pick.fit_val]
+        if simpler:
+            pick = min(simpler, key=lambda c: c.bic)
+            why = ("a model with fewer parameters fits the held-out part as well as the "
+                   "lowest-BIC one")
+    delays = list(getattr(pick.structure, "delays", [0] * len(d_est.input_names)))
+    return BaseChoice(pick.structure, pick.theta, pick.family, pick.states, delays,
+                      cands + [c for c in final if all(c is not x for x in cands)], why)
+
+
+def _most_states(d_est) -> int:
+    """Most states a record supports: ≥ 10 samples per parameter of the LTI model."""
+    nu, ny = len(d_est.input_names), len(d_est.output_names)
+    per_state = 1 + nu + ny  # pole, B row, C column, x0
+    return max(1, int((d_est.n / 10 - ny) // per_state))
+
+
+def _exact(data, d_est, est, val, want, delays, hold, max_states, max_nfev) -> BaseChoice:
+    try:
+        n = int(want)
+    except (TypeError, ValueError):
+        raise OrderRefused(f"order must be 'auto' or a number of states, got {want!r}") from None
+    if n < 1:
+        raise OrderRefused(f"order {n}: a model needs at least 1 state")
+    top = min(max_states, _most_states(d_est))
+    if n > top:
+        why = (f"at most {max_states} states are fitted" if n > max_states else
+               f"the estimation part ({d_est.n} samples) supports at most {top} states "
+               "(10 samples per parameter)")
+        raise OrderRefused(f"order {n} refused: {why}")
+    cands = [c for c in lti_candidates(data, d_est, est, val, n, delays, hold)
+             if np.isfinite(c.bic)]
+    if not cands:
+        raise OrderRefused(f"order {n} refused: no {n}-state model could be estimated and "
+                           "simulated on this record")
+    best = min(cands, key=lambda c: c.bic)
+    best = _refine(best, data, d_est, est, val, max_nfev)
+    return BaseChoice(best.structure, best.theta, "lti", n, list(best.structure.delays),
+                      cands, f"order {n} asked", n)

@@ -277,11 +277,6 @@ class StateSpaceModel(Structure):
     def output_offset(self, theta) -> np.ndarray | None:
         return self.matrices(theta)["yoff"] if self.output_offsets else None
 
-    def continuous(self, theta):
-        """(A, B, C, D, x0) of the continuous model."""
-        m = self.matrices(theta)
-        return m["A"], m["B"], m["C"], m["D"], m["x0"]
-
     def ss(self, theta):
         return self.linear_part(theta).ss(self.kind)
 

@@ -1,0 +1,55 @@
+"""A candidate base model and its scores (BIC on the estimation part, held-out fit), shared
+by the order selection (:mod:`rigd.ident.lti.order`) and the families that compete in it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+#: validation fit (points) within which a candidate counts as good as the best
+MIN_GAIN = 0.5
+
+
+@dataclass(eq=False)
+class Candidate:
+    """One model tried: family, states, the fitted model and its scores."""
+
+    family: str
+    states: int
+    structure: Any
+    theta: np.ndarray
+    bic: float
+    fit_est: float
+    fit_val: float
+    npar: int
+
+    def to_json(self) -> dict[str, Any]:
+        return {"family": self.family, "states": self.states, "bic": round(self.bic, 2),
+                "fit_estimation": round(self.fit_est, 3),
+                "fit_validation": round(self.fit_val, 3), "parameters": self.npar}
+
+
+def _pct(y, yh) -> np.ndarray:
+    from rigd.ident.pem import fit_percent
+
+    return fit_percent(y, yh)
+
+
+def score(structure, theta, data, est: slice, val: slice) -> tuple[float, float, float]:
+    """(BIC on est, mean fit on est, mean fit on val) of ``structure`` at ``theta`` simulated
+    over the whole record; +inf / −inf when the simulation is not finite."""
+    yh = np.asarray(structure.simulate(theta, data))
+    if not np.all(np.isfinite(yh)):
+        return np.inf, -np.inf, -np.inf
+    y = np.asarray(data.y)
+    e = y[est] - yh[est]
+    n, ny = e.shape
+    p = len(structure.names) - len(getattr(structure, "noise_index", []))
+    s2 = np.maximum(np.mean(e ** 2, axis=0), 1e-300 * np.maximum(np.var(y[est], 0), 1e-300))
+    bic = float(n * np.sum(np.log(s2)) + p * np.log(n * ny))
+    return (bic, float(np.mean(_pct(y[est], yh[est]))),
+            float(np.mean(_pct(y[val], yh[val]))) if val.stop > val.start else -np.inf)
+
+
