@@ -61,15 +61,17 @@ def page_subscription() -> tuple[int, list[str]]:
     return int(m_p.group(1)), re.findall(r'"([a-z_0-9]+)"', m_c.group(1))
 
 
-def _client_main(url: str, go, stop, out) -> None:
-    """One browser-equivalent client (a process): read the SSE stream, parse every event,
-    keep the latencies of the events received while ``go`` is set."""
+def _client_main(url: str, token: str, go, stop, out) -> None:
+    """One browser-equivalent client (a process): read the SSE stream (with the token: every
+    read needs one), parse every event, keep the latencies of the events received while
+    ``go`` is set."""
     import httpx2 as httpx
 
     lat, dropped, nbytes, n = [], 0, 0, 0
     ready = True
     try:
-        with httpx.stream("GET", url, timeout=httpx.Timeout(30.0, read=30.0)) as r:
+        with httpx.stream("GET", url, timeout=httpx.Timeout(30.0, read=30.0),
+                          headers={"Authorization": f"Bearer {token}"}) as r:
             for line in r.iter_lines():
                 if stop.is_set():
                     break
@@ -134,6 +136,7 @@ def run(seconds: float = 8.0, clients: int = 5, rate_hz: float = 50.0) -> dict:
         procs = []
         try:
             web, base = _start_web(tmp, sock)
+            token = (tmp / "token").read_text().strip()
             url = (f"{base}/api/stream?rate_hz={rate_hz:g}&points={points}"
                    f"&channels={','.join(channels)}")
             idle, busy = [], []
@@ -143,7 +146,7 @@ def run(seconds: float = 8.0, clients: int = 5, rate_hz: float = 50.0) -> dict:
                     idle.append(_window(sock, seconds))
                     continue
                 go, stop, out = ctx.Event(), ctx.Event(), ctx.Queue()
-                procs = [ctx.Process(target=_client_main, args=(url, go, stop, out),
+                procs = [ctx.Process(target=_client_main, args=(url, token, go, stop, out),
                                      daemon=True) for _ in range(clients)]
                 for p in procs:
                     p.start()
