@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from rigd.diagnose import domain as D
+from rigd.diagnose import wording as W
 from rigd.diagnose.engine import model_resonances
 from rigd.diagnose.page_data import measured_view, model_view, resonances_below_nyquist
 from rigd.htmlpage import write_page
@@ -26,6 +28,11 @@ def _resonances(c) -> list[float]:
     while hasattr(base, "effect"):
         base = base.base
     return model_resonances(base, th[:len(base.names)]) if base is not None else []
+
+
+def _domain(c) -> str:
+    """The compared model's domain (rigd.diagnose.domain) from its sub-model and poles."""
+    return D.decide(c.name, {}, c.structure, np.asarray(c.theta)).name
 
 
 def part_data(c) -> dict[str, Any]:
@@ -46,7 +53,8 @@ def part_data(c) -> dict[str, Any]:
                                                             ("rms", "mean", "autocorr_lag1")
                                                             if k in c.residual[o]}}
                   for o, f in zip(d.output_names, c.fit)],
-        "resonances_hz": resonances_below_nyquist(_resonances(c), d.fs),
+        "peaks_hz": resonances_below_nyquist(_resonances(c), d.fs),
+        "peaks_label": W.peaks_label(_domain(c)),
         "measured": measured_view(t, y, d.fs, sl),
         "variants": [view],
     }

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from rigd.diagnose import wording as W
 from rigd.diagnose.page_data import measured_view, model_view, resonances_below_nyquist
 from rigd.htmlpage import write_page
 
@@ -119,7 +120,8 @@ def part_data(sd) -> dict[str, Any]:
         "outputs": list(ctx.output_names),
         "val_s": [float(t[ctx.val][0]), float(t[ctx.val][-1])],
         "window": list(sd.window),
-        "resonances_hz": resonances_below_nyquist(ctx.resonances_hz, ctx.fs),
+        "peaks_hz": resonances_below_nyquist(ctx.resonances_hz, ctx.fs),
+        "peaks_label": W.peaks_label(ctx.domain),
         "measured": measured_view(t, ctx.y, ctx.fs, ctx.val),
         "variants": vs,
         "steps": steps,

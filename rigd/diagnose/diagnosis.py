@@ -51,6 +51,8 @@ class Diagnosis:
             "tests": {p.submodel: p.tests for p in self.parts},
             "analysed_samples": {p.submodel: list(p.window) for p in self.parts},
             "order": {p.submodel: p.order for p in self.parts if p.order is not None},
+            "domain": {p.submodel: p.domain.to_json() for p in self.parts
+                       if p.domain is not None},
             "yardstick": {p.submodel: p.yardstick.to_json() for p in self.parts
                           if p.yardstick is not None},
             "notes": list(self.notes),
@@ -155,6 +157,7 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
         sd = diagnose_data(data, sub, structure=structure, est=est, val=val, effects=effects,
                            refit=refit, max_steps=max_steps, theta0=theta0,
                            offsets=offsets, start=window[0], yardstick=ys,
+                           record_meta=record.meta,
                            # a hold chosen by the linear base is asked again with the effects
                            other_hold=({"zoh": "foh", "foh": "zoh"}[choice.hold]
                                        if choice.source == "fit" else None))

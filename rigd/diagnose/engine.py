@@ -29,9 +29,12 @@ from typing import Any
 
 import numpy as np
 
+from rigd.diagnose import advice as A
+from rigd.diagnose import domain as D
 from rigd.diagnose import probes as P
 from rigd.diagnose import residual as R
 from rigd.diagnose import unexplained as U
+from rigd.diagnose import wording as W
 from rigd.effects import REGISTRY
 from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.ident.figures import fit_percent
@@ -91,6 +94,8 @@ class SubDiagnosis:
     #: what a plain ARX and a subspace model reach on the same split
     #: (:class:`rigd.ident.yardstick.Yardstick`, ``model_fit`` = the base model's fit)
     yardstick: Any = None
+    #: the record's domain (rigd.diagnose.domain): the words and the advice
+    domain: Any = None
 
     @property
     def final(self) -> Step:
@@ -162,6 +167,17 @@ def _refit(eff, ctx: Context, sig, data_est, max_nfev) -> Refit:
     return Refit(ext, th, yw, fw, time.perf_counter() - t0)
 
 
+def _words(eff, ctx: Context, sig) -> tuple[str, dict[str, Any]]:
+    """The explanation and evidence of ``eff``'s signature: an effect that emits an
+    evidence code (``evidence(ctx, sig) -> (code, numbers)``) is worded by
+    :mod:`rigd.diagnose.wording` for the record's domain; the others still word their own."""
+    if not hasattr(eff, "evidence"):
+        return eff.explain(ctx, sig)
+    code, ev = eff.evidence(ctx, sig)
+    text = W.explanation(eff.name, code, dict(ev, share=sig.score, fs=ctx.fs), ctx.domain)
+    return text, dict(ev, code=code)
+
+
 def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             cannot: list[CannotReveal] | None) -> tuple[list[Finding], dict[str, Refit]]:
     """Signature test (and refit) of each effect in ``names`` on the model of ``ctx``.
@@ -175,6 +191,10 @@ def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
     for name in names:
         eff = REGISTRY[name]
         why = eff.reveal(ctx)
+        if why is not None and why.code is not None:  # worded for the record's domain
+            why.why, why.experiment = A.cannot_reveal(
+                name, why.code, dict(why.evidence, fs=ctx.fs,
+                                     time_constants_s=ctx.time_constants_s), ctx.domain)
         if why is not None:
             if cannot is not None:
                 why.submodel = ctx.submodel
@@ -182,7 +202,7 @@ def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             if not why.partial:  # a partial one (slow creep only) is still tested
                 continue
         sig = eff.signature(ctx)
-        text, ev = eff.explain(ctx, sig)
+        text, ev = _words(eff, ctx, sig)
         sig_ok = sig.score >= eff.min_score and sig.f_p < P_LEVEL
         f = Finding(name, sig.score, False, text, ctx.submodel, sig.score, fp,
                     dict(ev, signature_p=sig.f_p, signature_k=sig.k))
@@ -226,7 +246,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                   theta0: np.ndarray | None = None,
                   max_steps: int = MAX_STEPS, offsets: dict[str, float] | None = None,
                   start: int = 0, other_hold: str | None = None,
-                  yardstick=None) -> SubDiagnosis:
+                  yardstick=None, record_meta: dict | None = None) -> SubDiagnosis:
     """Diagnose one sub-model on identification data by forward selection.
 
     Like a stepwise regression: fit the base model; test every effect on its residual
@@ -266,6 +286,9 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     yardstick : rigd.ident.yardstick.Yardstick, optional
         Black-box references on the same split: what is reachable (``unexplained``); its
         ``model_fit`` is set to the base model's fit.
+    record_meta : dict, optional
+        The record's metadata (its ``source``: a rigd recording is a rotor record), for
+        the domain (:func:`rigd.diagnose.domain.decide`) that words the findings.
 
     Returns
     -------
@@ -287,11 +310,13 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     theta = base.theta
     yhat = np.asarray(structure.simulate(theta, data), float)
     omega_hz = float(getattr(data, "meta", {}).get("omega_rpm", 0.0) or 0.0) / 60.0
+    dom = D.decide(submodel, record_meta or {}, structure, theta)
+    taus = D.time_constants(structure, theta)
 
     def context(st, th, yh):
         return Context(submodel, data, st, th, yh, est, val, omega_hz,
                        model_resonances(st, th), list(data.input_names),
-                       list(data.output_names))
+                       list(data.output_names), dom.name, taus)
 
     ctx0 = context(structure, theta, yhat)
     fp_base = float(np.mean(fit_percent(ctx0.y[val], yhat[val])))
@@ -300,7 +325,13 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     cannot: list[CannotReveal] = []
     names = effects or [nm for nm, e in REGISTRY.items()
                         if submodel in e.submodels and getattr(e, "screened", True)]
-    notes: list[str] = []
+    notes: list[str] = [f"domain: {dom.name} ({dom.why})"]
+    if not effects:  # effects this domain cannot carry are not offered (not named either)
+        kept = [nm for nm in names if D.offered(REGISTRY[nm], dom)]
+        if len(kept) < len(names):
+            notes.append(f"effects of mechanical structures or rotating parts are not tested "
+                         f"on a {dom.name} record")
+        names = kept
     n_est = (est.stop or n) - (est.start or 0)
     if not effects:  # costly effects are screened by default on records they can afford
         for nm in list(names):
@@ -364,7 +395,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     if yardstick is not None:
         yardstick.model_fit = fp_base
     sd = SubDiagnosis(submodel, fp_base, added + findings, cannot, [], ctx0, {}, refits,
-                      (0, data.n), steps, notes=notes, yardstick=yardstick)
+                      (0, data.n), steps, notes=notes, yardstick=yardstick, domain=dom)
     _tests_and_unexplained(sd, offsets, start)
     return sd
 
@@ -417,7 +448,7 @@ def _tests_and_unexplained(sd: SubDiagnosis, offsets: dict[str, float] | None = 
                            ctx.output_names or [ctx.label(i) for i in range(ctx.ny)],
                            ctx.input_names or [ctx.label(j, "in") for j in range(ctx.nu)],
                            skip_hz=skip, offsets=offsets, start=start + (v.start or 0),
-                           reference=reach)
+                           reference=reach, domain=ctx.domain)
     if unexplained and not sig:   # structured, no effect found: a force outside the
         fr = P.dry_friction(ctx, P_LEVEL)   # catalogue? (rigd.diagnose.probes)
         if fr is not None:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from rigd.diagnose import residual as R
+from rigd.diagnose import wording as W
 from rigd.htmlreport import Report
 
 
@@ -66,7 +67,7 @@ def _part(rep: Report, sd) -> None:
     # frequency
     f, prr, pyy = R.spectra(r[v], ctx.y[v], ctx.fs)
     fig, ax = rep.figure(f"{sub}_spectrum", "Residual spectrum against the measured output's; "
-                         "dashed: model resonances")
+                         f"dashed: {W.peaks_label(ctx.domain)}")
     ax.semilogy(f, np.atleast_2d(pyy.T).T.sum(axis=1), label="measured output")
     ax.semilogy(f, np.atleast_2d(prr.T).T.sum(axis=1), label="residual (base)")
     if len(sd.steps) > 1:

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
+from rigd.diagnose import wording as W
 from rigd.effects import numbers as N
 from rigd.ident.thresholds import LEVEL_RATIO, MIN_FIT_GAIN, MIN_SHARE
 
@@ -342,7 +343,8 @@ def direction(r: np.ndarray, u: np.ndarray, in_names: list[str]) -> dict[str, An
 # --------------------------------------------------------------------------------------
 # the report
 # --------------------------------------------------------------------------------------
-def _band_suggestion(b: dict[str, Any], resonances: list[float], nyq: float) -> str:
+def _band_suggestion(b: dict[str, Any], resonances: list[float], nyq: float,
+                     domain: str = "generic") -> str:
     lo, hi = b["edges_raw"]
     f = b["frequency_hz"]
     near = [fr for fr in resonances if lo - 0.1 * fr <= fr <= hi + 0.1 * fr]
@@ -351,14 +353,9 @@ def _band_suggestion(b: dict[str, Any], resonances: list[float], nyq: float) -> 
                 "(level- or temperature-dependent behaviour, a slow mode); a longer record "
                 "with slower excitation would show it")
     if near:
-        return (f"around the model's resonance ({', '.join(N.freqs(near))} Hz): its shape "
-                "depends on something the model lacks (amplitude-dependent stiffness or "
-                "damping outside the catalogue, or a second mode close to it); a stepped "
-                "sine around it at two amplitudes would tell")
+        return W.band_near_model(near, domain)
     if hi - lo <= 0.3 * max(f, 1e-300):
-        return ("a narrow line away from the model's resonances: an unmodelled mode "
-                "(identify with a higher --order) or a periodic disturbance; record once "
-                "with the excitation off to tell them apart")
+        return W.band_narrow(domain)
     return ("broad-band dynamics the model lacks in this band (a lag, a mode or a "
             "nonlinearity); excite the band alone to narrow it down")
 
@@ -367,7 +364,8 @@ def report(r: np.ndarray, y: np.ndarray, yhat: np.ndarray, u: np.ndarray, fs: fl
            tests: dict[str, Any], resonances: list[float], out_names: list[str],
            in_names: list[str], skip_hz: list[float] | None = None,
            offsets: dict[str, float] | None = None, start: int = 0,
-           reference: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+           reference: dict[str, Any] | None = None,
+           domain: str = "generic") -> list[dict[str, Any]]:
     """Unexplained structure of a residual ``r`` = ``y`` − ``yhat`` (validation part).
 
     Parameters
@@ -395,6 +393,8 @@ def report(r: np.ndarray, y: np.ndarray, yhat: np.ndarray, u: np.ndarray, fs: fl
         of the best black-box reference on the same split (:mod:`rigd.ident.yardstick`).
         Its residual caps the noise estimate, and a model ≥ ``MIN_WORTH`` points below it
         always has structure left (a 9 % fit is never "nothing unexplained").
+    domain : str
+        The record's domain (:mod:`rigd.diagnose.domain`): the words of the suggestions.
 
     Returns
     -------
@@ -415,7 +415,7 @@ def report(r: np.ndarray, y: np.ndarray, yhat: np.ndarray, u: np.ndarray, fs: fl
     why = _why(tests, lev, reference if gap >= MIN_WORTH else None)
     if not why or (worth(lev, y, r) < MIN_WORTH and gap < MIN_WORTH):
         return []
-    found = _band_entries(r * w, fs, lev, resonances, skip_hz)
+    found = _band_entries(r * w, fs, lev, resonances, skip_hz, domain)
     found += _amplitude_entries(r, y, yhat, u, out_names, in_names, w, offsets)
     found += _segment_entry(r * w, fs, start)
     found += _direction_entry(r * w, u, in_names)
@@ -445,7 +445,7 @@ def _why(tests: dict[str, Any], lev: dict[str, Any],
 
 
 def _band_entries(rw: np.ndarray, fs: float, lev: dict[str, Any], resonances: list[float],
-                  skip_hz: list[float] | None) -> list[dict[str, Any]]:
+                  skip_hz: list[float] | None, domain: str) -> list[dict[str, Any]]:
     """Frequency bands holding the structure (:func:`bands`), run-out harmonics skipped."""
     found = []
     for b in bands(rw, fs, lev["noise_rms"] ** 2):
@@ -453,7 +453,7 @@ def _band_entries(rw: np.ndarray, fs: float, lev: dict[str, Any], resonances: li
         if skip_hz and any(lo - 0.03 * h <= h <= hi + 0.03 * h for h in skip_hz):
             continue
         d = b["digits"]
-        sugg = _band_suggestion(b, resonances, fs / 2.0)
+        sugg = _band_suggestion(b, resonances, fs / 2.0, domain)
         found.append({
             "where": {"frequency_hz": b["frequency_hz"], "band_hz": b["band_hz"]},
             "share": round(b["share"], 4),

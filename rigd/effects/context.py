@@ -89,6 +89,10 @@ class CannotReveal:
     experiment: str
     submodel: str = "generic"
     partial: bool = False
+    #: an evidence code and its numbers (rigd.diagnose.advice words ``why`` and
+    #: ``experiment`` from them, for the record's domain); None: the texts are given
+    code: str | None = None
+    evidence: dict[str, Any] = field(default_factory=dict)
 
     def to_json(self, with_submodel: bool = True) -> dict[str, Any]:
         d: dict[str, Any] = {"effect": self.effect, "why": self.why,
@@ -137,6 +141,10 @@ class Context:
     resonances_hz: list[float] = field(default_factory=list)
     input_names: list[str] = field(default_factory=list)
     output_names: list[str] = field(default_factory=list)
+    #: the record's domain (rigd.diagnose.domain: rotor, mechanical, process, generic) and
+    #: the base model's time constants (s, slowest first): what the advice is sized by
+    domain: str = "generic"
+    time_constants_s: list[float] = field(default_factory=list)
     _zero_response: np.ndarray | None = None
     #: per-context results shared by the effects (the base model's sensitivities of
     #: rigd.effects.detectability)

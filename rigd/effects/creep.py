@@ -122,12 +122,14 @@ class Creep(Effect):
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
         taus = tau_grid(ctx.n, ctx.fs)
-        experiment = ("re-run with steps held for 0.05–0.5 s (multi-level with long holds, "
-                      "config/experiments/multilevel_slow.yaml) and a record several times "
-                      "longer than the creep's slow time constant")
+        # the experiment is worded by rigd.diagnose.advice for the record's domain
+        def cannot(why: str, partial: bool = False) -> CannotReveal:
+            return CannotReveal(self.name, why, "", ctx.submodel, partial, code="slow",
+                                evidence={"why": why})
+
         if taus.size == 0:
-            return CannotReveal(self.name, f"the record is too short ({ctx.n} samples) to "
-                                "tell a slow drift from an offset", experiment, ctx.submodel)
+            return cannot(f"the record is too short ({ctx.n} samples) to tell a slow drift "
+                          "from an offset")
         x = drives(ctx.data)
         c = nominal_weights(ctx, x)
         sigs = [sum(ctx.through_model(c[j] * creep_terms(x[:, j], [tau], ctx.fs)[0], j)
@@ -144,15 +146,13 @@ class Creep(Effect):
         record = f"{duration(ctx.n / ctx.fs)} record"
         if not any(ok):
             d = max(each, key=lambda e: e.fit_gain)
-            return CannotReveal(self.name, f"{size} with a time constant of {ms[0]}–{ms[-1]} "
-                                f"would not show on this input (at best: {d.describe()});"
-                                f" slower creep cannot be told from a drift in a {record}",
-                                experiment, ctx.submodel)
+            return cannot(f"{size} with a time constant of {ms[0]}–{ms[-1]} would not show "
+                          f"on this input (at best: {d.describe()}); slower creep cannot be "
+                          f"told from a drift in a {record}")
         last = max(i for i, v in enumerate(ok) if v)
         d = each[-1]
-        return CannotReveal(self.name, f"{size} slower than ~{ms[last]} would not show on "
-                            f"this input (at {ms[-1]}: {d.describe()}); faster creep would "
-                            f"and is tested", experiment, ctx.submodel, partial=True)
+        return cannot(f"{size} slower than ~{ms[last]} would not show on this input (at "
+                      f"{ms[-1]}: {d.describe()}); faster creep would and is tested", True)
 
     # --- signature ---------------------------------------------------------------------
     def _regs(self, ctx: Context, taus) -> list[np.ndarray]:

@@ -31,14 +31,13 @@ class CrossCoupling(Effect):
     physics = "cross-coupled (gyroscopic) forces between the axes"
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
-        if ctx.ny < 2 or ctx.nu != ctx.ny:
-            return CannotReveal(self.name, "the record has a single axis",
-                                "record both axes (two inputs, two outputs)", ctx.submodel)
+        ev = {"nu": ctx.nu, "ny": ctx.ny}
+        if ctx.ny < 2 or ctx.nu != ctx.ny:  # worded by rigd.diagnose.advice
+            return CannotReveal(self.name, "", "", ctx.submodel, code="paths", evidence=ev)
         c = np.corrcoef(ctx.u.T)
         if np.max(np.abs(c[np.triu_indices(ctx.nu, 1)])) > 0.95:
-            return CannotReveal(self.name, "the axes were excited with the same signal, so "
-                                "direct and cross paths cannot be told apart",
-                                "re-run with independent PRBS on each axis", ctx.submodel)
+            return CannotReveal(self.name, "", "", ctx.submodel, code="same_signal",
+                                evidence=ev)
         return None
 
     def regressors(self, ctx):
@@ -48,7 +47,8 @@ class CrossCoupling(Effect):
         return ([ctx.through_force(yh[:, i], j) for j, i in pairs]
                 + [ctx.through_force(dy[:, i], j) for j, i in pairs])
 
-    def explain(self, ctx, sig):
+    def evidence(self, ctx, sig):
+        """Evidence code ``coupling`` and numbers (rigd.diagnose.wording)."""
         pairs = _offdiag(ctx.ny)
         npair = len(pairs)
         regs_share = []
@@ -61,17 +61,13 @@ class CrossCoupling(Effect):
         j, i = pairs[k]
         b = np.asarray(sig.beta, float)
         b = -b  # regression coefficients are −dK, −dD
-        ev = {"cross_stiffness": b[:npair].tolist(), "cross_damping": b[npair:].tolist(),
-              "residual_input_corr": {f"{ctx.label(jj)}~{ctx.label(ii, 'in')}": v
-                                      for (jj, ii), v in zip(pairs, regs_share)}}
         gyro = np.all(np.sign(b[npair:]) != 0) and npair == 2 and b[npair] * b[npair + 1] < 0
-        what = ("antisymmetric cross damping, the signature of gyroscopic coupling (Ω G ṗ)"
-                if gyro else "cross-coupled stiffness/damping between the axes")
-        om = f" at Ω = {60 * ctx.omega_hz:.0f} rpm" if ctx.omega_hz > 0 else ""
-        return (f"the residual of {ctx.label(j)} follows the motion of the other axis "
-                f"(correlation {regs_share[k]:+.2f} with {ctx.label(i, 'in')}){om}: "
-                f"{what}, missing from a decoupled model; explains {100 * sig.score:.0f} % of "
-                f"the residual", ev)
+        return "coupling", {
+            "cross_stiffness": b[:npair].tolist(), "cross_damping": b[npair:].tolist(),
+            "residual_input_corr": {f"{ctx.label(jj)}~{ctx.label(ii, 'in')}": v
+                                    for (jj, ii), v in zip(pairs, regs_share)},
+            "output": ctx.label(j), "input": ctx.label(i, "in"), "corr": regs_share[k],
+            "antisymmetric": bool(gyro), "omega_hz": float(ctx.omega_hz)}
 
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):

@@ -66,19 +66,11 @@ class Delay(Effect):
     def regressors(self, ctx):
         return [self.scan(ctx)[1]]
 
-    def explain(self, ctx, sig):
+    def evidence(self, ctx, sig):
+        """Evidence code (``lag`` / ``lead``) and numbers (rigd.diagnose.wording)."""
         d = sig.extra.get("delay_samples", 0.0) * float(sig.beta[0] if sig.beta.size else 1.0)
-        ms = 1000 * d / ctx.fs
-        ev = {"delay_samples": float(d), "delay_ms": float(ms)}
-        where = ("valve to film force" if N.is_rotor(ctx) else "input to response")
-        if not d > 0:  # a lead (or nothing): never printed as a negative delay
-            return (f"the response leads the model by about {N.duration(-d / ctx.fs)} "
-                    f"({N.freqs([-d])[0]} samples at {ctx.fs:g} Hz): not a delay (a negative "
-                    f"lag); it explains {N.share(sig.score)} of the residual", ev)
-        return (f"the response lags the model by about {N.duration(d / ctx.fs)} "
-                f"({N.freqs([d])[0]} samples at {ctx.fs:g} Hz): a transport delay ({where}) "
-                f"or sensor/computation latency; residual–input cross-correlation peaks at a "
-                f"positive lag; it explains {N.share(sig.score)} of the residual", ev)
+        ev = {"delay_samples": float(d), "delay_ms": float(1000 * d / ctx.fs)}
+        return ("lag" if d > 0 else "lead"), ev  # a lead is never printed as a negative delay
 
     def implausible(self, ctx, theta_e):
         d = float(theta_e[0])

@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from rigd.effects import numbers as N
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import Context
 from rigd.effects.scales import pow2_ceil, pow2_floor
@@ -131,17 +130,14 @@ class ExtraMode(Effect):
         pk = self._search(ctx)
         return [] if pk is None else self._regs(ctx, *pk)
 
-    def explain(self, ctx, sig):
+    def evidence(self, ctx, sig):
+        """Evidence code (``peak`` / ``no_peak``) and numbers (rigd.diagnose.wording)."""
         pk = sig.extra.get("peak")
         if pk is None:
-            return "no narrow coherent peak in the residual away from the model's resonances", {}
+            return "no_peak", {}
         f0, zeta = pk
-        txt = N.freqs([f0, *ctx.resonances_hz])
-        res = (", ".join(txt[1:]) + " Hz") if ctx.resonances_hz else "none"
-        ev = {"frequency_hz": f0, "zeta": zeta, "model_resonances_hz": list(ctx.resonances_hz)}
-        return (f"a narrow residual peak at {txt[0]} Hz (damping ≈ {zeta:.3g}), coherent with "
-                f"the input, where the model has no resonance (model: {res}): an unmodelled "
-                f"structural mode; explains {N.share(sig.score)} of the residual", ev)
+        return "peak", {"frequency_hz": f0, "zeta": zeta,
+                        "model_peaks_hz": list(ctx.resonances_hz)}
 
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):

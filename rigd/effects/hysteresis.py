@@ -117,10 +117,9 @@ class Hysteresis(Effect):
                 f"{100 * NOMINAL_SHARE:.0f} % of the input range acts as a gain change"
                 if lv <= 2 else f"a hysteresis loop of half-width {100 * NOMINAL_SHARE:.0f} % "
                 "of the input range would not show on this input")
-        return CannotReveal(self.name, f"{what} ({d.describe()})",
-                            "re-run with multi-level excitation (multi-level PRBS or a slow "
-                            "triangle, e.g. config/experiments/multilevel_slow.yaml)",
-                            ctx.submodel)
+        why = f"{what} ({d.describe()})"  # the experiment: rigd.diagnose.advice
+        return CannotReveal(self.name, why, "", ctx.submodel, code="few_levels",
+                            evidence={"why": why})
 
     # --- signature ---------------------------------------------------------------------
     def _regs(self, ctx: Context, c: float) -> list[np.ndarray]:

@@ -81,15 +81,15 @@
       name: "residual, " + base.label, mode: "lines", line: {color: C.base, width: 1}});
     data.push({x: cur.spectrum.f, y: cur.spectrum.p, name: "residual, " + cur.label,
       mode: "lines", line: {color: C.res, width: 1}});
-    // resonances as traces (a shape or annotation on a log axis wants log10 coordinates)
+    // the model's peaks as traces (a shape or annotation on a log axis wants log10 coordinates)
     var lo = Infinity, hi = 0;
     data.forEach(function (d) { d.y.forEach(function (v) {
       if (v > 0) { lo = Math.min(lo, v); hi = Math.max(hi, v); } }); });
     if (!(hi > 0 && isFinite(lo))) { lo = 1e-12; hi = 1; }    // all zero: any span
-    P.resonances_hz.forEach(function (f, i) {
+    P.peaks_hz.forEach(function (f, i) {
       data.push({x: [f, f], y: [lo, hi], mode: "lines+text", text: ["", g(f) + " Hz"],
         textposition: i % 2 ? "bottom center" : "top center", textfont: {size: 10},
-        name: "model resonances", legendgroup: "res", showlegend: i === 0,
+        name: P.peaks_label, legendgroup: "res", showlegend: i === 0,
         line: {dash: "dash", width: 1, color: "#444"}, hoverinfo: "x"});
     });
     // bands where unexplained structure lies, as filled traces (data coordinates)
@@ -102,7 +102,7 @@
     return {data: data, layout: {margin: {l: 60, r: 10, t: 24, b: 40},
       xaxis: {type: "log", title: {text: "frequency (Hz)"}},
       yaxis: {type: "log", title: {text: "PSD"}}, legend: {orientation: "h", y: -0.25},
-      title: {text: "residual spectrum; dashed: model resonances", font: {size: 13}}}};
+      title: {text: "residual spectrum; dashed: " + P.peaks_label, font: {size: 13}}}};
   }
 
   function amplitudeFigure(P, cur, base) {

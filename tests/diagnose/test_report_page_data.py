@@ -93,8 +93,8 @@ def test_diagnose_page_views_and_files(diagnosed):
     res, out = diagnosed
     part = embedded(out / "index.html")["parts"][0]
     fs = part["fs"]
-    assert part["resonances_hz"] and all(0 < f < fs / 2 for f in part["resonances_hz"])
-    assert part["resonances_hz"][0] == pytest.approx(60, rel=0.1)   # f_n of the benchmark
+    assert part["peaks_hz"] and all(0 < f < fs / 2 for f in part["peaks_hz"])
+    assert part["peaks_hz"][0] == pytest.approx(60, rel=0.1)   # f_n of the benchmark
     for v in part["variants"]:
         assert len(v["traces"][0]["x"]) <= 2000 and len(v["spectrum"]["f"]) > 10
         assert v["angle"] is None            # no shaft angle in this record
@@ -132,7 +132,7 @@ def test_compare_page_has_polar_spectrum_and_the_fit(compared):
     assert ang is not None and len(ang["deg"]) == 36 and len(ang["mean"]) == 2
     mx = np.asarray(ang["mean"][0])
     assert np.ptp(mx) > 1.0
-    assert part["resonances_hz"] and all(0 < f < part["fs"] / 2 for f in part["resonances_hz"])
+    assert part["peaks_hz"] and all(0 < f < part["fs"] / 2 for f in part["peaks_hz"])
     assert "bearing_bode.png" in data["figures"]
 
 

@@ -1,0 +1,124 @@
+"""The record's domain: which words and which advice fit it.
+
+rigd diagnoses records of its own rotor rig and records from any lab. What is said about a
+finding (a "film" or a "valve", a "resonance" or a "time constant", a rotor experiment file
+or a step held for a few time constants) depends on what the record is, decided here once
+per sub-model and used by :mod:`rigd.diagnose.wording` and :mod:`rigd.diagnose.advice`:
+
+* ``rotor`` — a rotor rig sub-model (``actuator`` r→u, ``bearing`` u→e: the rig's known
+  channel names), or a record whose ``source`` metadata (``simulated`` / ``rig``) says
+  rigd's recorder wrote it;
+* ``mechanical`` — any other record whose base model has a lightly damped complex pole pair
+  (ζ < :data:`LIGHT_DAMPING`): a structure with modes and resonances;
+* ``process`` — a base model with real poles or heavily damped ones only (thermal,
+  chemical, level, flow plants): time constants, no resonance, no stiffness;
+* ``generic`` — no linear part to read poles from: neutral words.
+
+Effects that need a mechanical base (a restoring force, a stiffness) or a rotating part
+(a shaft angle) are not offered on a record of another domain (:func:`offered`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+#: damping ratio below which a complex pole pair makes the record mechanical (a resonance
+#: stands out of the response: peak gain ≈ 1/(2ζ) ≥ 1.7)
+LIGHT_DAMPING = 0.3
+
+DOMAINS = ("rotor", "mechanical", "process", "generic")
+
+#: what each effect needs of the record's domain (an effect may declare ``requires``
+#: itself; this is the default for the catalogue's names)
+REQUIRES: dict[str, tuple[str, ...]] = {
+    "runout": ("rotation",),
+    "cubic_stiffness": ("mechanical",),
+    "hysteresis_restoring": ("mechanical",),
+}
+
+#: what each domain provides
+PROVIDES: dict[str, tuple[str, ...]] = {
+    "rotor": ("mechanical", "rotation"),
+    "mechanical": ("mechanical", "rotation"),
+    "process": (),
+    "generic": ("mechanical", "rotation"),
+}
+
+
+@dataclass(frozen=True)
+class Domain:
+    """The domain of one sub-model and why (one line for the notes)."""
+
+    name: str
+    why: str
+
+    @property
+    def rotor(self) -> bool:
+        return self.name == "rotor"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"domain": self.name, "why": self.why}
+
+
+def _poles(structure: Any, theta: np.ndarray) -> np.ndarray | None:
+    """Continuous-time poles of the base's linear part (None: none readable)."""
+    base = structure
+    while hasattr(base, "effect") and hasattr(base, "base"):
+        base = base.base
+    th = np.asarray(theta, float)[:len(getattr(base, "names", theta))]
+    for get in ("linear_part", "full_abcd", "continuous"):
+        fn = getattr(base, get, None)
+        if not callable(fn):
+            continue
+        try:
+            A = np.asarray(fn(th)[0], float)
+        except Exception:  # noqa: BLE001 - a structure whose linear part cannot be read
+            continue
+        if get == "linear_part" and np.all(np.abs(np.linalg.eigvals(A)) <= 1 + 1e-9):
+            continue  # a discrete linear part: read through the continuous forms
+        return np.linalg.eigvals(A)
+    return None
+
+
+def decide(submodel: str, meta: dict[str, Any], structure: Any = None,
+           theta: np.ndarray | None = None) -> Domain:
+    """The domain of ``submodel`` of a record with metadata ``meta`` whose base model is
+    ``structure`` at ``theta`` (module docstring)."""
+    if submodel in ("actuator", "bearing"):
+        return Domain("rotor", f"the rotor rig's {submodel} sub-model (its channels)")
+    src = (meta or {}).get("source")
+    if src in ("simulated", "rig"):  # rigd's recorder states it (rigd.api.data.SOURCES)
+        return Domain("rotor", f"written by rigd's recorder (source: {src})")
+    lam = None if structure is None or theta is None else _poles(structure, theta)
+    if lam is None or lam.size == 0:
+        return Domain("generic", "no linear part to read poles from")
+    cplx = lam[np.abs(lam.imag) > 1e-12]
+    zeta = -cplx.real / np.maximum(np.abs(cplx), 1e-300)
+    if cplx.size and float(np.min(zeta)) < LIGHT_DAMPING:
+        f = float(np.abs(cplx[int(np.argmin(zeta))]) / (2 * np.pi))
+        return Domain("mechanical", f"a lightly damped pole pair (ζ = {float(np.min(zeta)):.3g} "
+                      f"at {f:.4g} Hz)")
+    return Domain("process", "real or heavily damped poles only (ζ ≥ "
+                  f"{LIGHT_DAMPING:g}): a process of time constants")
+
+
+def offered(effect: Any, domain: Domain) -> bool:
+    """True when ``effect`` (an :class:`rigd.effects.base.Effect`) applies to the domain:
+    all it requires (``effect.requires`` or :data:`REQUIRES`) the domain provides."""
+    need = getattr(effect, "requires", None)
+    if need is None:
+        need = REQUIRES.get(getattr(effect, "name", ""), ())
+    return all(n in PROVIDES[domain.name] for n in need)
+
+
+def time_constants(structure: Any, theta: np.ndarray) -> list[float]:
+    """Time constants (s) of the base's poles, 1/|Re p|, slowest first (an integrator or
+    an unreadable linear part gives none)."""
+    lam = _poles(structure, theta)
+    if lam is None:
+        return []
+    re = np.abs(lam.real)
+    return sorted({float(1.0 / v) for v in re if v > 1e-12}, reverse=True)

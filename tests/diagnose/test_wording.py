@@ -1,0 +1,97 @@
+"""The words layer (rigd/diagnose/wording.py, advice.py, domain.py): every evidence code has
+words in every domain; rotor records keep their rotor words and the rig's experiment files;
+other records get neither, and advice sized by their own rate and time constants."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from rigd.diagnose import advice as A
+from rigd.diagnose import domain as D
+from rigd.diagnose import wording as W
+
+DOMAINS = D.DOMAINS
+MECH = re.compile("stiffness|resonan|rotor|bearing|film|valve|gyroscop|yaml", re.I)
+EVIDENCE = {
+    "extra_mode": {"frequency_hz": 0.013, "zeta": 0.05, "model_peaks_hz": [0.004]},
+    "cross_coupling": {"output": "y1", "input": "u2", "corr": 0.4, "antisymmetric": True,
+                       "omega_hz": 50.0},
+    "delay": {"delay_samples": 3.2, "min_samples": 0.5},
+}
+
+
+@pytest.mark.parametrize("key", sorted(W.TEMPLATES))
+@pytest.mark.parametrize("domain", DOMAINS)
+def test_every_code_has_words_in_every_domain(key, domain):
+    effect, code = key
+    ev = dict(EVIDENCE[effect], share=0.42, fs=1.0)
+    if code == "lead":
+        ev["delay_samples"] = -2.0
+    text = W.explanation(effect, code, ev, domain)
+    assert text and "{" not in text
+    if domain == "process":
+        assert not MECH.search(text), text
+
+
+def test_rotor_keeps_its_words():
+    ev = dict(EVIDENCE["cross_coupling"], share=0.3, fs=5000.0)
+    assert "gyroscopic" in W.explanation("cross_coupling", "coupling", ev, "rotor")
+    assert "gyroscopic" not in W.explanation("cross_coupling", "coupling", ev, "mechanical")
+    ev = dict(EVIDENCE["delay"], share=0.3, fs=5000.0)
+    assert "valve to film force" in W.explanation("delay", "lag", ev, "rotor")
+    assert "resonance" in W.band_near_model([12.0], "mechanical")
+    assert not MECH.search(W.band_near_model([0.004], "process"))
+
+
+def test_advice_names_the_rig_file_only_for_rotor_records_and_sizes_holds():
+    ev = {"why": "x", "fs": 1.0, "time_constants_s": [40.0, 3.0]}
+    rotor = A.cannot_reveal("creep", "slow", ev, "rotor")[1]
+    assert A.ROTOR_MULTILEVEL in rotor and "0.05–0.5 s" in rotor
+    for dom in ("mechanical", "process", "generic"):
+        for eff, code in (("creep", "slow"), ("hysteresis", "few_levels")):
+            text = A.cannot_reveal(eff, code, ev, dom)[1]
+            assert "yaml" not in text and "0.05–0.5" not in text, text
+    assert "40 s–400 s" in A.cannot_reveal("creep", "slow", ev, "process")[1]
+    # at 5 kHz without time constants: 20 samples .. 200 samples
+    fast = A.cannot_reveal("creep", "slow", {"why": "x", "fs": 5000.0}, "process")[1]
+    assert "4 ms–40 ms" in fast, fast
+
+
+def test_a_two_input_record_is_never_a_single_axis():
+    for nu, ny, want in ((2, 1, "2 inputs but a single output"), (1, 1, "a single input"),
+                         (3, 2, "3 inputs and 2 outputs")):
+        why, exp = A.cannot_reveal("cross_coupling", "paths", {"nu": nu, "ny": ny}, "process")
+        assert want in why and "axis" not in why + exp
+    assert A.cannot_reveal("cross_coupling", "paths", {"nu": 1, "ny": 1},
+                           "rotor")[0] == "the record has a single axis"
+
+
+class _Lin:
+    names = ["a"]
+
+    def __init__(self, A):
+        self.A = np.asarray(A, float)
+
+    def continuous(self, theta):
+        return self.A, None, None, None, None
+
+
+def test_domain_from_the_poles_and_the_record():
+    theta = np.zeros(1)
+    light = _Lin([[0, 1], [-(2 * np.pi) ** 2, -2 * 0.02 * 2 * np.pi]])
+    heavy = _Lin([[-1 / 40.0, 0], [0, -1 / 3.0]])
+    assert D.decide("generic", {}, light, theta).name == "mechanical"
+    assert D.decide("generic", {}, heavy, theta).name == "process"
+    assert D.decide("generic", {"source": "simulated"}, heavy, theta).name == "rotor"
+    assert D.decide("bearing", {}, heavy, theta).name == "rotor"
+    assert D.decide("generic", {}, None, None).name == "generic"
+    assert D.time_constants(heavy, theta) == pytest.approx([40.0, 3.0])
+    from rigd.effects import REGISTRY
+
+    proc = D.decide("generic", {}, heavy, theta)
+    offered = {n for n, e in REGISTRY.items() if D.offered(e, proc)}
+    assert "cubic_stiffness" not in offered and "runout" not in offered
+    assert {"delay", "extra_mode", "cross_coupling"} <= offered
