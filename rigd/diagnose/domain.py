@@ -64,22 +64,26 @@ class Domain:
 
 
 def _poles(structure: Any, theta: np.ndarray) -> np.ndarray | None:
-    """Continuous-time poles of the base's linear part (None: none readable)."""
+    """Continuous-time poles of the base's linear part (None: none readable): the Model
+    protocol's ``linear_part`` (:func:`rigd.ident.model.linear_part_of`), else the older
+    structures' ``full_abcd`` / ``continuous``."""
+    from rigd.ident.model import linear_part_of
+
+    lp = linear_part_of(structure, theta)
+    if lp is not None:
+        return np.linalg.eigvals(np.asarray(lp.A, float))
     base = structure
     while hasattr(base, "effect") and hasattr(base, "base"):
         base = base.base
     th = np.asarray(theta, float)[:len(getattr(base, "names", theta))]
-    for get in ("linear_part", "full_abcd", "continuous"):
+    for get in ("full_abcd", "continuous"):
         fn = getattr(base, get, None)
         if not callable(fn):
             continue
         try:
-            A = np.asarray(fn(th)[0], float)
+            return np.linalg.eigvals(np.asarray(fn(th)[0], float))
         except Exception:  # noqa: BLE001 - a structure whose linear part cannot be read
             continue
-        if get == "linear_part" and np.all(np.abs(np.linalg.eigvals(A)) <= 1 + 1e-9):
-            continue  # a discrete linear part: read through the continuous forms
-        return np.linalg.eigvals(A)
     return None
 
 
