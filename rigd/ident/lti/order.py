@@ -23,8 +23,10 @@ not a rotor's (``generic``):
    as well (extra states must pay on data they were not fitted to) — and an admissible
    grey-box mechanical model is kept (its parameters are physical and the state-level
    effects need it);
-4. the chosen model (and, for the LTI family, its delays ±1 sample by the estimation cost)
-   is refined by output error (:func:`rigd.ident.pem.fit`).
+4. the delays are checked at the order the scan chose (:func:`_delay_search`: 0, d/4, d/2,
+   3d/4, then sample by sample, by the BIC); when they move, the orders are scanned again
+   with them; the admissible models are refined by output error (:func:`rigd.ident.pem.fit`)
+   before the final choice.
 
 ``order=N`` fits the LTI family with exactly N states, or refuses with the reason
 (:class:`OrderRefused`): never silently another order.
@@ -156,22 +158,36 @@ def _refine(cand: Candidate, data, d_est, est, val, max_nfev) -> Candidate:
 
 
 def _delay_search(best: Candidate, data, d_est, est, val) -> Candidate:
-    """The LTI candidate's delays moved sample by sample per input (down first: a
-    higher-order response starts slowly, so its first significant lag can be late) while
-    the BIC at the same number of states improves."""
+    """The LTI candidate's delays checked at the same number of states, input by input: a
+    coarse pass over 0, d/4, d/2, 3d/4 (the first significant lag of a response of high
+    relative degree — a chain of masses, a cascade of lags — comes late, so the estimate can
+    be far too long), then sample by sample from the best while the BIC improves."""
     m = best.structure
+
+    def at(dl):
+        c = [x for x in lti_candidates(data, d_est, est, val, best.states, dl, m.hold)
+             if x.structure.ni == m.ni]
+        return c[0] if c else None
+
     for j in range(m.nu):
+        d0 = m.delays[j]
+        for dj in sorted({0, d0 // 4, d0 // 2, (3 * d0) // 4} - {d0}):
+            dl = list(m.delays)
+            dl[j] = dj
+            c = at(dl)
+            if c is not None and c.bic < best.bic:
+                best = c
+        m = best.structure
         for step in (-1, 1):
             while True:
                 dl = list(m.delays)
                 dl[j] += step
                 if dl[j] < 0:
                     break
-                c = [x for x in lti_candidates(data, d_est, est, val, best.states, dl, m.hold)
-                     if x.structure.ni == m.ni]
-                if not c or c[0].bic >= best.bic:
+                c = at(dl)
+                if c is None or c.bic >= best.bic:
                     break
-                best, m = c[0], c[0].structure
+                best, m = c, c.structure
     return best
 
 
