@@ -22,11 +22,16 @@ Figures (keys of ``run()``):
   updates' ``dropped``), ``web_stream_bytes_per_event``.
 
 The clients ask for exactly what the console page asks for (``POINTS`` and ``CHANNELS``
-copied from rigd/web/static/app.js: today 17 channels — orbit e_x/e_y, u_x/u_y, r_x/r_y, K∞
-output k_x/k_y, valve positions y_p1..4 and references r_p1..4, k_on — with ``points`` 10) at
+copied from rigd/web/static/live.js: today 17 channels — orbit e_x/e_y, u_x/u_y, r_x/r_y, K∞
+output k_x/k_y, valve positions y_p1..4 and references r_p1..4, k_on — with ``points`` 4) at
 ``rate_hz`` 50.
 
-    python -m bench web            # about 1 min (2 min at load average 20)
+Then the console page itself in headless Chromium on the same daemon (bench/console.py):
+``console_tab_cpu_percent`` (the tab's renderer process, /proc; target <= 15) and
+``safe_click_latency_ms`` {p50, p99, max, n} (page click -> latched, on the daemon's cycle
+counter, the Live tab drawing; target p99 <= 100), with the load average they were taken at.
+
+    python -m bench web            # about 2 min (more on a busy machine)
 """
 
 from __future__ import annotations
@@ -43,15 +48,17 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.chromium import find_chromium
+from bench.console import run as browser_figures
 from bench.socket_load import _counts, start_daemon, stop_daemon
 
 ROOT = Path(__file__).resolve().parents[1]
 RIGD = str(Path(sys.executable).parent / "rigd")
-APP_JS = ROOT / "rigd" / "web" / "static" / "app.js"
+APP_JS = ROOT / "rigd" / "web" / "static" / "live.js"
 
 
 def page_subscription() -> tuple[int, list[str]]:
-    """``POINTS`` and ``CHANNELS`` of the console page (rigd/web/static/app.js): the bench's
+    """``POINTS`` and ``CHANNELS`` of the console page (rigd/web/static/live.js): the bench's
     clients ask for exactly what a browser showing the console asks for."""
     js = APP_JS.read_text()
     m_p = re.search(r"const POINTS\s*=\s*(\d+)", js)
@@ -169,6 +176,11 @@ def run(seconds: float = 8.0, clients: int = 5, rate_hz: float = 50.0) -> dict:
                         p.kill()
                 procs = []
             alive = bool(_counts(sock)[0])
+            # the page itself in headless Chromium: one tab's CPU, SAFE click -> latched
+            if find_chromium()[1]:
+                console = browser_figures(base, (tmp / "token").read_text().strip(), sock)
+            else:
+                console = {"console_skipped": "chromium/chromedriver not installed"}
         finally:
             for p in procs:
                 if p.is_alive():
@@ -201,6 +213,7 @@ def run(seconds: float = 8.0, clients: int = 5, rate_hz: float = 50.0) -> dict:
         "web_clients": clients, "web_rate_hz": rate_hz, "web_points": points,
         "web_channels": channels, "web_seconds": seconds,
         "web_daemon_alive_after": alive, "web_daemon_exit_code": code,
+        **console,
     }
 
 

@@ -68,13 +68,21 @@ def test_page_loads_and_live_view_moves(browser, screenshot, rig):
         browser, "document.getElementById('orbit').data[0].x.slice(-5)") != x0,
         what="orbit redrawn with new points")
     assert _js(browser, "document.getElementById('orbit').layout.shapes[0].x1") == 25.0
+    # traces carrying the daemon that drew them
+    # (WebGL where the browser has a GPU; SVG where WebGL would run on the CPU, as here)
+    assert _js(browser, "document.getElementById('orbit').data[0].type") == _js(
+        browser, "window.rigd.traceType")
+    pid = d.ctl_json("ping")["pid"]
+    _wait(browser, lambda drv: _js(browser, "(document.getElementById('traces').data[0].meta"
+                                   " || {}).daemon") == pid, what="daemon pid on the traces")
     # the traces are drawn from the streamed buckets: at least one min/max pair, ending
     # within the 2 s window of the newest frame (how many buckets depends on the machine's
     # load: a starved socket process sends fewer, larger updates)
-    _wait(browser, lambda drv: _js(browser, "document.getElementById('trace-p').data[0]"
-                                   ".x.length") >= 2, what="displacement trace drawn")
-    last_x = _js(browser, "document.getElementById('trace-p').data[0].x.slice(-1)[0]")
-    assert 0 <= _js(browser, "window.rigd.lastT") - last_x <= 2.0
+    _wait(browser, lambda drv: _js(browser, "(document.getElementById('traces').data || [{x: []}])"
+                                   "[0].x.length") >= 2, what="displacement trace drawn")
+    # x is t - now (s): the last bucket within the 2 s window before the newest frame
+    last_x = _js(browser, "document.getElementById('traces').data[0].x.slice(-1)[0]")
+    assert -2.0 <= last_x <= 0.0
     assert browser.find_element(By.ID, "safe").is_displayed()
     # the cycle-time histogram: bars of the daemon's own timing histogram (real-time clock)
     _wait(browser, lambda drv: _js(browser, "window.rigd.histRenders") > 0 and _js(

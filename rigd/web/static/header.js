@@ -1,0 +1,97 @@
+// rigd console, state at a glance: the header (cycle, K∞, Ω, P_I, misses, fault), the fault
+// banner with its reset button, the "disconnected — values are stale" state that greys the
+// header, and the operating-point fields following the live set-point. docs/web.md.
+import {$, causeCleared, clock, fmt, rigd} from "./core.js";
+
+/** Without a good status for this long the header's values are stale, ms. */
+export const STALE_MS = 3000;
+
+function setText(id, text) {
+  const e = $(id);
+  if (e.textContent !== text) e.textContent = text;
+}
+
+/** Show one status (the stream's `status` object, or one built from GET /api/status). */
+export function showStatus(s) {
+  rigd.lastStatus = s;
+  rigd.lastGood = Date.now();
+  if (rigd.stale) setStale(false);
+  if (s.cycle !== undefined && s.cycle !== null) {
+    rigd.cycle = s.cycle;
+    setText("cycle", String(s.cycle));
+  }
+  const k = $("kinf");
+  setText("kinf", s.k_on ? "on" : (s.k_loaded === false ? "off (none loaded)" : "off"));
+  k.className = "badge " + (s.k_on ? "on" : "off");
+  setText("omega", fmt(s.omega_rpm, 0));
+  setText("pinj", fmt(s.p_inj_bar, 2));
+  if (s.misses !== undefined && s.misses !== null) setText("misses", String(s.misses));
+  showFault(s.fault || {});
+  if (s.experiment) showExperiment(s.experiment);
+  if (s.compute_us || s.lateness_us) rigd.timing = {compute_us: s.compute_us, lateness_us: s.lateness_us};
+  followSetPoint(s);
+}
+
+function showFault(f) {
+  const latched = !!f.code;
+  const text = latched ? (f.name + ": " + f.text + " (cycle " + f.seq + ")") : "none";
+  setText("fault", text);
+  $("fault").className = latched ? "faulted" : "";
+  const b = $("fault-banner");
+  if (latched) {
+    setText("fault-text", "FAULT " + f.name + " latched at cycle " + f.seq + ": " + f.text +
+      " — the rig is in the safe state (K∞ off, excitation off)");
+  }
+  b.hidden = !latched;
+  if (!latched) causeCleared("fault");
+}
+
+export function showExperiment(exp) {
+  const e = typeof exp === "string" ? {state: exp} : exp;
+  const prev = rigd.lastExperiment || {};
+  // the stream's status carries the state only: keep the rest of the last full answer
+  const full = (e.name === undefined && prev.state === e.state) ? prev : e;
+  rigd.lastExperiment = full;
+  const f = full.fault && full.fault.name ? " (fault " + full.fault.name + ": " + full.fault.text + ")" : "";
+  setText("exp-state", "experiment: " + (full.state || "?") + (full.name ? " " + full.name : "") +
+    (full.total ? " (" + full.done + "/" + full.total + ")" : "") +
+    (full.message ? ": " + full.message : "") + f);
+}
+
+/** Grey the header and say since when its values are stale (or undo that). */
+export function setStale(stale, reason) {
+  rigd.stale = stale;
+  document.body.classList.toggle("stale", stale);
+  const b = $("stale-banner");
+  if (stale) {
+    const last = rigd.lastGood ? "last at " + clock(rigd.lastGood) : "never received";
+    setText("stale-text", "disconnected — values are stale (" + last + ")" +
+      (reason ? ": " + reason : ""));
+  } else {
+    causeCleared("conn");
+  }
+  b.hidden = !stale;
+}
+
+/** The staleness watchdog: called a few times a second. */
+export function checkStale(reason) {
+  if (Date.now() - rigd.lastGood > STALE_MS) setStale(true, reason);
+}
+
+// ---------------------------------------------------------------- operating point fields
+// The fields show the live values until the operator types into one; after a set (or on
+// "revert") they follow the live values again.
+function followSetPoint(s) {
+  setText("op-now", "now " + fmt(s.omega_rpm, 0) + " rpm / " + fmt(s.p_inj_bar, 2) + " bar");
+  for (const [id, v, d] of [["op-omega", s.omega_rpm, 0], ["op-pinj", s.p_inj_bar, 2]]) {
+    const el = $(id);
+    if (el.dataset.edited || document.activeElement === el || v === null || v === undefined) continue;
+    const text = Number(v).toFixed(d);
+    if (el.value !== text) el.value = text;
+  }
+}
+
+export function markEdited(el, edited) {
+  if (edited) el.dataset.edited = "1"; else delete el.dataset.edited;
+  el.classList.toggle("edited", !!edited);
+}

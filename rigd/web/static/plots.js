@@ -1,0 +1,297 @@
+// rigd console, the Live tab's plots (Plotly, WebGL `scattergl` traces): the autoscaled orbit
+// with the film-gap circle, the time traces (one axis group per unit, pause/trigger views,
+// cursor readout), the trends of the last minutes, the cycle-time percentiles (log scale) and
+// histogram. Drawing is rationed: one plot per animation frame, never while input is
+// pending, and at most DUTY of the wall time. docs/web.md.
+import {$, PLOT_CONFIG, api, band, colours, fmt, layoutBase, rigd, stackedAxes} from "./core.js";
+import {CHANNELS, ORBIT_S, TRACE_S, identity, trend} from "./live.js";
+
+const ORBIT_MS = 100;      // orbit redrawn at most 10 times a second
+const TRACES_MS = 200;     // the time traces 5 times
+const TREND_MS = 1000;     // trends and cycle times once a second
+const DUTY = 0.1;          // drawing takes at most this fraction of the wall time
+
+const GROUPS = [
+  {unit: "µm", label: "p = (e_x, e_y), µm", chans: ["e_x", "e_y"]},
+  {unit: "V", label: "u, r, K∞ k, V", chans: ["u_x", "u_y", "r_x", "r_y", "k_x", "k_y"]},
+  {unit: "V", label: "valves y_p, r_p, V", chans: ["y_p1", "y_p2", "y_p3", "y_p4", "r_p1", "r_p2", "r_p3", "r_p4"]},
+];
+const NAMES = {k_x: "K∞ k_x", k_y: "K∞ k_y"};
+const COLOURS = Object.assign({}, ...GROUPS.map((g) => colours(g.chans)));
+
+// WebGL traces (`scattergl`) where WebGL runs on a GPU; SVG traces where it would be emulated on
+// the CPU (Chromium's SwiftShader: there each WebGL redraw costs more CPU than the SVG one and
+// stalls the page on pixel read-backs). `?gl=1` / `?gl=0` in the page's address force either.
+function webglType() {
+  const force = new URLSearchParams(location.search).get("gl");
+  if (force !== null) return force === "1" ? "scattergl" : "scatter";
+  try {
+    const g = document.createElement("canvas").getContext("webgl");
+    if (!g) return "scatter";
+    const info = g.getExtension("WEBGL_debug_renderer_info");
+    const r = info ? String(g.getParameter(info.UNMASKED_RENDERER_WEBGL)) : "";
+    const lose = g.getExtension("WEBGL_lose_context");
+    if (lose) lose.loseContext();
+    return /swiftshader|llvmpipe|software/i.test(r) ? "scatter" : "scattergl";
+  } catch (e) {
+    return "scatter";
+  }
+}
+const TRACE_TYPE = rigd.traceType = webglType();
+
+function gl(x, y, name, colour, extra) {
+  return Object.assign({x, y, name, type: TRACE_TYPE, mode: "lines", hoverinfo: "none",
+    line: {width: 1, color: colour}}, extra || {});
+}
+
+function svg(x, y, name, colour, extra) {
+  return Object.assign(gl(x, y, name, colour, extra), {type: "scatter"});
+}
+
+// ---------------------------------------------------------------- orbit
+// rigd.orbitScale: "auto" (fits the orbit: a 0.1 µm orbit fills the plot), "gap" (the film
+// gap), "user" (the operator zoomed; double-click goes back to auto)
+rigd.orbitScale = "auto";
+let orbitRange = null;
+
+export function setOrbitScale(mode) {
+  rigd.orbitScale = mode;
+  orbitRange = null;
+  for (const b of document.querySelectorAll("[data-orbit]")) b.classList.toggle("active", b.dataset.orbit === mode);
+  drawOrbit(true);
+}
+
+function orbitLayout(r, maxAbs) {
+  const gap = rigd.filmGap;
+  const ratio = maxAbs > 0 ? " · orbit " + fmt(maxAbs, maxAbs < 1 ? 3 : 1) + " µm = " +
+    fmt(100 * maxAbs / gap, maxAbs / gap < 0.1 ? 2 : 0) + " % of it" : "";
+  return layoutBase("orbit e_y vs e_x, µm (last " + ORBIT_S + " s)", {
+    xaxis: {range: [-r, r], title: {text: "e_x, µm"}, zeroline: false},
+    yaxis: {range: [-r, r], title: {text: "e_y, µm"}, scaleanchor: "x", zeroline: false},
+    shapes: [{type: "circle", xref: "x", yref: "y", x0: -gap, y0: -gap, x1: gap, y1: gap,
+      line: {color: "#c62828", dash: "dot", width: 1}}],
+    annotations: [{xref: "paper", yref: "paper", x: 0, y: 1, xanchor: "left", yanchor: "top",
+      showarrow: false, font: {size: 10, color: "#c62828"},
+      text: "film gap " + gap + " µm (dotted)" + ratio}],
+    showlegend: false, dragmode: "zoom", uirevision: "orbit",
+  });
+}
+
+function drawOrbit(force) {
+  const b = rigd.buf, x = [], y = [];
+  const tmin = (rigd.lastT || 0) - ORBIT_S;
+  let m = 0;
+  for (let i = 0; i < b.t.length; i++) {
+    if (b.t[i] < tmin) continue;
+    const ex = (b.e_x.lo[i] + b.e_x.hi[i]) / 2, ey = (b.e_y.lo[i] + b.e_y.hi[i]) / 2;
+    x.push(ex); y.push(ey);
+    m = Math.max(m, Math.abs(ex), Math.abs(ey));
+  }
+  const el = $("orbit");
+  const data = [gl(x, y, "orbit", "#1f77b4", {meta: {daemon: rigd.daemon && rigd.daemon.pid, t: rigd.lastT}}),
+    gl(x.slice(-1), y.slice(-1), "now", "#c62828", {mode: "markers", marker: {size: 8, color: "#c62828"}})];
+  let want = orbitRange;
+  if (rigd.orbitScale === "gap") want = rigd.filmGap * 1.05;
+  else if (rigd.orbitScale === "auto") {
+    const need = Math.max(1.25 * m, 0.01);
+    // hysteresis: re-range when the orbit leaves the view or shrinks below 40 % of it
+    if (!orbitRange || need > orbitRange || need < 0.4 * orbitRange) want = 1.6 * need;
+  }
+  if (force || !el.data || want !== orbitRange || rigd.orbitScale === "user" && !el.layout) {
+    orbitRange = want;
+    const lay = orbitLayout(want || 1, m);
+    if (rigd.orbitScale === "user" && el.layout) { lay.xaxis.range = el.layout.xaxis.range; lay.yaxis.range = el.layout.yaxis.range; }
+    Plotly.react(el, data, lay, PLOT_CONFIG);
+    if (!el.dataset.wired) {
+      el.dataset.wired = "1";
+      el.on("plotly_relayout", (ev) => {
+        if ("xaxis.range[0]" in ev && !rigd.orbitRelayout) { rigd.orbitScale = "user"; setButtons(); }
+        else if (ev["xaxis.autorange"]) setOrbitScale("auto");
+      });
+    }
+  } else {
+    Plotly.restyle(el, {x: [x, x.slice(-1)], y: [y, y.slice(-1)], meta: [data[0].meta, null]});
+  }
+  $("orbit-cap").textContent = identity(tmin, rigd.lastT || 0) + " · scale " + rigd.orbitScale;
+  rigd.orbitRenders++;
+}
+
+function setButtons() {
+  for (const b of document.querySelectorAll("[data-orbit]")) b.classList.toggle("active", b.dataset.orbit === rigd.orbitScale);
+}
+
+// ---------------------------------------------------------------- time traces
+let tracesShape = "";
+
+function tracesLayout(xr, marker) {
+  const st = stackedAxes(GROUPS);
+  const lay = layoutBase("", Object.assign({
+    xaxis: {range: xr, title: {text: marker ? "t − t_trigger, s" : "t − now, s"}, showspikes: true,
+      spikemode: "across", spikethickness: 1, spikecolor: "#444", anchor: "y3"},
+    hovermode: "x", showlegend: true, margin: {l: 70, r: 10, t: 12, b: 84},
+    legend: {orientation: "h", y: -0.16, font: {size: 10}}, uirevision: "traces",
+  }, st.axes));
+  lay.shapes = marker ? [{type: "line", xref: "x", yref: "paper", x0: 0, x1: 0, y0: 0, y1: 1,
+    line: {color: "#c62828", width: 1, dash: "dash"}}] : [];
+  return lay;
+}
+
+function drawTraces() {
+  const v = rigd.view, b = v ? v.buf : rigd.buf;
+  const t0 = v ? v.t0 : rigd.lastT || 0;
+  const trig = v && rigd.trigger && rigd.trigger.state === "done";
+  const st = stackedAxes(GROUPS);
+  const data = [];
+  GROUPS.forEach((g, gi) => {
+    for (const c of g.chans) {
+      const e = band(b.t, b[c].lo, b[c].hi, t0);
+      data.push(gl(e.x, e.y, NAMES[c] || c, COLOURS[c], {yaxis: st.ref[gi], xaxis: "x",
+        meta: {daemon: rigd.daemon && rigd.daemon.pid, t0: t0, epoch: rigd.epoch},
+        line: {width: 1, color: COLOURS[c], dash: /^(r_p|k_)/.test(c) ? "dot" : "solid"}}));
+    }
+  });
+  const shape = v ? (trig ? "trig" : "pause") : "live";
+  const el = $("traces");
+  if (shape !== tracesShape || !el.data) {
+    tracesShape = shape;
+    const xr = trig ? [-TRACE_S / 2, TRACE_S / 2] : [-TRACE_S, 0];
+    Plotly.react(el, data, tracesLayout(xr, trig), PLOT_CONFIG);
+    if (!el.dataset.wired) {
+      el.dataset.wired = "1";
+      el.on("plotly_hover", (ev) => cursorAt(ev.xvals ? ev.xvals[0] : ev.points[0].x));
+    }
+  } else {
+    Plotly.restyle(el, {x: data.map((d) => d.x), y: data.map((d) => d.y), meta: data.map((d) => d.meta)});
+  }
+  const t1 = b.t.length ? b.t[b.t.length - 1] : undefined;
+  $("traces-cap").textContent = identity(b.t.length ? b.t[0] : undefined, t1) +
+    (v ? " · " + v.label : " · live");
+  rigd.renders++;
+}
+
+/** The cursor readout: loop time and every channel's bucket (min…max, unit) at x. */
+export function cursorAt(x) {
+  const v = rigd.view, b = v ? v.buf : rigd.buf, t0 = v ? v.t0 : rigd.lastT || 0;
+  if (!b.t.length) return;
+  const t = x + t0;
+  let k = 0;
+  while (k + 1 < b.t.length && b.t[k + 1] <= t) k++;
+  const parts = [];
+  for (const g of GROUPS) {
+    for (const c of g.chans) {
+      const lo = b[c].lo[k], hi = b[c].hi[k];
+      if (lo === null || lo === undefined) continue;
+      const d = g.unit === "µm" ? 3 : 3;
+      parts.push((NAMES[c] || c) + " " + (lo === hi ? fmt(lo, d) : fmt(lo, d) + "…" + fmt(hi, d)) + " " + g.unit);
+    }
+  }
+  rigd.cursor = {x, t};
+  $("cursor").textContent = "cursor: loop t " + b.t[k].toFixed(4) + " s (x " + x.toFixed(4) + " s): " + parts.join(", ");
+}
+
+// ---------------------------------------------------------------- trends
+function drawTrends() {
+  const st = stackedAxes([{label: "Ω, rpm"}, {label: "P_I, bar"}, {label: "misses/s"}]);
+  const fx = trend.faults.map((f) => f.wall), fy = trend.faults.map(() => 0);
+  const data = [
+    // a few hundred points once a second: SVG (no WebGL context to set up)
+    svg(trend.wall, trend.omega, "Ω", "#1f77b4", {yaxis: "y"}),
+    svg(trend.wall, trend.pinj, "P_I", "#ff7f0e", {yaxis: "y2"}),
+    svg(trend.wall, trend.missRate, "misses/s", "#7f7f7f", {yaxis: "y3", mode: "lines+markers", marker: {size: 3}}),
+    {x: fx, y: fy, yaxis: "y3", name: "fault", type: "scatter", mode: "markers+text",
+      text: trend.faults.map((f) => f.name), textposition: "top right", textfont: {size: 9, color: "#c62828"},
+      marker: {symbol: "x", size: 10, color: "#c62828"}, hovertext: trend.faults.map((f) => f.name + ": " + f.text)},
+  ];
+  const now = Date.now();
+  const lay = layoutBase("trends, last 5 min (faults ✕)", Object.assign({
+    xaxis: {type: "date", range: [now - 300000, now], title: {text: "wall clock"}, anchor: "y3"},
+    showlegend: false, uirevision: "trends",
+    shapes: trend.faults.map((f) => ({type: "line", xref: "x", yref: "paper", x0: f.wall, x1: f.wall,
+      y0: 0, y1: 1, line: {color: "#c62828", width: 1, dash: "dot"}})),
+  }, st.axes));
+  Plotly.react("trends", data, lay, PLOT_CONFIG);
+  rigd.trendRenders++;
+}
+
+// ---------------------------------------------------------------- cycle times
+function drawTiming() {
+  const t = rigd.timing || {}, keys = ["p50", "p99", "p999", "max"];
+  const bars = [];
+  for (const [name, d, col] of [["compute", t.compute_us, "#1f77b4"], ["lateness", t.lateness_us, "#ff7f0e"]]) {
+    if (!d) continue;
+    bars.push({x: keys, y: keys.map((k) => d[k]), type: "bar", name: name + " µs", marker: {color: col}});
+  }
+  const misses = rigd.lastStatus && rigd.lastStatus.misses;
+  Plotly.react("timing", bars, layoutBase("cycle time percentiles (misses: " +
+    (misses === undefined || misses === null ? "–" : misses) + ")", {barmode: "group",
+    yaxis: {type: "log", title: {text: "µs (log)"}}, xaxis: {title: {text: "percentile"}}}), PLOT_CONFIG);
+}
+
+// the cycle-time histogram: `timing`'s coarse histograms (the daemon's 100 ns bins summed to
+// at most 32 bars), fetched with the same period as the percentiles
+async function drawHistogram() {
+  const r = await api("/api/timing");
+  const h = r.ok && r.body && r.body.histogram_us;
+  if (!h) return;
+  const bars = [];
+  for (const [name, d, col] of [["compute", h.compute, "#1f77b4"], ["lateness", h.lateness, "#ff7f0e"]]) {
+    if (!d || !d.counts.length) continue;
+    const mid = d.counts.map((_, i) => 0.5 * (d.edges_us[i] + d.edges_us[i + 1]));
+    bars.push({x: mid, y: d.counts, type: "bar", name: name + (d.overflow ? " (+" +
+      d.overflow + " beyond)" : ""), opacity: 0.7, marker: {color: col}});
+  }
+  Plotly.react("timing-hist", bars, layoutBase("cycle-time histogram",
+    {barmode: "overlay", yaxis: {type: "log", title: {text: "cycles (log)"}},
+      xaxis: {title: {text: "µs"}}}), PLOT_CONFIG);
+  rigd.histRenders++;
+}
+
+// ---------------------------------------------------------------- the render loop
+const dirty = {orbit: false, traces: false};
+const last = {orbit: 0, traces: 0, trends: 0};
+let nextDraw = 0;
+export function markDirty() { dirty.orbit = dirty.traces = true; }
+
+function pendingInput() {
+  const s = navigator.scheduling;
+  return !!(s && s.isInputPending && s.isInputPending());
+}
+
+// the due plot that waited longest goes next (the orbit's 10 Hz never starves the traces)
+const JOBS = [
+  {key: "orbit", every: ORBIT_MS, due: () => dirty.orbit, run: () => { dirty.orbit = false; drawOrbit(false); }},
+  {key: "traces", every: TRACES_MS, due: () => dirty.traces, run: () => { dirty.traces = false; drawTraces(); }},
+  {key: "trends", every: TREND_MS, due: () => true, run: () => { drawTrends(); drawTiming(); drawHistogram(); }},
+];
+
+function drawOne(now) {
+  let job = null;
+  for (const j of JOBS) {
+    if (j.due() && now - last[j.key] >= j.every && (!job || last[j.key] < last[job.key])) job = j;
+  }
+  if (!job) return false;
+  last[job.key] = now;
+  job.run();
+  return true;
+}
+
+function renderLoop(now) {
+  if ($("live").classList.contains("active") && now >= nextDraw && !pendingInput()) {
+    const a = performance.now();
+    if (drawOne(now)) {
+      const d = performance.now() - a;
+      rigd.drawMs += d;
+      // at most DUTY of the time drawing (a plot's first draw, WebGL set-up, may take a
+      // second on a busy machine: that one-off does not hold the others back longer)
+      nextDraw = now + Math.min(d / DUTY, 500);
+    }
+  }
+  requestAnimationFrame(renderLoop);
+}
+
+export function startRendering() {
+  requestAnimationFrame(renderLoop);
+}
+
+/** Redraw the traces now (pause, trigger, resume: the operator sees the change at once). */
+export function redrawTraces() { dirty.traces = true; last.traces = 0; }

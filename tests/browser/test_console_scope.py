@@ -1,0 +1,285 @@
+"""The console as a scope (issue 22), in headless Chromium on a real ``rigd web`` and daemon:
+live plots that stay true across a daemon restart, the fault banner and its reset, the stale
+state, the operating-point form, the scope's habits (autoscaled orbit, pause, trigger, cursor,
+log cycle times, trends, one axis per unit) and a SAFE click with the Live tab drawing.
+
+Every wait is on a condition in the page or the daemon (no sleeps, no timed asserts).
+``RIGD_DOC_SCREENSHOTS=1`` also writes the screenshots docs/web.md shows to docs/img/.
+"""
+
+import json
+import os
+import shutil
+
+import pytest
+from selenium.webdriver.common.action_chains import ActionChains
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select, WebDriverWait
+from testpaths import ROOT
+from webproc import WebProcess, config_folder, start_daemon, wait_for
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    """``{"d": daemon, "web": rigd web, "tmp": folder}``; a test may replace ``d``."""
+    tmp = tmp_path_factory.mktemp("scoperig")
+    state = {"d": start_daemon(tmp), "tmp": tmp}
+    try:
+        state["web"] = WebProcess(tmp, state["d"].sock, tmp / "runs", config_folder(tmp))
+        try:
+            yield state
+        finally:
+            state["web"].stop()
+    finally:
+        state["d"].stop()
+
+
+def _wait(browser, cond, timeout=90, what=""):
+    return WebDriverWait(browser.driver, timeout, poll_frequency=0.1).until(
+        lambda drv: cond(drv), message=what)
+
+
+def _js(browser, expr):
+    return browser.execute_script("return " + expr)
+
+
+def _open(browser, web):
+    browser.get(web.url + "/")
+    box = browser.find_element(By.ID, "token")
+    box.clear()
+    box.send_keys(web.token)
+    browser.find_element(By.ID, "token-save").click()
+    _wait(browser, lambda drv: _js(browser, "window.rigd.mode") == "stream"
+          and _js(browser, "window.rigd.daemon !== null"), what="live stream and daemon identity")
+
+
+def _text(browser, id_):
+    return browser.find_element(By.ID, id_).text
+
+
+def _shot(screenshot, name):
+    path = screenshot(name)
+    if os.environ.get("RIGD_DOC_SCREENSHOTS"):
+        shutil.copyfile(path, ROOT / "docs" / "img" / f"{name}.png")
+
+
+def _clear_fault(d):
+    if d.ctl_json("status")["fault"]["code"]:
+        d.ctl("reset")
+
+
+def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, rig):
+    d, web, tmp = rig["d"], rig["web"], rig["tmp"]
+    _open(browser, web)
+    old_pid = d.ctl_json("ping")["pid"]
+    _wait(browser, lambda drv: _js(browser, "window.rigd.daemon.pid") == old_pid
+          and _js(browser, "((document.getElementById('traces').data || [{}])[0].meta || {})"
+                  ".daemon") == old_pid, what="traces carry the daemon's pid")
+    assert f"pid {old_pid}" in _text(browser, "traces-cap")
+    _wait(browser, lambda drv: _js(browser, "window.rigd.lastT") > 1.0, what="1 s of loop time")
+    old_t = _js(browser, "window.rigd.lastT")
+    d.stop()
+    # the daemon is gone: the header greys and says since when its values are stale
+    _wait(browser, lambda drv: _js(browser, "document.body.classList.contains('stale')"),
+          what="stale state")
+    stale = _text(browser, "stale-text")
+    assert stale.startswith("disconnected — values are stale (last at ")
+    _shot(screenshot, "console-stale")
+    d.notify.close()                          # its readiness socket: the new one binds it
+    (tmp / "notify.sock").unlink(missing_ok=True)
+    d = rig["d"] = start_daemon(tmp)          # the same socket, a new process
+    new_pid = d.ctl_json("ping")["pid"]
+    assert new_pid != old_pid
+    _wait(browser, lambda drv: _js(browser, "window.rigd.daemon && window.rigd.daemon.pid")
+          == new_pid, what="the page names the new daemon")
+    _wait(browser, lambda drv: not _js(browser, "document.body.classList.contains('stale')")
+          and not drv.find_element(By.ID, "stale-banner").is_displayed(),
+          what="stale state cleared")
+    # the traces were started over: only the new daemon's points, its loop time from ~0
+    _wait(browser, lambda drv: (_js(browser, "(document.getElementById('traces').data[0].meta"
+                                             " || {}).daemon") == new_pid),
+          what="traces redrawn for the new daemon")
+    assert _js(browser, "window.rigd.restarts.length") >= 1
+    assert "restarted" in _text(browser, "live-note")
+    buf_t0 = _js(browser, "window.rigd.buf.t[0]")
+    assert buf_t0 is not None and buf_t0 < old_t
+    # nothing recursed or threw: the only console errors are the failed loads while it was down
+    errors = browser.take_console_errors()
+    assert all("Failed to load resource" in e or "/api/" in e for e in errors), errors
+
+
+def test_fault_banner_with_reset_and_a_refusal_that_clears_with_the_fault(browser, screenshot,
+                                                                         rig):
+    d, web = rig["d"], rig["web"]
+    _clear_fault(d)
+    _open(browser, web)
+    _wait(browser, lambda drv: _js(browser, "window.rigd.renders") > 0, what="traces drawn")
+    assert not browser.find_element(By.ID, "fault-banner").is_displayed()
+    browser.find_element(By.ID, "safe").click()       # with the Live tab drawing
+    wait_for(lambda: d.ctl_json("status")["fault"]["name"] == "operator_safe", timeout=60,
+             what="operator_safe latched")
+    banner = _wait(browser, lambda drv: drv.find_element(By.ID, "fault-banner").is_displayed()
+                   and drv.find_element(By.ID, "fault-banner"), what="fault banner")
+    assert "FAULT operator_safe latched at cycle" in banner.text
+    # enable is refused with the fault's text; that message goes once the fault is reset
+    browser.find_element(By.ID, "enable").click()
+    _wait(browser, lambda drv: "(HTTP 409)" in _text(browser, "message"), what="409 shown")
+    assert "operator_safe" in _text(browser, "message")
+    _shot(screenshot, "console-fault")
+    browser.find_element(By.ID, "banner-reset").click()
+    wait_for(lambda: d.ctl_json("status")["fault"]["code"] == 0, timeout=60, what="reset")
+    _wait(browser, lambda drv: not drv.find_element(By.ID, "fault-banner").is_displayed(),
+          what="banner gone")
+    _wait(browser, lambda drv: "409" not in _text(browser, "message"), what="409 message gone")
+    # the SAFE click's latency, measured the bench's way (not asserted: timing is the bench's)
+    click = _js(browser, "window.rigd.safeClicks[0]")
+    assert click["seq"] is not None and click["wall_ms"] > 0
+    errors = browser.take_console_errors()              # the 409 response
+    assert all("409" in e for e in errors), errors
+
+
+def test_operating_point_form_follows_refuses_and_confirms(browser, screenshot, rig):
+    d, web = rig["d"], rig["web"]
+    _clear_fault(d)
+    d.ctl("op", "2000", "5")
+    _open(browser, web)
+    omega, pinj = browser.find_element(By.ID, "op-omega"), browser.find_element(By.ID, "op-pinj")
+    _wait(browser, lambda drv: omega.get_attribute("value") == "2000"
+          and pinj.get_attribute("value") == "5.00", what="fields show the live set-point")
+    # an empty field: refused in the page, nothing sent
+    omega.clear()
+    browser.find_element(By.ID, "op-set").click()
+    _wait(browser, lambda drv: "nothing sent" in _text(browser, "message"), what="refused")
+    assert _text(browser, "message").startswith("op: Ω: a number in rpm is required, got an empty")
+    assert "invalid" in omega.get_attribute("class")
+    omega.send_keys("fast")
+    browser.find_element(By.ID, "op-set").click()
+    _wait(browser, lambda drv: "got 'fast'" in _text(browser, "message"), what="refused")
+    # the server refuses the same (a page that skipped its check)
+    status = browser.execute_async_script(
+        "const done = arguments[0];"
+        "fetch('/api/op', {method: 'POST', headers: {'Content-Type': 'application/json',"
+        " 'Authorization': 'Bearer ' + sessionStorage.getItem('rigd-token')},"
+        " body: JSON.stringify({omega_rpm: '', p_inj_bar: 5})}).then(r => done(r.status));")
+    assert status == 400
+    assert d.ctl_json("status")["last_frame"]["omega_rpm"] == pytest.approx(2000, abs=1)
+    omega.clear()
+    omega.send_keys("1500")
+    browser.find_element(By.ID, "op-set").click()
+    _wait(browser, lambda drv: "applied Ω = 1500 rpm, P_I = 5.00 bar" in _text(browser, "message"),
+          what="confirmed with the applied value")
+    wait_for(lambda: abs(d.ctl_json("status")["last_frame"]["omega_rpm"] - 1500) < 1, timeout=60,
+             what="daemon at 1500 rpm")
+    _wait(browser, lambda drv: "1500" in _text(browser, "op-now"), what="live value 1500")
+    _shot(screenshot, "console-op")
+    errors = browser.take_console_errors()              # the 400 of the raw fetch
+    assert all("400" in e for e in errors), errors
+
+
+def test_scope_orbit_pause_trigger_cursor_trends_units(browser, screenshot, rig):
+    d, web = rig["d"], rig["web"]
+    _clear_fault(d)
+    _open(browser, web)
+    _wait(browser, lambda drv: _js(browser, "window.rigd.orbitRenders") > 2
+          and _js(browser, "window.rigd.renders") > 1, what="orbit and traces drawn")
+    gap = _js(browser, "window.rigd.filmGap")
+    # autoscaled orbit: the view fits the orbit (the film gap circle is context, not the scale)
+    orbit = json.loads(_js(browser, "JSON.stringify(document.getElementById('orbit').data[0])"))
+    r = _js(browser, "document.getElementById('orbit').layout.xaxis.range[1]")
+    m = max(max(abs(v) for v in orbit["x"]), max(abs(v) for v in orbit["y"]))
+    assert m <= r <= max(4 * m, 0.05) or m > gap / 2
+    assert "film gap" in _js(browser, "document.getElementById('orbit').layout.annotations[0].text")
+    browser.find_element(By.CSS_SELECTOR, "[data-orbit=gap]").click()
+    _wait(browser, lambda drv: _js(browser, "document.getElementById('orbit').layout.xaxis"
+                                   ".range[1]") >= gap, what="film-gap scale")
+    browser.find_element(By.CSS_SELECTOR, "[data-orbit=auto]").click()
+    # units on every axis, one axis group per unit, distinct colours
+    lay = json.loads(_js(browser, "JSON.stringify(document.getElementById('traces').layout)"))
+    titles = [lay[k]["title"]["text"] for k in ("yaxis", "yaxis2", "yaxis3")]
+    assert titles[0].endswith("µm") and titles[1].endswith("V") and titles[2].endswith("V")
+    for key in ("traces", "trends"):
+        data = json.loads(_js(browser, f"JSON.stringify(document.getElementById('{key}').data"
+                                       ".map(t => [t.yaxis || 'y', t.line && t.line.color]))"))
+        for axis in {a for a, _ in data}:
+            cols = [c for a, c in data if a == axis and c]
+            assert len(cols) == len(set(cols)), (key, axis, cols)
+    # cycle times on a log scale
+    _wait(browser, lambda drv: _js(browser, "(document.getElementById('timing').layout || {})"
+                                   ".yaxis") is not None, what="timing drawn")
+    assert _js(browser, "document.getElementById('timing').layout.yaxis.type") == "log"
+    # pause freezes the traces while the stream goes on; resume follows it again
+    browser.find_element(By.ID, "pause").click()
+    _wait(browser, lambda drv: "PAUSED" in _text(browser, "traces-cap"), what="paused")
+    frozen = _js(browser, "document.getElementById('traces').data[0].meta.t0")
+    u0 = _js(browser, "window.rigd.updates")
+    _wait(browser, lambda drv: _js(browser, "window.rigd.updates") > u0 + 20, what="stream goes on")
+    assert _js(browser, "document.getElementById('traces').data[0].meta.t0") == frozen
+    # the cursor readout: loop time and every channel with its unit at the mouse
+    plot = browser.find_element(By.CSS_SELECTOR, "#traces .nsewdrag")
+    ActionChains(browser.driver).move_to_element(plot).perform()
+    _wait(browser, lambda drv: _text(browser, "cursor").startswith("cursor: loop t "),
+          what="cursor readout")
+    assert " µm" in _text(browser, "cursor") and " V" in _text(browser, "cursor")
+    browser.find_element(By.ID, "pause").click()
+    _wait(browser, lambda drv: (_js(browser, "document.getElementById('traces').data[0].meta.t0")
+                                or 0) > frozen, what="live again")
+    # trigger on a fault: the traces freeze centred on the latching cycle
+    Select(browser.find_element(By.ID, "trig-mode")).select_by_value("fault")
+    browser.find_element(By.ID, "trig-arm").click()
+    _wait(browser, lambda drv: _text(browser, "scope-state").startswith("armed"), what="armed")
+    d.ctl("safe")
+    fault_seq = d.ctl_json("status")["fault"]["seq"]
+    _wait(browser, lambda drv: "TRIGGERED" in _text(browser, "scope-state"), what="triggered")
+    assert _js(browser, "window.rigd.trigger.t") == pytest.approx(fault_seq / 5000.0, abs=1e-3)
+    _wait(browser, lambda drv: _js(browser, "document.getElementById('traces').layout.xaxis"
+                                   ".range[0]") < 0 < _js(
+        browser, "document.getElementById('traces').layout.xaxis.range[1]"),
+        what="traces centred on the trigger")
+    # the trend shows the fault event
+    _wait(browser, lambda drv: _js(browser, "document.getElementById('trends').data[3].x"
+                                   ".length") >= 1, what="fault on the trend")
+    assert _js(browser, "document.getElementById('trends').data[0].x.length") >= 2
+    _shot(screenshot, "console-scope")
+    d.ctl("reset")
+
+
+def test_record_view_one_axis_per_unit_and_failed_run_reason(browser, screenshot, rig):
+    d, web = rig["d"], rig["web"]
+    _clear_fault(d)
+    _open(browser, web)
+    _wait(browser, lambda drv: len(drv.find_elements(By.CSS_SELECTOR, "#exp-select option")) > 2,
+          what="experiments listed")
+    Select(browser.find_element(By.ID, "exp-select")).select_by_value(
+        "config/experiments/prbs.yaml")
+    browser.find_element(By.ID, "start").click()
+    wait_for(lambda: d.ctl_json("experiment").get("state") == "running", timeout=120,
+             interval=0.1, what="experiment running")
+    browser.find_element(By.ID, "safe").click()           # ends it: failed, the fault named
+    wait_for(lambda: d.ctl_json("experiment").get("state") == "failed", timeout=120,
+             what="experiment failed")
+    browser.find_element(By.ID, "tab-runs").click()
+    row = _wait(browser, lambda drv: [r for r in drv.find_elements(
+        By.CSS_SELECTOR, "#runs-table tbody tr") if "failed" in r.text
+        and r.find_elements(By.CSS_SELECTOR, "button.open-record")], what="failed run listed")[0]
+    status = row.find_element(By.CSS_SELECTOR, "td.status").text
+    assert status.startswith("failed: ") and len(status) > len("failed: ")
+    row.find_element(By.CSS_SELECTOR, "button.open-record").click()
+    _wait(browser, lambda drv: _js(browser, "(document.getElementById('record-plot').data "
+                                   "|| []).length") > 0, what="record plotted")
+    data = json.loads(_js(browser, "JSON.stringify(document.getElementById('record-plot').data"
+                                   ".map(t => [t.name, t.yaxis, t.line.color]))"))
+    lay = json.loads(_js(browser, "JSON.stringify(document.getElementById('record-plot').layout)"))
+    by_axis = {}
+    for name, axis, _ in data:
+        unit = name.rsplit("[", 1)[1].rstrip("]")
+        by_axis.setdefault(axis, set()).add(unit)
+        key = "yaxis" if axis == "y" else "yaxis" + axis[1:]
+        assert lay[key]["title"]["text"] == unit
+    assert all(len(units) == 1 for units in by_axis.values()), by_axis
+    colours = [c for _, _, c in data]
+    assert len(colours) == len(set(colours))
+    _shot(screenshot, "console-record")
+    d.ctl("reset")
+    errors = browser.take_console_errors()
+    assert errors == [], errors
+
