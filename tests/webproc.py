@@ -72,7 +72,7 @@ class WebProcess:
     """
 
     def __init__(self, tmp: Path, socket: str, runs_dir: Path, config_dir: Path,
-                 timeout: float = 60.0, args: dict | None = None, preexec_fn=None,
+                 timeout: float = 300.0, args: dict | None = None, preexec_fn=None,
                  name: str = "web"):
         self.token_file = tmp / f"{name}-token"
         self.read_token_file = tmp / f"{name}-read-token"
