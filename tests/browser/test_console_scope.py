@@ -105,7 +105,8 @@ def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, 
     assert buf_t0 is not None and buf_t0 < old_t
     # nothing recursed or threw: the only console errors are the failed loads while it was down
     errors = browser.take_console_errors()
-    assert all("Failed to load resource" in e or "/api/" in e for e in errors), errors
+    assert all("Failed to load resource" in e or "EventSource" in e or "503" in e
+               for e in errors), errors
 
 
 def test_fault_banner_with_reset_and_a_refusal_that_clears_with_the_fault(browser, screenshot,
@@ -187,7 +188,7 @@ def test_scope_orbit_pause_trigger_cursor_trends_units(browser, screenshot, rig)
     orbit = json.loads(_js(browser, "JSON.stringify(document.getElementById('orbit').data[0])"))
     r = _js(browser, "document.getElementById('orbit').layout.xaxis.range[1]")
     m = max(max(abs(v) for v in orbit["x"]), max(abs(v) for v in orbit["y"]))
-    assert m <= r <= max(4 * m, 0.05) or m > gap / 2
+    assert m <= r <= max(6 * m, 0.05) or m > gap / 2
     assert "film gap" in _js(browser, "document.getElementById('orbit').layout.annotations[0].text")
     browser.find_element(By.CSS_SELECTOR, "[data-orbit=gap]").click()
     _wait(browser, lambda drv: _js(browser, "document.getElementById('orbit').layout.xaxis"

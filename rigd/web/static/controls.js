@@ -105,7 +105,8 @@ export function wireControls() {
   $("banner-reset").onclick = reset;
   $("stop").onclick = () => command("stop", {}, "experiment stop requested");
   for (const id of ["op-omega", "op-pinj"]) {
-    $(id).addEventListener("input", () => markEdited($(id), true));
+    // typing, or a clear() that fires only "change": the field is the operator's now
+    for (const ev of ["input", "change"]) $(id).addEventListener(ev, () => markEdited($(id), true));
     $(id).addEventListener("keydown", (e) => { if (e.key === "Enter") setOperatingPoint(); });
   }
   $("op-set").onclick = setOperatingPoint;

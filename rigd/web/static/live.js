@@ -38,7 +38,7 @@ export function restartTraces(reason) {
   rigd.lastT = undefined;
   rigd.epoch++;
   rigd.restarts.push({at: Date.now(), reason});
-  if (rigd.trigger && rigd.trigger.state === "waiting") rigd.trigger.state = "armed";
+  // a trigger that fired stays fired: its window is cut from what the new buffers hold
   $("live-note").textContent = "traces restarted at " + clock(Date.now()) + ": " + reason;
   $("live-note").className = "note warn";
 }

@@ -1,7 +1,7 @@
 // rigd console, the Runs tab: the runs folder (status with its reason), a record opened as
 // zoomable traces — one axis group per unit, distinct colours, min/max decimated server-side
 // and fetched again for the zoomed window — and the HTML pages of each run. docs/web.md.
-import {$, RECORD_CONFIG, api, band, colours, fmt, layoutBase, say, stackedAxes, unitOf} from "./core.js";
+import {$, RECORD_CONFIG, api, band, colours, fmt, layoutBase, rigd, say, stackedAxes, unitOf} from "./core.js";
 
 function cell(tr, text) {
   const td = document.createElement("td");
@@ -66,7 +66,7 @@ export async function openRecord(run, file, t0, t1) {
   const col = colours(names), traces = [];
   for (const c of names) {
     const d = v.channels[c], {x, y} = band(v.t_s, d.min, d.max);
-    traces.push({x, y, name: c + " [" + unit(c) + "]", type: "scattergl", mode: "lines",
+    traces.push({x, y, name: c + " [" + unit(c) + "]", type: rigd.traceType || "scatter", mode: "lines",
       line: {width: 1, color: col[c]}, yaxis: st.ref[units.indexOf(unit(c))],
       visible: SHOWN.test(c) ? true : "legendonly", legendgroup: unit(c)});
   }
