@@ -257,7 +257,7 @@ def markdown(table: dict) -> str:
     for name, row in table.items():
         r = row["rigd"]
         eff = (f"{r['fit_percent_with_effect']:.2f} ({r['effect']})" if r.get("effect")
-               else "none named")
+               else "none named" if "diagnose_base" in r else "not run")
         lines.append(
             f"| {name} ({row['n']}, {row['inputs']}×{row['outputs']}) | {cell(r)} | {eff} | "
             f"{cell(row['arx'])} n={row['arx'].get('order', '–')} | {cell(row['subspace'])} "
