@@ -16,8 +16,7 @@ import numpy as np
 from rigd.api.data import as_record, describe_source, load
 from rigd.data.record import Record
 from rigd.errors import InputError
-
-DEFAULT_SPLIT = 2.0 / 3.0
+from rigd.ident.pipeline import DEFAULT_SPLIT
 
 
 def parse_effects(names: str | list[str] | None, what: str = "--add") -> list[str]:
@@ -454,7 +453,7 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
              val: str | slice | None = None, split: float | None = None,
              effects: str | list[str] | None = None, refit: bool = True, hold: str = "auto",
              steps: int = 3, report: str | Path | None = None, order: str | int = "auto",
-             **load_kw: Any) -> DiagnosisResult:
+             method: str = "oe", init: Any = None, **load_kw: Any) -> DiagnosisResult:
     """Diagnose a record: residual analysis, catalogue signatures, forward selection.
 
     Parameters
@@ -481,6 +480,11 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
         Write the report page into this directory.
     order : "auto" or int
         Generic records: modes of the base model (as :func:`identify`).
+    method : {"oe", "pem"}
+        Fit method of the base model and of every refit (default output error: the base
+        model is then ``identify(..., method="oe")``'s, rigd.ident.pipeline).
+    init : Identification, ModelFile or path, optional
+        Start the base fit from this model's parameters (as :func:`identify`).
 
     Returns
     -------
@@ -502,9 +506,12 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
     rec = as_record(data, **load_kw)
     ro = as_record(runout) if runout is not None else None
     _check_parts(est_s, val_s, rec.n)
+    if method not in ("oe", "pem"):
+        raise InputError(f"unknown fit method {method!r} (known: oe, pem)", "--method")
     diag = diagnose_record(rec, runout=ro, submodels=submodels, est=est_s, val=val_s,
                            effects=names, refit=refit, hold=hold, split=split,
-                           max_steps=steps, order=order)
+                           max_steps=steps, order=order, method=method,
+                           init=_as_model(init) if init is not None else None)
     res = DiagnosisResult(diag, describe_source(rec.meta))
     if report:
         from rigd.diagnose.report_page import write_report

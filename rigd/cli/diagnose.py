@@ -37,6 +37,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "identify: declared by the record, known for rigd recordings, else "
                         "chosen from the data by fit")
     add_order_argument(p)
+    p.add_argument("--method", choices=["oe", "pem"], default="oe",
+                   help="fit method of the base model and every refit: output error "
+                        "(default; rigd identify --method oe fits the same base model) or "
+                        "prediction error")
+    p.add_argument("--init", metavar="MODEL.yaml", help="start the base fit from a previous "
+                   "model's parameters (as rigd identify --init)")
     p.add_argument("--no-refit", action="store_true",
                    help="signature tests only (fit_percent_with = base fit)")
     p.add_argument("--fs", help="sample rate of a plain CSV without metadata, Hz (number or "
@@ -52,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     res = api.diagnose(args.data, runout=args.runout, submodels=args.submodel, est=args.est,
                        val=args.val, split=args.split, effects=args.effects,
                        refit=not args.no_refit, hold=args.hold, steps=args.steps,
-                       order=args.order,
+                       order=args.order, method=args.method, init=args.init,
                        report=args.report, **load_options(args))
     out = res.summary()
     if args.json:
@@ -76,6 +82,10 @@ def order_text(o: dict) -> str:
 def summary(out: dict) -> str:
     """Human-readable summary of the JSON result."""
     lines = [source_text(out.get("source") or {}), f"base model fit: {out['fit_percent']} %"]
+    for sub, b in (out.get("base") or {}).items():
+        lines.append(f"base model [{sub}]: {b['method_used']} fit, samples "
+                     f"{b['window'][0]}:{b['window'][1]} of {b['record_samples']}, hold "
+                     f"{b['hold']}, start values {b['start']}")
     for sub, o in (out.get("order") or {}).items():
         lines.append(f"base model [{sub}]: {order_text(o)}")
     for sub, y in (out.get("yardstick") or {}).items():

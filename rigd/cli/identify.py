@@ -84,6 +84,12 @@ def _print_human(model, out, yardstick: dict | None = None) -> None:
             print(f"  yardstick: {ys.describe()}", file=out)
             if ys.warning():
                 print(f"  WARNING: {ys.warning()}", file=out)
+        base = split.get("base")
+        if base:
+            print(f"  base model: {base['method_used']} fit, samples {base['window'][0]}:"
+                  f"{base['window'][1]} of {base['record_samples']}, start values "
+                  f"{base['start']} (rigd diagnose --method {base['method']} starts from the "
+                  "same base model)", file=out)
         if "input_hold" in fp:
             print(f"  inputs between samples: {_hold_text(fp['input_hold'])}", file=out)
         for n, v, s in zip(sm.structure.names, sm.theta, sm.std):

@@ -12,12 +12,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rigd.diagnose.engine import MAX_STEPS, SubDiagnosis, diagnose_data
-from rigd.ident.hold import choose_hold
-from rigd.ident.mechanical import structure_for
+from rigd.ident.pipeline import MAX_SAMPLES
 from rigd.ident.yardstick import measure
-
-#: longest stretch analysed (samples); longer records are analysed on a window
-MAX_SAMPLES = 40_000
 
 
 @dataclass
@@ -55,6 +51,7 @@ class Diagnosis:
                        if p.domain is not None},
             "yardstick": {p.submodel: p.yardstick.to_json() for p in self.parts
                           if p.yardstick is not None},
+            "base": {p.submodel: p.base for p in self.parts if p.base is not None},
             "notes": list(self.notes),
         }
 
@@ -74,28 +71,26 @@ def submodels_of(record) -> list[str]:
 def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                     est: slice | None = None, val: slice | None = None,
                     effects: list[str] | None = None, refit: bool = True,
-                    max_samples: int = MAX_SAMPLES, options=None,
+                    max_samples: int | None = MAX_SAMPLES, options=None,
                     hold: str = "auto", split: float | None = None,
                     max_steps: int = MAX_STEPS, order: str | int = "auto",
-                    yardstick: bool = True) -> Diagnosis:
+                    method: str = "oe", init=None, yardstick: bool = True) -> Diagnosis:
     """Diagnose a :class:`rigd.data.Record` (prefilters of §4.4, then each sub-model).
 
-    The base model of each sub-model is what ``rigd identify --method oe`` fits on the same
-    samples: the same prefilters (:func:`rigd.ident.workflow.prepare`, default
-    :class:`~rigd.ident.prefilter.PrefilterOptions`), the same structure and input hold
-    (``hold="auto"``: as :func:`rigd.ident.hold.choose_hold` resolves it — declared by the
-    record, known for rigd recordings, else chosen from the data; or ``zoh``/``foh`` for every
-    sub-model) and, without
-    ``est``/``val``, the same split (first ``split`` of the samples estimate, default 2/3).
+    The base model of each sub-model is :func:`rigd.ident.pipeline.fit_base`'s, the one
+    ``rigd identify`` keeps with the same settings (``method``, ``init``, window, split,
+    hold, order, prefilters): for the same settings the two are the same numbers. The
+    forward selection refits with the same method (:func:`rigd.ident.pipeline.refit_with`).
+    Diagnose's default method is output error (``oe``: the residual of a simulation is what
+    is analysed), so ``rigd identify --method oe`` gives diagnose's default base model.
 
     Records longer than ``max_samples`` are analysed on their central ``max_samples``
-    samples (a note says which; ``rigd identify --range A:B`` fits the same window).
+    samples (:func:`rigd.ident.pipeline.analysis_window`, as ``rigd identify``; a note says
+    which).
 
     ``order`` (generic records): ``"auto"`` — the number of modes is chosen from the data
-    (:func:`rigd.ident.order.choose_order`: subspace estimate of what the residual still
-    carries, output-error refinement, kept while it adds ≥ 0.5 validation points), so the
-    effects are sought on the best linear model of the class; or the number of modes.
-    A higher order than one mode per output is reported (note and ``order`` in the JSON).
+    (:func:`rigd.ident.order.choose_order`), so the effects are sought on the best linear
+    model of the class; or the number of modes.
 
     ``yardstick``: fit a plain ARX and a subspace model on the same split
     (:mod:`rigd.ident.yardstick`): reported beside the base model (``yardstick`` in the
@@ -103,66 +98,44 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
     structure left unexplained (:mod:`rigd.diagnose.unexplained`).
     """
     from rigd.errors import InputError
-    from rigd.ident.workflow import DEFAULT_SPLIT, prepare
+    from rigd.ident.pipeline import FitSettings, fit_base
 
     subs = submodels or submodels_of(record)
     if not subs:
         raise InputError("record has neither inputs/outputs metadata nor the rotor columns "
                          "r_x, r_y, u_x, u_y (actuator) or u_x, u_y, e_x, e_y (bearing)",
                          record.source)
-    if hold not in ("auto", "zoh", "foh"):
-        raise InputError(f"hold must be auto, zoh or foh (got {hold!r})", "--hold")
-    notes = []
-    n = record.n
-    window = (0, n)
-    if est is None and val is None and n > max_samples:
-        a = (n - max_samples) // 2
-        window = (a, a + max_samples)
-        notes.append(f"long record: analysed samples {window[0]}..{window[1]} of {n} "
-                     f"(rigd identify --range {window[0]}:{window[1]} fits the same window)")
-        record = record.slice(*window)
-    if est is None and val is None:
-        frac = DEFAULT_SPLIT if split is None else float(split)
-        if not 0.2 <= frac <= 0.95:
-            raise InputError(f"split must be within 0.2..0.95 (got {frac})", "--split")
-        k = int(round(record.n * frac))
-        est, val = slice(0, k), slice(k, record.n)
+    settings = FitSettings(method=method, split=split, est=est, val=val, hold=hold,
+                           order=order, init=init, options=options, runout=runout,
+                           max_samples=max_samples)
+    settings.check()
+    notes: list[str] = []
     parts = []
     for sub in subs:
-        data, rep = prepare(record, sub, options, runout)
-        offsets = (rep.get("offsets") or {}).get("values", {})
-        choice = choose_hold(sub, data.slice(est.start, est.stop), record.meta, hold,
-                             where=record.source)
-        notes.append(f"{sub}: inputs between samples: {choice.describe()}")
-        structure = structure_for(sub, data, hold=choice.hold)
-        theta0, chosen = None, None
-        if sub == "generic":
-            from rigd.ident.order import ModalStructure, choose_order
-
-            try:
-                chosen = choose_order(structure, data, est, val, order)
-            except ValueError as exc:
-                raise InputError(str(exc), "--order") from None
-            structure, theta0 = chosen.structure, chosen.theta
-            notes.append(f"{sub}: base model order: {chosen.describe()}")
-            if isinstance(structure, ModalStructure):
-                missed = ", ".join(f"{f:.4g} Hz" for f, _, _ in structure.modes_of(theta0))
-                notes.append(f"{sub}: one mode per output misses mode(s) at {missed}: the "
-                             f"base model has {chosen.modes} modes (fit "
-                             f"{chosen.fits[structure.base.n]:.2f} % with "
-                             f"{structure.base.n})")
+        bf = fit_base(record, sub, settings)
+        for nt in bf.notes:
+            if nt not in notes:
+                notes.append(nt)
+        offsets = (bf.prefilter.get("offsets") or {}).get("values", {})
+        notes.append(f"{sub}: inputs between samples: {bf.hold.describe()}")
+        notes.append(f"{sub}: base model: {_describe_base(bf)}")
+        if bf.order is not None:
+            notes += [f"{sub}: {n}" for n in _order_notes(bf)]
         # the yardstick: what a plain linear model reaches on the same split (also the
         # measure of what is reachable for the unexplained structure)
-        ys = measure(data.u, data.y, est, val, float("nan"), data.fs) if yardstick else None
-        sd = diagnose_data(data, sub, structure=structure, est=est, val=val, effects=effects,
-                           refit=refit, max_steps=max_steps, theta0=theta0,
-                           offsets=offsets, start=window[0], yardstick=ys,
+        ys = (measure(bf.data.u, bf.data.y, bf.est, bf.val, float("nan"), bf.data.fs)
+              if yardstick else None)
+        sd = diagnose_data(bf.data, sub, structure=bf.structure, est=bf.est, val=bf.val,
+                           effects=effects, refit=refit, max_steps=max_steps,
+                           base_theta=bf.theta, method=bf.settings.method,
+                           offsets=offsets, start=bf.window[0], yardstick=ys,
                            record_meta=record.meta,
                            # a hold chosen by the linear base is asked again with the effects
-                           other_hold=({"zoh": "foh", "foh": "zoh"}[choice.hold]
-                                       if choice.source == "fit" else None))
-        if chosen is not None:
-            sd.order = chosen.to_json()
+                           other_hold=({"zoh": "foh", "foh": "zoh"}[bf.hold.hold]
+                                       if bf.hold.source == "fit" else None))
+        if bf.order is not None:
+            sd.order = bf.order.to_json()
+        sd.base = bf.to_json()
         notes += [f"{sub}: {n}" for n in sd.notes]
         from rigd.ident.sanity import model_warnings
 
@@ -173,6 +146,31 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                                                                             st.theta)]
         if ys is not None and ys.warning():
             notes.append(f"{sub}: base model: WARNING: {ys.warning()}")
-        sd.window = window
+        sd.window = bf.window
         parts.append(sd)
     return Diagnosis(parts, record.source, notes)
+
+
+def _describe_base(bf) -> str:
+    """One line: method, samples, split and start values of the base fit."""
+    b = bf.to_json()
+    a, z = b["window"]
+    est = [a + (bf.est.start or 0), a + bf.est.stop]
+    val = [a + (bf.val.start or 0), a + bf.val.stop]
+    return (f"{b['method_used']} fit on samples {est[0]}:{est[1]}, validated on "
+            f"{val[0]}:{val[1]} of {b['record_samples']}; start values: {b['start']} "
+            f"(rigd identify with the same options fits the same model"
+            f"{'' if b['method'] == 'pem' else ': --method oe'})")
+
+
+def _order_notes(bf) -> list[str]:
+    from rigd.ident.order import ModalStructure
+
+    chosen, structure = bf.order, bf.structure
+    out = [f"base model order: {chosen.describe()}"]
+    if isinstance(structure, ModalStructure):
+        missed = ", ".join(f"{f:.4g} Hz" for f, _, _ in structure.modes_of(bf.theta))
+        out.append(f"one mode per output misses mode(s) at {missed}: the base model has "
+                   f"{chosen.modes} modes (fit {chosen.fits[structure.base.n]:.2f} % with "
+                   f"{structure.base.n})")
+    return out

@@ -31,7 +31,6 @@ import numpy as np
 
 from rigd.diagnose import advice as A
 from rigd.diagnose import domain as D
-from rigd.diagnose import probes as P
 from rigd.diagnose import residual as R
 from rigd.diagnose import unexplained as U
 from rigd.diagnose import wording as W
@@ -96,6 +95,8 @@ class SubDiagnosis:
     yardstick: Any = None
     #: the record's domain (rigd.diagnose.domain): the words and the advice
     domain: Any = None
+    #: how the base model was fitted (rigd.ident.pipeline.BaseFit.to_json)
+    base: dict[str, Any] | None = None
 
     @property
     def final(self) -> Step:
@@ -103,10 +104,10 @@ class SubDiagnosis:
         return self.steps[-1]
 
 
-def _fit(structure, data, theta0=None, max_nfev=None, fixed=None):
+def _fit(structure, data, theta0=None, max_nfev=None, fixed=None, method="oe"):
     from rigd.ident.pem import fit
 
-    return fit(structure, data, method="oe", theta0=theta0, max_nfev=max_nfev, fixed=fixed)
+    return fit(structure, data, method=method, theta0=theta0, max_nfev=max_nfev, fixed=fixed)
 
 
 def model_resonances(structure, theta) -> list[float]:
@@ -126,31 +127,22 @@ def _val_err(ctx: Context, yhat: np.ndarray) -> float:
     return float(np.sum(e ** 2))
 
 
-def _refit(eff, ctx: Context, sig, data_est, max_nfev) -> Refit:
-    """Fit ``ctx.structure`` extended by ``eff``, warm-started from the signature."""
+def _refit(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe") -> Refit:
+    """Fit ``ctx.structure`` extended by ``eff``, warm-started from the signature
+    (:func:`rigd.ident.pipeline.refit_with`, as ``rigd identify --add``)."""
+    from rigd.ident.pipeline import refit_with
+
     t0 = time.perf_counter()
     structure, theta, data = ctx.structure, ctx.theta, ctx.data
-    ext = eff.extend(structure)
-    ext.bind_record(data_est)  # bounds relative to the record (rigd.effects.scales)
     # an effect may offer several starts (loop shapes): the fit with the lowest estimation
     # cost is kept (never chosen on the validation part)
     starts = (eff.refit_starts(ctx, sig) if hasattr(eff, "refit_starts")
               else [eff.warm_start(ctx, sig)])
-    lo, hi = ext.bounds()
     # parameters an effect keeps at their start in the refit (a redundant scale)
-    fixed = list(getattr(eff, "refit_fixed", lambda e: [])(ext)) or None
-    best = None
-    for ws in starts:
-        te = ws if ws is not None else eff.theta0_effect(structure, data_est)
-        th0 = np.concatenate([theta, np.asarray(te, float)])
-        th0 = np.clip(th0, np.where(np.isfinite(lo), lo, -np.inf),
-                      np.where(np.isfinite(hi), hi, np.inf))
-        try:
-            res = _fit(ext, data_est, theta0=th0, max_nfev=max_nfev, fixed=fixed)
-        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
-            continue
-        if np.isfinite(res.cost) and (best is None or res.cost < best.cost):
-            best = res
+    fixed = list(getattr(eff, "refit_fixed", lambda e, s=None: [])(eff.extend(structure),
+                                                                    sig)) or None
+    ext, best, th0 = refit_with(structure, theta, [eff], data_est, method, starts=starts,
+                                fixed=fixed, max_nfev=max_nfev)
     try:
         th = best.theta if best is not None else th0
         yw = np.asarray(ext.simulate(th, data), float)
@@ -179,7 +171,8 @@ def _words(eff, ctx: Context, sig) -> tuple[str, dict[str, Any]]:
 
 
 def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
-            cannot: list[CannotReveal] | None) -> tuple[list[Finding], dict[str, Refit]]:
+            cannot: list[CannotReveal] | None,
+            method: str = "oe") -> tuple[list[Finding], dict[str, Refit]]:
     """Signature test (and refit) of each effect in ``names`` on the model of ``ctx``.
 
     ``score`` is the share of *this* model's validation error energy the effect removes;
@@ -190,6 +183,8 @@ def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
     fp = float(np.mean(fit_percent(ctx.y[ctx.val], ctx.yhat[ctx.val])))
     for name in names:
         eff = REGISTRY[name]
+        if eff.not_offered(ctx.structure) is not None:  # listed by diagnose_data's notes
+            continue
         why = eff.reveal(ctx)
         if why is not None and why.code is not None:  # worded for the record's domain
             why.why, why.experiment = A.cannot_reveal(
@@ -215,7 +210,7 @@ def _screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             if getattr(eff, "costly_refit", False)
             else sig.score > 0.005 or sig.f_p < P_LEVEL)
         if refit and worth_refit:
-            ref = _refit(eff, ctx, sig, data_est, max_nfev)
+            ref = _refit(eff, ctx, sig, data_est, max_nfev, method)
             refits[name] = ref
             gain = max(0.0, 1.0 - _val_err(ctx, ref.yhat) / err) if err > 0 else 0.0
             f.fit_percent_with = ref.fit_percent
@@ -246,7 +241,8 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                   theta0: np.ndarray | None = None,
                   max_steps: int = MAX_STEPS, offsets: dict[str, float] | None = None,
                   start: int = 0, other_hold: str | None = None,
-                  yardstick=None, record_meta: dict | None = None) -> SubDiagnosis:
+                  yardstick=None, record_meta: dict | None = None, method: str = "oe",
+                  base_theta: np.ndarray | None = None) -> SubDiagnosis:
     """Diagnose one sub-model on identification data by forward selection.
 
     Like a stepwise regression: fit the base model; test every effect on its residual
@@ -279,6 +275,10 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         For a hold chosen from the data by the linear base: after each added effect the
         model is refitted with this hold too and switched to it when it fits ≥
         ``MIN_FIT_GAIN`` points better (a note says so).
+    method : {"oe", "pem"}
+        Fit method of the base (unless ``base_theta`` is given) and of every refit.
+    base_theta : ndarray, optional
+        The base already fitted on ``est`` (rigd.ident.pipeline.fit_base): not refitted.
     offsets : dict, optional
         Prefilter offsets per channel (levels under ``unexplained`` in the record's units).
     start : int
@@ -306,8 +306,11 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     structure = structure or structure_for(submodel, data,
                                            hold=DEFAULT_HOLD.get(submodel, "zoh"))
     data_est = data.slice(est.start, est.stop)
-    base = _fit(structure, data_est, theta0=theta0, max_nfev=max_nfev)
-    theta = base.theta
+    if base_theta is not None:
+        theta = np.asarray(base_theta, float)
+    else:
+        theta = _fit(structure, data_est, theta0=theta0, max_nfev=max_nfev,
+                     method=method).theta
     yhat = np.asarray(structure.simulate(theta, data), float)
     omega_hz = float(getattr(data, "meta", {}).get("omega_rpm", 0.0) or 0.0) / 60.0
     dom = D.decide(submodel, record_meta or {}, structure, theta)
@@ -340,10 +343,19 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                 names.remove(nm)
                 notes.append(f"{nm} not screened: {n_est} estimation samples > {cap} (its "
                              f"fits cost minutes there); ask for it with --effects {nm}")
+    for nm in list(names):  # an effect the base cannot carry is not offered, and says why
+        why_not = REGISTRY[nm].not_offered(structure)
+        if why_not is not None:
+            names.remove(nm)
+            notes.append(f"{nm} not offered: {why_not}")
     added: list[Finding] = []
     refits: dict[str, Refit] = {}
+    # an effect the base model already carries (a pole slower than the record: an
+    # integrator) is named from the base, not added (Effect.carried_by_base)
+    carried = [f for f in (REGISTRY[nm].carried_by_base(ctx0) for nm in names) if f is not None]
+    names = [nm for nm in names if nm not in {f.effect for f in carried}]
     ctx = ctx0
-    findings, round_refits = _screen(ctx, names, refit, data_est, max_nfev, cannot)
+    findings, round_refits = _screen(ctx, names, refit, data_est, max_nfev, cannot, method)
     revealable = [f.effect for f in findings]
     while True:
         err_cur = _val_err(ctx, ctx.yhat)
@@ -360,7 +372,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         top.evidence["step"] = len(added) + 1
         added.append(top)
         step = Step(top.effect, ref.fit_percent, ref.structure, ref.theta, ref.yhat)
-        alt = _try_hold(step, ctx0, other_hold, data_est) if other_hold else None
+        alt = _try_hold(step, ctx0, other_hold, data_est, method) if other_hold else None
         if alt is not None:
             notes.append(f"inputs between samples: with {top.effect} in the model, "
                          f"{other_hold} fits {alt.fit_percent:.2f} % against "
@@ -379,7 +391,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         if not rest:
             findings = []
             break
-        findings, round_refits = _screen(ctx, rest, refit, data_est, max_nfev, None)
+        findings, round_refits = _screen(ctx, rest, refit, data_est, max_nfev, None, method)
     # what remains, tested on the final model: not significant by the stepwise decision
     # (when the step cap was reached, a still significant one keeps its flag)
     scale = (err_cur / err_base) if err_base > 0 else 1.0
@@ -394,8 +406,8 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     cannot = [c for c in cannot if not (c.partial and c.effect in {f.effect for f in added})]
     if yardstick is not None:
         yardstick.model_fit = fp_base
-    sd = SubDiagnosis(submodel, fp_base, added + findings, cannot, [], ctx0, {}, refits,
-                      (0, data.n), steps, notes=notes, yardstick=yardstick, domain=dom)
+    sd = SubDiagnosis(submodel, fp_base, carried + added + findings, cannot, [], ctx0, {},
+                      refits, (0, data.n), steps, notes=notes, yardstick=yardstick, domain=dom)
     _tests_and_unexplained(sd, offsets, start)
     return sd
 
@@ -449,10 +461,6 @@ def _tests_and_unexplained(sd: SubDiagnosis, offsets: dict[str, float] | None = 
                            ctx.input_names or [ctx.label(j, "in") for j in range(ctx.nu)],
                            skip_hz=skip, offsets=offsets, start=start + (v.start or 0),
                            reference=reach, domain=ctx.domain)
-    if unexplained and not sig:   # structured, no effect found: a force outside the
-        fr = P.dry_friction(ctx, P_LEVEL)   # catalogue? (rigd.diagnose.probes)
-        if fr is not None:
-            unexplained.insert(1, fr)
     err_final = max(100.0 - sd.final.fit_percent, 1e-12)
     for f in sd.findings:
         why_not = f.evidence.get("implausible")
@@ -468,7 +476,8 @@ def _tests_and_unexplained(sd: SubDiagnosis, offsets: dict[str, float] | None = 
 
 
 
-def _try_hold(step: Step, ctx0: Context, hold: str, data_est) -> Step | None:
+def _try_hold(step: Step, ctx0: Context, hold: str, data_est,
+              method: str = "oe") -> Step | None:
     """``step``'s model refitted with the input hold ``hold``, if that fits the validation
     part better by ≥ ``MIN_FIT_GAIN`` points, else None.
 
@@ -488,7 +497,7 @@ def _try_hold(step: Step, ctx0: Context, hold: str, data_est) -> Step | None:
     eff = REGISTRY.get(step.added or "")
     fixed = list(getattr(eff, "refit_fixed", lambda e: [])(st)) or None
     try:
-        th = _fit(st, data_est, theta0=step.theta, fixed=fixed).theta
+        th = _fit(st, data_est, theta0=step.theta, fixed=fixed, method=method).theta
         yh = np.asarray(st.simulate(th, ctx0.data), float)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError):
         return None

@@ -20,16 +20,22 @@ from rigd.effects.creep import Creep
 from rigd.effects.cross_coupling import CrossCoupling
 from rigd.effects.cubic_stiffness import CubicStiffness
 from rigd.effects.delay import Delay
+from rigd.effects.extra_dynamics import ExtraDynamics
 from rigd.effects.extra_mode import ExtraMode
+from rigd.effects.friction import Friction
 from rigd.effects.hysteresis import Hysteresis
+from rigd.effects.integrator import Integrator
 from rigd.effects.restoring_hysteresis import RestoringHysteresis
 from rigd.effects.runout import Runout
+from rigd.effects.static_nonlinearity import StaticNonlinearity
 from rigd.errors import InputError
 
 #: canonical name -> effect (the one place a new effect is registered)
 REGISTRY: dict[str, Effect] = {e.name: e for e in (
     Runout(), Delay(), ActuatorDynamics(), Hysteresis(), Creep(), CubicStiffness(),
     ExtraMode(), CrossCoupling(), RestoringHysteresis(),
+    # domain-neutral entries (generic records): ../shared/DESIGN.md
+    StaticNonlinearity(), Friction(), Integrator(), ExtraDynamics(),
 )}
 
 _ORDER = {"state": 0, "input": 1, "output": 2}

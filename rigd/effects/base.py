@@ -38,7 +38,7 @@ from rigd.effects.signature import SignatureFit, signature_fit
 from rigd.effects.state_level import fixed_point
 from rigd.ident.simulate import Hooks
 
-__all__ = ["ExtendedStructure", "Effect", "accepts_hooks", "dims"]
+__all__ = ["ExtendedStructure", "Effect", "accepts_hooks", "dims", "is_mechanical"]
 
 
 # --------------------------------------------------------------------------------------
@@ -161,15 +161,33 @@ class Effect:
         One line of physics for the report.
     min_score : float
         Minimum out-of-sample share of residual energy explained for significance.
+    requires : tuple of str
+        What the base model must be to carry the effect (``mechanical``: a mechanical
+        state-space model, p̈ + D ṗ + K p = B u, that takes the simulator's hooks);
+        :meth:`not_offered` says why a base cannot.
     """
 
     name: str = "effect"
     level: str = "input"  # "state" (mechanical model), "input" (pre-transform), "output"
+    requires: tuple[str, ...] = ()
     submodels: tuple[str, ...] = ("actuator", "bearing", "generic")
     physics: str = ""
     min_score: float = 0.05
 
     # --- diagnosis ----------------------------------------------------------------------
+    def not_offered(self, structure: Any) -> str | None:
+        """Why the base ``structure`` cannot carry this effect (None: it can)."""
+        if "mechanical" in self.requires and not is_mechanical(structure):
+            return (f"{self.name} acts on the velocities of a mechanical model; the base "
+                    f"model ({type(structure).__name__}) is not one")
+        return None
+
+    def carried_by_base(self, ctx: Context) -> Any:
+        """A significant Finding when the base model of ``ctx`` already carries the effect
+        (it is then named from the base, not added; e.g. a pole slower than the record is
+        an integrator), else None."""
+        return None
+
     def reveal(self, ctx: Context) -> CannotReveal | None:
         """None if the record can reveal the effect, else why not and what would."""
         return None
@@ -254,6 +272,12 @@ def accepts_hooks(structure: Any) -> bool:
         return "hooks" in inspect.signature(structure.simulate).parameters
     except (TypeError, ValueError):
         return False
+
+
+def is_mechanical(structure: Any) -> bool:
+    """True for a mechanical base (``continuous`` gives x = [p, ṗ]) whose simulator takes
+    hooks (rigd.ident.mechanical and the modal structures built on it), wrapped or not."""
+    return accepts_hooks(structure) and callable(getattr(structure, "continuous", None))
 
 
 def dims(base: Any) -> tuple[int, int]:

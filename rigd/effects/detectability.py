@@ -96,7 +96,7 @@ def _weights(ctx: Context) -> np.ndarray:
 def parameter_responses(ctx: Context) -> list[tuple[int, float, np.ndarray | None]]:
     """The base model simulated over the whole record with each parameter stepped in turn:
     [(index, step h, output (n, ny) or None if that simulation failed)] (cached; shared by
-    :func:`tangent` and the probes of rigd.diagnose.probes)."""
+    :func:`tangent` and the friction signature of rigd.effects.friction)."""
     cache = ctx.cache
     if "parameter_responses" in cache:
         return cache["parameter_responses"]

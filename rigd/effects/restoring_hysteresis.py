@@ -208,7 +208,7 @@ class RestoringHysteresis(Effect):
         ext = RestoringExtended(structure, self)
         return ext
 
-    def refit_fixed(self, ext) -> list[str]:
+    def refit_fixed(self, ext, sig=None) -> list[str]:
         """The loop scale ``c`` stays at its start in the diagnosis refit: z ↦ λz with
         (a, c, β, γ) ↦ (a/λ, cλ, β/λ, γ/λ) gives the same output (the ν = 1 law is
         homogeneous in z), so one of them is redundant; fixing c leaves the rest

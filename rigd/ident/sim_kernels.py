@@ -75,10 +75,12 @@ def predict_kernel(Ad, Bd, Kd, C, x0, u, ymeas, yhat):  # pragma: no cover - com
 
 
 @njit(cache=True)
-def _accel(K, D, k3, k3x, p, v, f, df, tau, a):  # pragma: no cover - compiled
+def _accel(K, D, k3, k3x, fr, p, v, f, df, tau, a):  # pragma: no cover - compiled
     """Acceleration at force f + tau·df (df: force change over the sample, FOH).
 
-    Cubic force on axis i: k3_i p_i³ + k3x_i (Σ_{j≠i} p_j²) p_i (k3x = k3: radial, |p|² p).
+    Cubic force on axis i: k3_i p_i³ + k3x_i (Σ_{j≠i} p_j²) p_i (k3x = k3: radial, |p|² p);
+    dry (Coulomb) friction fr[0, i] tanh(v_i / fr[1, i]) (smoothed sign, fr[1] > 0 where
+    fr[0] ≠ 0; skipped where fr[0] = 0, so the other forces' numbers are unchanged).
     """
     n = p.shape[0]
     r2 = 0.0
@@ -89,13 +91,16 @@ def _accel(K, D, k3, k3x, p, v, f, df, tau, a):  # pragma: no cover - compiled
              - k3x[i] * (r2 - p[i] * p[i]) * p[i])
         for j in range(n):
             s -= K[i, j] * p[j] + D[i, j] * v[j]
+        if fr[0, i] != 0.0:
+            s -= fr[0, i] * np.tanh(v[i] / fr[1, i])
         a[i] = s
 
 
 @njit(cache=True)
 def cubic_kernel(K, D, B, k3, k3x, Kd, x0, u, dt, nsub, ymeas, use_meas, y,
-                 foh=False):  # pragma: no cover
-    """p̈ + D ṗ + K p + k3∘p³ + k3x∘(|p|² − p²)∘p = B u, RK4 with ``nsub`` sub-steps.
+                 foh=False, fr=None):  # pragma: no cover
+    """p̈ + D ṗ + K p + k3∘p³ + k3x∘(|p|² − p²)∘p (+ friction) = B u, RK4 with ``nsub``
+    sub-steps; ``fr`` (2, m): Coulomb friction sizes and smoothing velocities (_accel).
 
     The input is held over each sample (``foh=False``) or linear from u[k] to u[k+1]
     (``foh=True``, the same intersample behaviour as the linear FOH discretisation).
@@ -105,6 +110,8 @@ def cubic_kernel(K, D, B, k3, k3x, Kd, x0, u, dt, nsub, ymeas, use_meas, y,
     n = u.shape[0]
     m = K.shape[0]
     nu = B.shape[1]
+    if fr is None:
+        fr = np.zeros((2, m))
     p = x0[:m].copy()
     v = x0[m:].copy()
     f = np.empty(m)
@@ -137,19 +144,19 @@ def cubic_kernel(K, D, B, k3, k3x, Kd, x0, u, dt, nsub, ymeas, use_meas, y,
             t0 = q / nsub
             th = (q + 0.5) / nsub
             t1 = (q + 1.0) / nsub
-            _accel(K, D, k3, k3x, p, v, f, df, t0, a1)
+            _accel(K, D, k3, k3x, fr, p, v, f, df, t0, a1)
             for i in range(m):
                 k2p[i] = v[i] + 0.5 * h * a1[i]
                 pt[i] = p[i] + 0.5 * h * v[i]
-            _accel(K, D, k3, k3x, pt, k2p, f, df, th, a2)
+            _accel(K, D, k3, k3x, fr, pt, k2p, f, df, th, a2)
             for i in range(m):
                 k3p[i] = v[i] + 0.5 * h * a2[i]
                 pt[i] = p[i] + 0.5 * h * k2p[i]
-            _accel(K, D, k3, k3x, pt, k3p, f, df, th, a3)
+            _accel(K, D, k3, k3x, fr, pt, k3p, f, df, th, a3)
             for i in range(m):
                 k4p[i] = v[i] + h * a3[i]
                 pt[i] = p[i] + h * k3p[i]
-            _accel(K, D, k3, k3x, pt, k4p, f, df, t1, a4)
+            _accel(K, D, k3, k3x, fr, pt, k4p, f, df, t1, a4)
             for i in range(m):
                 p[i] += h / 6.0 * (v[i] + 2.0 * k2p[i] + 2.0 * k3p[i] + k4p[i])
                 v[i] += h / 6.0 * (a1[i] + 2.0 * a2[i] + 2.0 * a3[i] + a4[i])

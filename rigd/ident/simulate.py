@@ -94,6 +94,10 @@ class Hooks:
         Added to the simulated output (run-out harmonics ...).
     dK, dD, dB : ndarray, optional
         Added to K, D, B (cross-coupling terms of a decoupled model ...).
+    friction : ndarray (2, ny), optional
+        Per-axis dry (Coulomb) friction: force friction[0, i]·tanh(ṗ_i / friction[1, i])
+        against the motion (acceleration units; smoothing velocity in output units/s);
+        nonlinear -> RK4 integration.
     nsub : int
         RK4 sub-steps per sample for the nonlinear path.
     hold : {"zoh", "foh"}
@@ -111,14 +115,27 @@ class Hooks:
     dK: np.ndarray | None = None
     dD: np.ndarray | None = None
     dB: np.ndarray | None = None
+    friction: np.ndarray | None = None
     nsub: int = 2
     hold: str = "zoh"
 
     @property
     def nonlinear(self) -> bool:
-        """True if a cubic term is set (RK4 path)."""
+        """True if a cubic or friction term is set (RK4 path)."""
         return any(k is not None and np.any(np.asarray(k) != 0)
-                   for k in (self.k3, self.k3_cross))
+                   for k in (self.k3, self.k3_cross)) or (
+            self.friction is not None and bool(np.any(np.asarray(self.friction)[0] != 0)))
+
+    def friction_terms(self, m: int, dt: float) -> tuple[np.ndarray, int]:
+        """(friction (2, m) for the kernel, RK4 sub-steps): more sub-steps where the smoothed
+        sign is steep (its slope F/v_ε times the sub-step kept below 1, at most 64)."""
+        if self.friction is None:
+            return np.zeros((2, m)), int(self.nsub)
+        fr = np.ascontiguousarray(self.friction, dtype=float).reshape(2, m).copy()
+        fr[1] = np.where(fr[0] != 0, np.maximum(np.abs(fr[1]), 1e-300), 1.0)
+        slope = float(np.max(np.abs(fr[0]) / fr[1]))
+        need = int(np.ceil(slope * dt)) if np.isfinite(slope) else 64
+        return fr, int(min(max(int(self.nsub), need), 64))
 
     def cubic(self, m: int) -> tuple[np.ndarray, np.ndarray]:
         """(k3, k3_cross) as float arrays of length m (zeros where unset)."""
@@ -190,8 +207,9 @@ def simulate_mechanical(K, D, B, x0, u, fs, hooks: Hooks | None = None) -> np.nd
     x0 = np.ascontiguousarray(x0, dtype=float)
     if hooks.nonlinear:
         k3, k3x = hooks.cubic(m)
+        fr, nsub = hooks.friction_terms(m, 1.0 / fs)
         cubic_kernel(K, D, B, k3, k3x, np.zeros((2 * m, m)), x0, uu,
-                     1.0 / fs, int(hooks.nsub), y, False, y, hooks.hold == "foh")
+                     1.0 / fs, nsub, y, False, y, hooks.hold == "foh", fr)
     else:
         A, Bc, C = mechanical_abc(K, D, B)
         Ad, Bd, ue = _discrete(A, Bc, 1.0 / fs, hooks.hold, uu)
@@ -239,8 +257,9 @@ def predict_mechanical(K, D, B, Bdist, x0, u, y, fs, hooks: Hooks | None = None)
     x0 = np.ascontiguousarray(x0, dtype=float)
     if hooks.nonlinear:
         k3, k3x = hooks.cubic(m)
+        fr, nsub = hooks.friction_terms(m, 1.0 / fs)
         cubic_kernel(K, D, B, k3, k3x, Kd, x0, uu, 1.0 / fs,
-                     int(hooks.nsub), ym, True, yhat, hooks.hold == "foh")
+                     nsub, ym, True, yhat, hooks.hold == "foh", fr)
     else:
         predict_kernel(Ad, Bd, Kd, C, x0, ue, ym, yhat)
     return yhat if add is None else yhat + add

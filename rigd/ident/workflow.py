@@ -21,14 +21,11 @@ import numpy as np
 
 from rigd.data.record import Record
 from rigd.errors import InputError
-from rigd.ident.hold import choose_hold
-from rigd.ident.iddata import IdData, channels_for, from_record
-from rigd.ident.mechanical import structure_for
+from rigd.ident.iddata import IdData, channels_for
 from rigd.ident.modelfile import ModelFile, Submodel, apply_effects
-from rigd.ident.pem import fit, fit_percent
-from rigd.ident.prefilter import PrefilterOptions, apply_prefilters
-
-DEFAULT_SPLIT = 2.0 / 3.0
+from rigd.ident.pem import fit_percent
+from rigd.ident.pipeline import DEFAULT_SPLIT, prepare  # noqa: F401 - prepare: re-exported
+from rigd.ident.prefilter import PrefilterOptions
 
 
 def available_submodels(record: Record) -> list[str]:
@@ -57,21 +54,6 @@ def resolve_submodels(record: Record, asked: str = "auto") -> list[str]:
     if asked in ("actuator", "bearing", "generic"):
         return [asked]
     raise InputError(f"unknown model {asked!r} (use actuator, bearing, both, generic or auto)")
-
-
-def prepare(record: Record, submodel: str, options: PrefilterOptions | None = None,
-            runout: Record | None = None,
-            min_samples: int | None = None) -> tuple[IdData, dict]:
-    """Prefiltered :class:`IdData` of one sub-model and the prefilter report.
-
-    ``min_samples``: fewest samples accepted (default: what identification needs,
-    :data:`rigd.ident.iddata.MIN_SAMPLES`; ``compare`` asks only what the model needs).
-    """
-    ins, outs = channels_for(record, submodel)
-    kw = {} if min_samples is None else {"min_samples": min_samples}
-    from_record(record, submodel, **kw)  # column / length checks before filtering
-    filt, rep = apply_prefilters(record, ins, outs, options, runout)
-    return from_record(filt, submodel, **kw), rep
 
 
 def estimate_x0(structure, theta: np.ndarray, data: IdData,
@@ -146,18 +128,6 @@ def residual_stats(y: np.ndarray, yhat: np.ndarray, names: list[str]) -> dict[st
     return out
 
 
-def _start_values(structure, init: ModelFile | None, name: str, data: IdData):
-    if init is None or name not in init.submodels:
-        return None
-    prev = init.submodels[name].parameters
-    th = np.asarray(structure.theta0(data), float) if any(
-        n not in prev for n in structure.names) else np.zeros(len(structure.names))
-    for i, n in enumerate(structure.names):
-        if n in prev:
-            th[i] = prev[n]
-    return th
-
-
 def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                     runout: Record | None = None, options: PrefilterOptions | None = None,
                     method: str = "pem", init: ModelFile | None = None,
@@ -196,85 +166,62 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         Generic records: number of modes, or ``auto`` to choose it from the data
         (:func:`rigd.ident.order.choose_order`, as ``rigd diagnose``).
     """
+    from rigd.ident.pipeline import FitSettings, effects_for, fit_base, refit_with, start_values
+    from rigd.ident.sanity import model_warnings
+
     if isinstance(submodels, str):
         submodels = resolve_submodels(record, submodels)
-    if (est is None) != (val is None):
-        raise InputError("give both --est and --val, or neither", "--est/--val")
-    if est is None and not 0.2 <= split <= 0.95:
-        raise InputError(f"split must be within 0.2..0.95 (got {split})")
+    settings = FitSettings(method=method, split=None if est is not None else split, est=est,
+                           val=val, hold=hold or "auto", order=order, init=init,
+                           options=options, runout=runout)
+    settings.check()
     effects = list(effects or [])
     subs: dict[str, Submodel] = {}
     prefilter_reports = {}
     split_info = {}
     for sm in submodels:
-        data, rep = prepare(record, sm, options, runout)
-        prefilter_reports[sm] = rep
-        if est is None:
-            k = int(round(data.n * split))
-            es, vs = slice(0, k), slice(k, data.n)
-        else:
-            es, vs = (slice(*s.indices(data.n)[:2]) for s in (est, val))
-        est_data = data.slice(es.start, es.stop)
-        choice = choose_hold(sm, est_data, record.meta, hold, where=record.source)
-        base = structure_for(sm, data, hold=choice.hold)
-        th0 = _start_values(base, init, sm, est_data)
-        res = fit(base, est_data, method=method, theta0=th0)
-        order_info = None
-        if sm == "generic":
-            from rigd.ident.order import choose_order
-
-            try:
-                oc = choose_order(base, data, es, vs, order,
-                                  base_theta=res.theta if res.method == "oe" else None)
-            except ValueError as exc:
-                raise InputError(str(exc), "--order") from None
-            order_info = oc.to_json()
-            if oc.structure is not base:
-                base = oc.structure
-                res = fit(base, est_data, method=method, theta0=oc.theta)
-        structure, theta, std, used = base, res.theta, res.std, res.method
-        applied = _effects_for(effects, sm)
+        bf = fit_base(record, sm, settings)
+        data, es, vs, est_data = bf.data, bf.est, bf.val, bf.est_data
+        prefilter_reports[sm] = bf.prefilter
+        structure, res = bf.structure, bf.result
+        applied = effects_for(effects, sm)
         if applied:
-            structure = apply_effects(base, applied)
-            th_ext = _start_values(structure, init, sm, est_data)
-            if th_ext is None:
-                th_ext = np.asarray(structure.theta0(est_data), float)
-                th_ext[:len(base.names)] = res.theta
-            res = fit(structure, est_data, method=method, theta0=th_ext)
-            theta, std, used = res.theta, res.std, res.method
+            nb = len(structure.names)
+            th_init = start_values(apply_effects(structure, applied), init, sm, est_data)
+            starts = [None if th_init is None else th_init[nb:]]
+            structure, res2, th0 = refit_with(structure, res.theta, applied, est_data, method,
+                                              starts=starts)
+            if res2 is None:
+                raise InputError(f"the {sm} model with {', '.join(e.name for e in applied)} "
+                                 "cannot be fitted on this record (every start failed)")
+            res = res2
+        theta, std, used = res.theta, res.std, res.method
         ysim = np.asarray(structure.simulate(theta, data))
         fe = fit_percent(data.y[es], ysim[es])
         fv = fit_percent(data.y[vs], ysim[vs])
         readouts = structure.readouts(theta) if hasattr(structure, "readouts") else {}
-        from rigd.ident.sanity import model_warnings
-
         warn = model_warnings(structure, theta, res.info.get("at_bound"), std)
         if not np.all(np.isfinite(ysim)):
             warn.append("the model's simulated response is not finite on this record (the "
                         "fit diverged; its fit is not a number): do not use this model")
         if warn:  # flagged in the output and the model file, never used silently
             readouts = dict(readouts, warnings=warn)
+        order_info = bf.order.to_json() if bf.order is not None else None
         subs[sm] = Submodel(sm, structure, theta, std, used,
                             {"estimation": fe.tolist(), "validation": fv.tolist(),
                              "validation_mean": float(np.mean(fv)),
                              "outputs": data.output_names,
-                             "input_hold": choice.as_dict(),
+                             "input_hold": bf.hold.as_dict(),
                              **({"order": order_info} if order_info else {})},
                             readouts, residual_stats(data.y[vs], ysim[vs], data.output_names))
         subs[sm].residual["iterations"] = {"nfev": res.nfev, "status": res.status}
-        split_info = {"estimation": [es.start, es.stop], "validation": [vs.start, vs.stop],
-                      **({"fraction": split} if est is None else {})}
+        a = bf.window[0]
+        split_info = {"estimation": [a + es.start, a + es.stop],
+                      "validation": [a + vs.start, a + vs.stop],
+                      **({"fraction": split} if est is None and bf.window == (0, record.n)
+                         else {}),
+                      "base": bf.to_json()}
     return ModelFile(record.fs, subs,
                      {"omega_rpm": record.omega_rpm, "p_inj_bar": record.p_inj_bar},
                      prefilter_reports, {"path": record.source, "sha256": data_hash,
                                          "n_samples": record.n}, split_info)
-
-
-def _effects_for(effects: Sequence[Any], submodel: str) -> list[Any]:
-    """Those of ``effects`` that concern ``submodel`` (all of them if they do not say)."""
-    out = []
-    for eff in effects:
-        subs = getattr(eff, "submodels", None)
-        if subs is None or submodel in subs:
-            out.append(eff)
-    return out

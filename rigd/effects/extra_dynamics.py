@@ -1,0 +1,152 @@
+"""``extra_dynamics``: an unmodelled real pole or lag (thermal lag, a sensor's or actuator's
+first-order dynamics) on any base; ``extra_mode`` stays the name for an unmodelled *mode*.
+
+Extension: a parallel first-order path from every input to every output,
+
+    y_i = ŷ_i + Σ_j g_ij · 1/(τ s + 1) u_j,
+
+one real pole at −1/τ with its gains (the model gains a real mode). τ is bounded relative to
+the record (half a sample to a quarter of the estimation part), ``g`` is dimensionless per
+unit (output per input unit).
+
+Signature: the residual regressed on the first-order lags of the inputs, τ scanned over a
+geometric grid in samples (relative to the rate); the best τ (estimation part) is kept and
+starts the refit. Low-pass, coherent with the input, no narrow peak.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rigd.effects import detectability as DT
+from rigd.effects import numbers as N
+from rigd.effects._signals import lag1
+from rigd.effects.base import Effect, dims
+from rigd.effects.context import CannotReveal, Context
+from rigd.effects.signature import SignatureFit, signature_fit
+
+#: τ grid and bounds, samples: from half a sample to a quarter of the estimation part
+TAU_MIN_SAMPLES = 0.5
+TAU_MAX_SHARE = 0.25
+GRID = 16
+#: a fitted τ below this (samples) is a feedthrough, not a lag
+MIN_TAU_SAMPLES = 1.0
+#: nominal size for "cannot tell": a lag path adding this share of the output's spread
+NOMINAL_SHARE = 0.1
+
+
+class ExtraDynamics(Effect):
+    name = "extra_dynamics"
+    level = "output"
+    site = "output"
+    submodels = ("generic",)
+    physics = "an unmodelled real pole or lag (thermal, sensor or actuator lag)"
+
+    def _taus(self, ctx: Context) -> np.ndarray:
+        n_est = len(range(*ctx.est.indices(ctx.n)))
+        hi = max(TAU_MAX_SHARE * n_est, 2.0)
+        return np.geomspace(1.0, hi, GRID) / ctx.fs
+
+    def _regs(self, ctx: Context, tau: float) -> list[np.ndarray]:
+        u = ctx.u - ctx.u[ctx.est].mean(axis=0)
+        out = []
+        for j in range(ctx.nu):
+            lj = lag1(u[:, j], tau, ctx.fs)
+            for i in range(ctx.ny):
+                g = np.zeros((ctx.n, ctx.ny))
+                g[:, i] = lj
+                out.append(g)
+        return out
+
+    def signature(self, ctx: Context) -> SignatureFit:
+        key = ("signature", self.name)
+        if key in ctx.cache:
+            return ctx.cache[key]
+        best = None
+        for tau in self._taus(ctx):
+            s = signature_fit(ctx, self._regs(ctx, tau))
+            s.extra["tau_s"] = float(tau)
+            if best is None or s.score_est > best.score_est:
+                best = s
+        ctx.cache[key] = best
+        return best
+
+    def regressors(self, ctx):
+        return self._regs(ctx, self.signature(ctx).extra["tau_s"])
+
+    def reveal(self, ctx: Context) -> CannotReveal | None:
+        if DT.seen(ctx, self.signature(ctx)):
+            return None
+        noms = []
+        for tau in self._taus(ctx)[::3]:
+            regs = self._regs(ctx, tau)
+            size = [NOMINAL_SHARE * np.std(ctx.y[ctx.est, k % ctx.ny])
+                    / max(np.std(g[ctx.est, k % ctx.ny]), 1e-300) for k, g in enumerate(regs)]
+            noms.append(sum(c * g for c, g in zip(size, regs)))
+        d, _ = DT.best(ctx, noms, k=1 + ctx.nu * ctx.ny)
+        if d.detectable:
+            return None
+        return CannotReveal(self.name, f"a first-order lag path adding "
+                            f"{100 * NOMINAL_SHARE:.0f} % of the output's spread would not show "
+                            f"on this record at any time constant tried (at best: "
+                            f"{d.describe()})", "re-run with steps held longer than the "
+                            "suspected lag and a record many times longer", ctx.submodel)
+
+    def explain(self, ctx, sig):
+        tau = float(sig.extra.get("tau_s", 0.0))
+        g = np.asarray(sig.beta, float).reshape(ctx.nu, ctx.ny)
+        ev = {"code": "extra_dynamics.real_pole", "time_constant_s": tau,
+              "time_constant_samples": tau * ctx.fs, "gain": g.tolist()}
+        return (f"the error follows a first-order lag of the input with a time constant of "
+                f"about {N.duration(tau)}: a real pole (lag) the model lacks; explains "
+                f"{100 * sig.score:.0f} % of the residual", ev)
+
+    def implausible(self, ctx, theta_e):
+        tau = float(theta_e[0])
+        if tau * ctx.fs >= MIN_TAU_SAMPLES:
+            return None
+        return (f"a parallel lag of {tau * ctx.fs:.2f} samples improves the fit: a direct "
+                "feedthrough (or fast dynamics) the model lacks, not a lag that the record "
+                "resolves")
+
+    # --- extension ----------------------------------------------------------------------
+    def param_names(self, base):
+        ny, nu = dims(base)
+        return ["ed_tau"] + [f"ed_g{j}_{i}" for j in range(nu) for i in range(ny)]
+
+    def param_bounds(self, base):
+        k = len(self.param_names(base))
+        lo, hi = np.full(k, -np.inf), np.full(k, np.inf)
+        lo[0] = 0.0
+        return lo, hi
+
+    def record_bounds(self, base, rec):
+        lo, hi = self.param_bounds(base)
+        lo[0] = TAU_MIN_SAMPLES / rec.fs
+        hi[0] = max(TAU_MAX_SHARE * rec.n, 2.0) / rec.fs
+        return lo, hi
+
+    def param_typical(self, base, rec):
+        ny, nu = dims(base)
+        su = np.resize(np.asarray(rec.u_spread, float), nu)
+        sy = np.resize(np.asarray(rec.y_spread, float), ny)
+        return np.concatenate([[10.0 / rec.fs], np.outer(1.0 / su, sy).ravel()])
+
+    def theta0_effect(self, base, data):
+        ny, nu = dims(base)
+        return np.concatenate([[10.0 / float(data.fs)], np.zeros(nu * ny)])
+
+    def warm_start(self, ctx, sig):
+        return np.concatenate([[sig.extra["tau_s"]], np.asarray(sig.beta, float)])
+
+    def simulate_with(self, sim, theta_e, data, base):
+        y = np.asarray(sim(data), float)
+        u = np.asarray(data.inputs, float)
+        ny, nu = y.shape[1], u.shape[1]
+        th = np.asarray(theta_e, float)
+        g = th[1:].reshape(nu, ny)
+        if not np.any(g):
+            return y
+        fs = float(data.fs)
+        lags = np.column_stack([lag1(u[:, j], th[0], fs) for j in range(nu)])
+        return y + lags @ g

@@ -1,0 +1,75 @@
+"""The domain-neutral catalogue entries (static_nonlinearity, integrator, extra_dynamics,
+friction) on records simulated independently of rigd's models (tests/diagnose/independent.py:
+scipy, other structures, parameters and rates than the rig's), with the default diagnosis.
+
+Must show (issue 20): a Hammerstein and a Wiener record → ``static_nonlinearity`` named at
+the right site, held-out error ÷ ≥ 3; an integrating plant under feedback → ``integrator``
+named with the closed-loop advice code. And the invariance of these entries: the same samples
+with the output × 1000 and the rate × 1000 give the same findings and fits (±0.1 point,
+tests/diagnose/test_metamorphic.py's digest). (``friction``: tests/diagnose/test_friction.py.)
+"""
+
+import independent as I  # tests/diagnose/independent.py
+import pytest
+import test_metamorphic as M  # the digest and comparison of the invariance tests
+
+from rigd.diagnose.diagnosis import diagnose_record
+
+
+def _named(out):
+    return [f for f in out["findings"] if f["significant"]]
+
+
+def _falls(out, by):
+    final = out["steps"][-1]["fit_percent"]
+    return 100 - out["fit_percent"] >= by * (100 - final)
+
+
+@pytest.fixture(scope="module")
+def runs():
+    """Default diagnosis of each record, computed once (the invariance tests reuse it)."""
+    cache = {}
+
+    def get(name):
+        if name not in cache:
+            rec = getattr(I, name)()
+            cache[name] = (rec, diagnose_record(rec))
+        return cache[name]
+    return get
+
+
+@pytest.mark.parametrize("name,site", [("hammerstein", "input"), ("wiener", "output")])
+def test_static_curve_named_at_its_site_and_error_falls_3x(runs, name, site):
+    _, d = runs(name)
+    out = d.to_json()
+    named = _named(out)
+    assert [f["effect"] for f in named] == ["static_nonlinearity"], out["findings"][:3]
+    assert named[0]["site"] == site
+    assert _falls(out, 3), out["steps"]
+
+
+def test_integrator_under_feedback_named_with_closed_loop_evidence(runs):
+    """K/(s(τs+1)) under proportional feedback: the mechanical base fits it with a spring at
+    the frequency floor (a pole far slower than the record), so the integrator is named from
+    the base (evidence ``in_base``), with the closed-loop advice code."""
+    _, d = runs("integrator_loop")
+    out = d.to_json()
+    named = _named(out)
+    assert named and named[0]["effect"] == "integrator", out["findings"][:3]
+    ev = d.parts[0].findings[0].evidence
+    assert ev["code"] == "integrator.in_base" and ev["in_base"] is True
+    assert ev["time_constant_s"] > ev["estimation_seconds"]
+    assert ev["advice"] == "identify_closed_loop"
+
+
+def test_no_integrator_named_on_plants_without_one(runs):
+    for name in ("hammerstein", "wiener"):
+        assert "integrator" not in [f["effect"] for f in _named(runs(name)[1].to_json())]
+
+
+@pytest.mark.parametrize("name", ["hammerstein", "wiener", "integrator_loop"])
+def test_new_entries_rescaled_same_diagnosis(runs, name):
+    rec, d = runs(name)
+    ref = M._digest(d)
+    sy, sr = 1e3, 1e3  # output × 1000 and rate × 1000 at once
+    _ = M._same(ref, M._digest(diagnose_record(M._variant(rec, 1.0, sy, sr)), sr))

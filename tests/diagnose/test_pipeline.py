@@ -1,0 +1,52 @@
+"""One pipeline (rigd.ident.pipeline): diagnose's base model is identify's, with the same
+settings — the same numbers, the same start values (``--init``), the same window."""
+
+import benchmarks as B  # tests/diagnose/benchmarks.py
+import numpy as np
+import pytest
+
+from rigd import api
+from rigd.ident.pipeline import FitSettings, analysis_window
+
+
+@pytest.fixture(scope="module")
+def rec():
+    return B.duffing(seed=1, n=2400)
+
+
+def _ident(rec, **kw):
+    sub = api.identify(rec, "generic", method="oe", **kw).model
+    return sub.submodels["generic"], sub.split["base"]
+
+
+def _diag(rec, **kw):
+    d = api.diagnose(rec, effects="delay", **kw).diagnosis
+    return d.parts[0], d.to_json()["base"]["generic"]
+
+
+def test_diagnose_base_is_identify_model(rec):
+    sm, base_i = _ident(rec)
+    part, base_d = _diag(rec)
+    assert list(sm.structure.names) == list(part.steps[0].structure.names)
+    np.testing.assert_allclose(part.steps[0].theta, sm.theta, rtol=1e-9, atol=1e-12)
+    assert abs(part.fit_percent - sm.fit_percent["validation_mean"]) < 1e-9
+    assert base_i == base_d  # method, window, split, hold, order, start, iterations
+
+
+def test_init_is_honoured_by_both(rec, tmp_path):
+    sm, base_i = _ident(rec, out=tmp_path / "m.yaml")
+    assert base_i["start"] == "automatic"
+    sm2, base_i2 = _ident(rec, init=tmp_path / "m.yaml")
+    part2, base_d2 = _diag(rec, init=tmp_path / "m.yaml")
+    assert base_i2["start"] == base_d2["start"] == "model file"
+    # from the converged model the fit stops at once, in both commands
+    assert base_i2["nfev"] == base_d2["nfev"] < base_i["nfev"]
+    np.testing.assert_allclose(part2.steps[0].theta, sm2.theta, rtol=1e-9, atol=1e-12)
+
+
+def test_one_window_rule_for_long_records():
+    s = FitSettings()
+    assert analysis_window(50_000, s) == (5_000, 45_000)
+    assert analysis_window(30_000, s) == (0, 30_000)
+    assert analysis_window(50_000, FitSettings(est=slice(0, 100), val=slice(100, 200))) \
+        == (0, 50_000)
