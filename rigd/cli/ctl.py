@@ -143,7 +143,7 @@ def _safe_by_word(args: argparse.Namespace) -> tuple[dict | None, str]:
     except SafeWordUnavailable as exc:
         return None, str(exc)
     try:
-        result = word.safe(min(args.timeout, 2.0))
+        result = word.safe(args.timeout)
     finally:
         word.close()
     if result is None:

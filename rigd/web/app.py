@@ -194,7 +194,7 @@ def build_app(settings: Settings) -> Starlette:
             why = str(exc)
         else:
             try:
-                result = await word.safe_async(min(settings.timeout_s, 2.0))
+                result = await word.safe_async(settings.timeout_s)
             finally:
                 word.close()
             if result is not None:
