@@ -38,7 +38,7 @@ class ExperimentManager:
         self._manifest: Manifest | None = None
 
     def start(self, path: str | None = None, spec: dict | None = None,
-              run_dir: str | None = None, experiment: Experiment | None = None
+              run_dir: str | None = None, experiment: Experiment | dict | None = None
               ) -> dict[str, Any]:
         """Validate and start an experiment; returns ``{"run_dir", "name", "kind", "total"}``.
 
@@ -46,9 +46,10 @@ class ExperimentManager:
         ----------
         path, spec : str, dict
             The experiment YAML or an inline spec (read and validated here), or
-        experiment : rigd.experiments.runner.Experiment
+        experiment : rigd.experiments.runner.Experiment or dict
             one already read and validated (by the daemon's socket process: nothing is read
-            or parsed in the loop's process).
+            or parsed in the loop's process); a dict holds its fields (spec, point, source,
+            text: :func:`rigd.service.reader.read_experiment`).
         run_dir : str, optional
             Must lie inside the runs folder (symlinks resolved).
 
@@ -64,6 +65,8 @@ class ExperimentManager:
             if self._thread is not None and self._thread.is_alive():
                 raise InputError("an experiment is already running (experiment.stop first)",
                                  "experiment.start")
+            if isinstance(experiment, dict):
+                experiment = Experiment(**experiment)
             exp = experiment if experiment is not None else load(
                 spec if spec is not None else path)
             self._stop.clear()

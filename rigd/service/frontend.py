@@ -383,6 +383,7 @@ def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
             handler.install(snap_conn.recv())
     except (OSError, EOFError):
         return
+    reader.warm_up()   # the readers' imports before serving, not at the first request
     try:
         cmd_conn.send(("ready", os.getpid(), None, None))  # before serving: one sender at a time
     except (OSError, EOFError):

@@ -48,16 +48,30 @@ def read_controller(path: str, fs_hz: float | None) -> dict[str, Any]:
     return pack_controller(load_controller(path, expected_fs_hz=fs_hz))
 
 
-def read_experiment(path: str | None, spec: dict | None):
-    """The validated :class:`rigd.experiments.runner.Experiment` of a file or an inline spec.
+def read_experiment(path: str | None, spec: dict | None) -> dict[str, Any]:
+    """A file or an inline spec validated: ``{"spec", "point", "source", "text"}``, the fields
+    of :class:`rigd.experiments.runner.Experiment` (built by the experiment manager; only the
+    schemas are imported here, not the runner and its loop).
 
     Raises
     ------
     InputError
     """
-    from rigd.experiments.runner import load
+    from rigd.experiments.schemas import load_experiment, spec_from_dict
 
-    return load(spec if spec is not None else path)
+    if spec is not None:
+        s, p = spec_from_dict(spec)
+        return {"spec": s, "point": p, "source": "<spec>", "text": None}
+    s, p, text = load_experiment(path)
+    return {"spec": s, "point": p, "source": str(path), "text": text}
+
+
+def warm_up() -> None:
+    """Import the readers' modules now (the socket process does it before it serves), so
+    that the first ``controller.load`` or ``experiment.start`` does not pay for the imports:
+    tens of seconds on a machine at load 30."""
+    import rigd.controller  # noqa: F401
+    import rigd.experiments.schemas  # noqa: F401
 
 
 def reload_files(config_path: str, controller: str | None, fs_hz: float | None,

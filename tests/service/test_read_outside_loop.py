@@ -23,8 +23,8 @@ class _Experiments:
 
     def start(self, path=None, spec=None, run_dir=None, experiment=None):
         self.started.append((path, spec, run_dir, experiment))
-        return {"run_dir": run_dir, "name": experiment.name, "kind": experiment.spec.kind,
-                "total": None}
+        return {"run_dir": run_dir, "name": experiment["spec"].name,
+                "kind": experiment["spec"].kind, "total": None}
 
     def status(self):
         return {"state": "idle"}
@@ -114,8 +114,10 @@ def test_an_experiment_is_read_in_the_socket_process(daemon_side, tmp_path):
                     "run_dir": str(runs / "a")})
     assert r["ok"], r
     (path, spec, run_dir, experiment), = exps.started
-    assert run_dir == str(runs / "a") and experiment.spec.kind == "prbs"
-    assert experiment.source == str(exp) and experiment.text == exp.read_text()
+    # what crossed into this process: the validated spec (and its text, for the manifest)
+    assert sorted(experiment) == ["point", "source", "spec", "text"]
+    assert run_dir == str(runs / "a") and experiment["spec"].kind == "prbs"
+    assert experiment["source"] == str(exp) and experiment["text"] == exp.read_text()
     # a run folder outside the runs folder is refused before anything is read
     for bad in (str(tmp_path / "elsewhere"), str(runs / ".." / "x")):
         r = _ask(sock, {"id": 2, "cmd": "experiment.start", "path": str(exp), "run_dir": bad})
