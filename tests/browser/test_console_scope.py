@@ -9,6 +9,7 @@ Every wait is on a condition in the page or the daemon (no sleeps, no timed asse
 
 import json
 import os
+import re
 import shutil
 
 import pytest
@@ -245,13 +246,18 @@ def test_scope_orbit_pause_trigger_cursor_trends_units(browser, screenshot, rig)
 
 
 def test_record_view_one_axis_per_unit_and_failed_run_reason(browser, screenshot, rig):
-    d, web = rig["d"], rig["web"]
+    d, web, tmp = rig["d"], rig["web"], rig["tmp"]
     _clear_fault(d)
+    # a PRBS long enough to be running whenever SAFE lands, however slow the machine
+    long = (tmp / "config" / "experiments" / "prbs.yaml").read_text()
+    long = re.sub(r"(?m)^duration_s:.*$", "duration_s: 120.0", long)
+    long = re.sub(r"(?m)^name:.*$", "name: web-long", long)
+    (tmp / "config" / "experiments" / "web-long.yaml").write_text(long)
     _open(browser, web)
     _wait(browser, lambda drv: len(drv.find_elements(By.CSS_SELECTOR, "#exp-select option")) > 2,
           what="experiments listed")
     Select(browser.find_element(By.ID, "exp-select")).select_by_value(
-        "config/experiments/prbs.yaml")
+        "config/experiments/web-long.yaml")
     browser.find_element(By.ID, "start").click()
     wait_for(lambda: d.ctl_json("experiment").get("state") == "running", timeout=120,
              interval=0.1, what="experiment running")
