@@ -1,4 +1,4 @@
-"""Argument helpers shared by the modelling commands (not a command itself).
+"""Argument and printing helpers shared by the modelling commands (not a command itself).
 
 Commands never import each other; what several of them parse is defined once here.
 """
@@ -68,3 +68,14 @@ def print_source(info: dict[str, Any], file: Any = None) -> None:
     from rigd.api.data import source_text
 
     print(source_text(info), file=file)
+
+
+def order_text(o: dict) -> str:
+    """One line: family, states, delays and why (the ``order`` entry of the JSON)."""
+    if "family" not in o:   # written before the model families
+        fits = ", ".join(f"{k}: {v} %" for k, v in o["validation_fit_by_modes"].items())
+        return f"{o['modes']} mode(s) (validation fit by number of modes: {fits}; {o['reason']})"
+    fits = ", ".join(f"{k}: {v} %" for k, v in o.get("validation_fit_by_states", {}).items())
+    return (f"{o['family']}, {o['states']} state(s), {o['modes']} mode(s), input delays "
+            f"{o['delays_samples']} samples ({o['reason']}"
+            + (f"; held-out fit by number of states: {fits}" if fits else "") + ")")

@@ -7,7 +7,7 @@ import argparse
 import json
 
 from rigd.api.data import source_text
-from rigd.cli._args import add_mat_arguments, add_order_argument, load_options
+from rigd.cli._args import add_mat_arguments, add_order_argument, load_options, order_text
 
 HELP = "diagnose a model on a record: where it fails, which physical effect is missing"
 
@@ -66,17 +66,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(summary(out))
     return 0
-
-
-def order_text(o: dict) -> str:
-    """One line: family, states, delays and why (the ``order`` entry of the JSON)."""
-    if "family" not in o:   # written before the model families
-        fits = ", ".join(f"{k}: {v} %" for k, v in o["validation_fit_by_modes"].items())
-        return f"{o['modes']} mode(s) (validation fit by number of modes: {fits}; {o['reason']})"
-    fits = ", ".join(f"{k}: {v} %" for k, v in o.get("validation_fit_by_states", {}).items())
-    return (f"{o['family']}, {o['states']} state(s), {o['modes']} mode(s), input delays "
-            f"{o['delays_samples']} samples ({o['reason']}"
-            + (f"; held-out fit by number of states: {fits}" if fits else "") + ")")
 
 
 def summary(out: dict) -> str:

@@ -23,6 +23,7 @@ from rigd.cli._args import (
     add_plain_csv_arguments,
     add_range_argument,
     load_options,
+    order_text,
     print_source,
 )
 from rigd.errors import InputError
@@ -98,8 +99,6 @@ def _print_human(model, out, yardstick: dict | None = None) -> None:
         for w in ro.get("warnings", []):
             print(f"  WARNING: {w}", file=out)
         if "order" in fp:
-            from rigd.cli.diagnose import order_text
-
             print(f"  base model: {order_text(fp['order'])}", file=out)
         for m in ro.get("modes", []):
             if "f_n_hz" in m:

@@ -111,10 +111,10 @@ def decide(submodel: str, meta: dict[str, Any], structure: Any = None,
 
 def offered(effect: Any, domain: Domain) -> bool:
     """True when ``effect`` (an :class:`rigd.effects.base.Effect`) applies to the domain:
-    all it requires (``effect.requires`` or :data:`REQUIRES`) the domain provides."""
-    need = getattr(effect, "requires", None)
-    if need is None:
-        need = REQUIRES.get(getattr(effect, "name", ""), ())
+    all it requires (``effect.requires`` and :data:`REQUIRES`: every effect has a
+    ``requires``, often empty, so the catalogue's defaults add to it) the domain provides."""
+    need = set(getattr(effect, "requires", None) or ())
+    need.update(REQUIRES.get(getattr(effect, "name", ""), ()))
     return all(n in PROVIDES[domain.name] for n in need)
 
 

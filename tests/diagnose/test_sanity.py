@@ -87,7 +87,8 @@ def test_identify_est_val_gives_diagnose_base_fit(tmp_path, capsys):
     assert main(["identify", str(tmp_path / "c.csv"), *opts, *parts, "--method", "oe",
                  "--json"]) == 0
     idf = json.loads(capsys.readouterr().out)
-    assert idf["split"] == {"estimation": [2000, 4000], "validation": [0, 2000]}
+    assert {k: idf["split"][k] for k in ("estimation", "validation")} == {
+        "estimation": [2000, 4000], "validation": [0, 2000]}
     assert main(["diagnose", str(tmp_path / "c.csv"), *opts, *parts, "--no-refit",
                  "--json"]) == 0
     diag = json.loads(capsys.readouterr().out)
@@ -199,13 +200,15 @@ def test_unstable_mode_written_by_hand_is_caught_on_load(tmp_path, capsys):
     model = tmp_path / "m.yaml"
     assert main(["identify", str(tmp_path / "c.csv"), *opts, "--order", "1", "--method", "oe",
                  "-o", str(model)]) == 0
-    assert "WARNING" not in capsys.readouterr().out
+    # the one-mode model of a three-mode record is stable: no warning of an unstable mode (the
+    # yardstick may warn that a linear model reaches more: that is not what this test is about)
+    assert "unstable mode" not in capsys.readouterr().out
     doc = yaml.safe_load(model.read_text())
     p = doc["submodels"]["generic"]["parameters"]
     p["d_11"]["value"] = -abs(p["d_11"]["value"])
     model.write_text(yaml.safe_dump(doc))
     assert main(["compare", str(model), str(tmp_path / "c.csv"), *opts, "--json"]) == 0
-    assert "unstable mode" in json.loads(capsys.readouterr().out)["warnings"][0]
+    assert any("unstable mode" in w for w in json.loads(capsys.readouterr().out)["warnings"])
     assert main(["design", "--model", str(model), "-o", str(tmp_path / "k.yaml")]) == 2
     assert "unstable mode" in capsys.readouterr().err
 

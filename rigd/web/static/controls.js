@@ -7,6 +7,9 @@ import {CHANNELS, armTrigger, pause, refreshStatus} from "./live.js";
 import {redrawTraces, setOrbitScale} from "./plots.js";
 import {loadRuns} from "./runs.js";
 
+// the Runs tab's listing is re-read this often while it is shown, ms
+const RUNS_POLL_MS = 2000;
+
 /** POST /api/<name>; the message says the outcome (errors: the server's one line). */
 export async function command(name, body, okText) {
   const r = await api("/api/" + name, body || {});
@@ -138,5 +141,8 @@ export function wireControls() {
       if (b.dataset.tab === "runs") loadRuns(); else window.dispatchEvent(new Event("resize"));
     };
   }
-  $("runs-refresh").onclick = loadRuns;
+  $("runs-refresh").onclick = () => loadRuns();
+  // while the Runs tab is shown its list follows the runs folder (a run that ends, fails or
+  // appears shows up without a click; an unchanged listing is not redrawn)
+  setInterval(() => { if ($("runs").classList.contains("active")) loadRuns(true); }, RUNS_POLL_MS);
 }

@@ -10,11 +10,19 @@ function cell(tr, text) {
   return td;
 }
 
-export async function loadRuns() {
+let lastRuns = null;
+
+/** Fill the Runs table from GET /api/runs. ``onlyIfChanged``: leave the table (and the rows a
+ * user may be about to click) untouched when the listing is the same as last time — the tab
+ * polls with it while it is shown, so a run's status and reason follow the manifest. */
+export async function loadRuns(onlyIfChanged = false) {
   const r = await api("/api/runs");
   const tb = document.querySelector("#runs-table tbody");
+  if (!r.ok) { if (!onlyIfChanged) say("runs: " + (r.body.error || r.status), "error"); return; }
+  const key = JSON.stringify(r.body);
+  if (onlyIfChanged === true && key === lastRuns) return;
+  lastRuns = key;
   tb.innerHTML = "";
-  if (!r.ok) { say("runs: " + (r.body.error || r.status), "error"); return; }
   for (const run of r.body) {
     const tr = document.createElement("tr");
     tr.dataset.run = run.name;
