@@ -29,7 +29,8 @@ def test_safe_ends_the_experiment_at_once_and_the_next_one_runs(tmp_path):
     long_spec, short_spec = tmp_path / "long.yaml", tmp_path / "short.yaml"
     long_spec.write_text(yaml.safe_dump(LONG))
     short_spec.write_text(yaml.safe_dump(SHORT))
-    run, run2 = tmp_path / "run", tmp_path / "run2"
+    # run folders inside the daemon's --runs-dir (daemon_helpers: tmp/runs): others are refused
+    run, run2 = tmp_path / "runs" / "run", tmp_path / "runs" / "run2"
     d = Daemon(tmp_path, cfg)
     try:
         d.wait_notify("READY=1")

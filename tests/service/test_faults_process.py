@@ -37,7 +37,7 @@ def test_sigterm_during_experiment(tmp_path):
     d = Daemon(tmp_path, cfg, "--record", str(main_rec), "--controller", str(ctrl))
     try:
         d.wait_notify("READY=1")
-        started = d.ctl_json("start", str(spec), "--run-dir", str(tmp_path / "run"))
+        started = d.ctl_json("start", str(spec), "--run-dir", str(tmp_path / "runs" / "run"))
         assert started["name"] == "long-prbs"
         assert wait_for(lambda: d.ctl_json("experiment")["state"] == "running", PROCESS_S)
         time.sleep(1.5)  # well inside the 30 s record
@@ -51,9 +51,9 @@ def test_sigterm_during_experiment(tmp_path):
     assert_safe_after_fault(fr, FC.OPERATOR_STOP)
     # the experiment: manifest says interrupted, its record is closed, readable, contiguous,
     # and ends in the safe state too
-    man = json.loads((tmp_path / "run" / "manifest.json").read_text())
+    man = json.loads((tmp_path / "runs" / "run" / "manifest.json").read_text())
     assert man["status"] in ("interrupted", "failed"), man["status"]
-    run = tmp_path / "run"
+    run = tmp_path / "runs" / "run"
     assert not list(run.rglob("*.part")), "no half-written file left"
     # the runner keeps completed segments only; whatever it kept is whole and contiguous, and
     # its frames are the very frames of the main recording
