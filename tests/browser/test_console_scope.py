@@ -261,6 +261,10 @@ def test_record_view_one_axis_per_unit_and_failed_run_reason(browser, screenshot
     browser.find_element(By.ID, "start").click()
     wait_for(lambda: d.ctl_json("experiment").get("state") == "running", timeout=120,
              interval=0.1, what="experiment running")
+    # past the settling check: the PRBS is playing (r = excitation while K∞ is off), so the
+    # point has a record when SAFE ends it (SAFE during settling leaves no record to open)
+    wait_for(lambda: d.ctl_json("status")["last_frame"]["r_x"] != 0.0, timeout=120,
+             interval=0.1, what="PRBS playing")
     browser.find_element(By.ID, "safe").click()           # ends it: failed, the fault named
     wait_for(lambda: d.ctl_json("experiment").get("state") == "failed", timeout=120,
              what="experiment failed")
