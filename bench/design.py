@@ -10,7 +10,7 @@ def run() -> dict:
     warnings.filterwarnings("ignore")
     from rigd.design import pipeline, robustness
     from rigd.design.weights import load_design_config
-    from rigd_drivers import sim_truth as simtruth
+    from rigd_drivers.sim import truth as simtruth
 
     cfg = load_design_config("config/design.yaml")
     G = simtruth.plant_s(4000.0, 7.0)

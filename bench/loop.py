@@ -44,7 +44,7 @@ def _controller(n=4, seed=0):
 
 
 def _plant():
-    from rigd_drivers.sim_plant import SimPlantDriver
+    from rigd_drivers.sim.driver import SimPlantDriver
 
     return SimPlantDriver({"seed": 1}, fs=5000.0)
 

@@ -38,7 +38,7 @@ def lockstep_throughput(n: int = N_LOCKSTEP) -> float:
     from rigd.loop.loop import ControlLoop
     from rigd.loop.sinks import RecordSpec
     from rigd.rigconfig import default_config
-    from rigd_drivers.sim_reynolds import ReynoldsPlantDriver
+    from rigd_drivers.reynolds.driver import ReynoldsPlantDriver
 
     cfg = default_config(clock={"mode": "lockstep", "batch_cycles": 16384})
     loop = ControlLoop(cfg, ReynoldsPlantDriver(OPTS, fs=5000.0))
@@ -54,7 +54,7 @@ def lockstep_throughput(n: int = N_LOCKSTEP) -> float:
 
 def step_samples(n: int = 20000) -> tuple[np.ndarray, float]:
     from rigd.frame import N_IN
-    from rigd_drivers.sim_reynolds import ReynoldsPlantDriver
+    from rigd_drivers.reynolds.driver import ReynoldsPlantDriver
 
     d = ReynoldsPlantDriver(OPTS, fs=5000.0)
     drives = 5.0 + 1.5 * np.repeat(_prbs(n), 2, axis=1)[:, :4] * np.array([1, 1, -1, -1])

@@ -5,7 +5,7 @@ Also :func:`resonator`, one lightly damped mode as a discrete filter (Tustin, pr
 The one place the zero-order hold (input held between samples) and the first-order hold
 (input linear between samples, "triangle hold") are written. Used by the identification
 simulators (:mod:`rigd.ident.simulate`), the state-level effects
-(:mod:`rigd.effects.state_level`) and the simulated plant (:mod:`rigd_drivers.sim_params`).
+(:mod:`rigd.effects.state_level`) and the simulated plant (:mod:`rigd_drivers.sim.params`).
 
 Both are the matrix exponential of one block matrix (Van Loan); ``expm`` is
 :func:`scipy.linalg.expm` unless the caller passes a faster one for small matrices (the

@@ -49,7 +49,7 @@ def test_the_tree_keeps_every_contract(tree):
     ("rigd/data/_probe.py", "from rigd.effects import REGISTRY\n", "Layers:"),
     ("rigd/ident/_probe.py", "import rigd.diagnose.engine\n", "Layers:"),
     ("rigd_drivers/_probe.py", "import rigd.loop.layout\n", "Drivers import only"),
-    ("rigd/design/_probe.py", "import rigd_drivers.sim_physics\n", "Below the API nothing"),
+    ("rigd/design/_probe.py", "import rigd_drivers.plant.physics\n", "Below the API nothing"),
     # with base.py importing the probe back (below): a cycle between siblings
     ("rigd/effects/_probe.py", "import rigd.effects.runout\n", "No import cycles"),
 ])

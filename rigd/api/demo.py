@@ -115,7 +115,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     model.save(model_path)
     fits = {name: sm.fit_percent for name, sm in model.submodels.items()}
     gbear_path = None
-    rob_source = "simulated plant truth (rigd_drivers.sim_truth.plant_z): no sweep in --quick"
+    rob_source = "simulated plant truth (rigd_drivers.sim.truth.plant_z): no sweep in --quick"
     if not quick:
         from rigd.ident.oprange import identify_sweep
 
@@ -138,7 +138,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     ctrl_path = out / "controller.yaml"
     plant_at = None
     if gbear_path is None:
-        from rigd_drivers import sim_truth as simtruth
+        from rigd_drivers.sim import truth as simtruth
 
         plant_at = simtruth.plant_z
     design = run_design(model_path, weights, ctrl_path, range_model=gbear_path,

@@ -6,12 +6,12 @@ import numpy as np
 
 from rigd.ident.mechanical import actuator_structure, bearing_structure
 from rigd.ident.modelfile import ModelFile, Submodel
-from rigd_drivers import sim_truth as simtruth
+from rigd_drivers.sim import truth as simtruth
 
 
 def truth_model_file(path, omega_rpm=4000.0, p_inj_bar=7.0, fs=5000.0):
     """Write a model file whose G_p is the simulated plant's truth (actuator: 2nd-order fit)."""
-    from rigd_drivers import sim_physics as sp
+    from rigd_drivers.plant import physics as sp
 
     bm = sp.bearing_matrices(omega_rpm, p_inj_bar)
     bs = bearing_structure()

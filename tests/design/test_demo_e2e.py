@@ -36,7 +36,7 @@ def test_identified_models_fit(demo):
 
 
 def test_open_loop_damping_matches_the_plant(demo):
-    from rigd_drivers import sim_physics as sp
+    from rigd_drivers.plant import physics as sp
 
     _, s = demo
     for p in (4.0, 7.0):

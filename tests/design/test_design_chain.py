@@ -11,7 +11,7 @@ from rigd.cli import main
 from rigd.controller import load_controller
 from rigd.design import pipeline, robustness
 from rigd.design.weights import ThreeLevel, load_design_config, magnitude
-from rigd_drivers import sim_truth as simtruth
+from rigd_drivers.sim import truth as simtruth
 
 CFG = "config/design.yaml"
 
@@ -60,7 +60,7 @@ def test_robust_stability_peak_and_damping_over_range(result):
     # the resonance peak of the disturbance response falls >= 3x at every realization
     assert s["disturbance_peak_reduction_min"] >= 3.0
     # closed-loop poles at the impact operating points: damping >= 3x (4 bar), 4x (7 bar)
-    from rigd_drivers import sim_physics as sp
+    from rigd_drivers.plant import physics as sp
 
     for p, factor in ((4.0, 3.0), (7.0, 4.0)):
         G = simtruth.plant_z(0.0, p)
@@ -100,7 +100,7 @@ def test_controller_inactive_at_low_frequency(result):
 def test_reduction_at_resonance_is_measured_at_each_realizations_modes(result):
     """Reduction at each realization's own open-loop resonances (paper Fig. 4's dips): the
     resonances are the plant's bearing modes and S_o is reduced there."""
-    from rigd_drivers import sim_physics as sp
+    from rigd_drivers.plant import physics as sp
 
     cfg, res = result
     rob = robustness.analyze(simtruth.plant_z, res.K_z, cfg.robustness)

@@ -14,7 +14,7 @@ from rigd.design.fixed_order import FixedOrder
 from rigd.design.structured_design import design_set, problem
 from rigd.design.weights import load_design_config
 from rigd.errors import InputError
-from rigd_drivers import sim_truth as simtruth
+from rigd_drivers.sim import truth as simtruth
 
 CFG = "config/design.yaml"
 

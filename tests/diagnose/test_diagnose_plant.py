@@ -1,5 +1,5 @@
 """Must-show on the project's simulated plant (rigd.loop.sim.simulate_record on
-drivers/sim_plant.py, effects switched in the plant options): each hidden effect is ranked
+drivers/sim/driver.py, effects switched in the plant options): each hidden effect is ranked
 first, significant, and adding it cuts the error (100 − fit) at least 3×; with no hidden
 effect nothing is significant (5 seeds × 3 operating points, both sub-models); two hidden
 effects at once are both found and each added one lowers the error.

@@ -1,12 +1,12 @@
 """Known parameters through the real loop: records from the simulated plant (rigd.loop.sim)
-identified and checked against the plant's true physics (rigd_drivers.sim_physics)."""
+identified and checked against the plant's true physics (rigd_drivers.plant.physics)."""
 
 import numpy as np
 import pytest
 from ident_helpers import prbs
 
 sim = pytest.importorskip("rigd.loop.sim")
-sp = pytest.importorskip("rigd_drivers.sim_physics")
+sp = pytest.importorskip("rigd_drivers.plant.physics")
 
 from rigd.ident.workflow import identify_record  # noqa: E402
 

@@ -36,7 +36,7 @@ class InjectingDriver(FastDriver):
 
 
 def make_plant(fs=5000.0, **opts):
-    from rigd_drivers.sim_plant import SimPlantDriver
+    from rigd_drivers.sim.driver import SimPlantDriver
 
     return SimPlantDriver({"seed": 5, **opts}, fs=fs)
 

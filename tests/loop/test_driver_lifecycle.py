@@ -73,7 +73,7 @@ def test_transitions_are_ordered_and_idempotent():
 def test_serial_deactivate_holds_the_device_and_survives_writes(tmp_path):
     """Deactivated, the serial driver has told the front-end to hold its safe voltage and
     sends no drive, whatever is written; activated again, drives reach the valves."""
-    from rigd_drivers.serial_frame import SerialFrameDriver
+    from rigd_drivers.serial.driver import SerialFrameDriver
 
     # the emulator in a process of its own (tests/service/emuproc.py: as a thread of this
     # process it was starved on a loaded machine); its host timeout (60 s) cannot be what

@@ -32,7 +32,7 @@ def test_eq1_holds_in_every_recorded_frame():
 
 
 def test_valve_follows_reference_step_within_settling_time():
-    from rigd_drivers import sim_physics as phys
+    from rigd_drivers.plant import physics as phys
 
     exc = np.zeros((300, 2))
     exc[:, 0] = 1.0                       # r_x step: r_p2 = r0 + 1 V

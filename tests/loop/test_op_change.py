@@ -12,7 +12,7 @@ import threading
 import numpy as np
 from loop_helpers import make_plant
 
-import rigd_drivers.sim_params as sim_params
+import rigd_drivers.sim.params as sim_params
 from rigd.loop.loop import ControlLoop
 from rigd.rigconfig import default_config
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rigd_drivers.sim_info import run_pd
+from rigd_drivers.sim.info import run_pd
 
 FS = 5000.0
 QUIET = {"noise": {"e_um": 0.0, "y_p_v": 0.0}}

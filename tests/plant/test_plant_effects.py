@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from rigd.frame import IN_E_X, IN_E_Y, IN_PHI, IN_YP1, N_IN
-from rigd_drivers import sim_physics as phys
-from rigd_drivers.sim_plant import SimPlantDriver
+from rigd_drivers.plant import physics as phys
+from rigd_drivers.sim.driver import SimPlantDriver
 
 QUIET = {"noise": {"e_um": 0.0, "y_p_v": 0.0}}
 

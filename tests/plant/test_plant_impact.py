@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from rigd.frame import IN_E_X, IN_E_Y, IN_F_X, IN_F_Y
-from rigd_drivers import sim_physics as phys
-from rigd_drivers.sim_plant import SimPlantDriver
+from rigd_drivers.plant import physics as phys
+from rigd_drivers.sim.driver import SimPlantDriver
 
 
 def _impact_record(omega, p, axis, opts=None, peak=20.0, dur=1e-3, n=1500):

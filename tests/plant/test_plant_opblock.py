@@ -1,4 +1,4 @@
-"""The compiled operating-point block (rigd_drivers.sim_opblock) against an independent build.
+"""The compiled operating-point block (rigd_drivers.sim.opblock) against an independent build.
 
 An operating-point change used to assemble the block in Python around the matrix exponentials
 (~150 µs of GIL per change: the loop thread overran waiting for it, bench figure
@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from rigd import lti
-from rigd_drivers import sim_kernel as k
-from rigd_drivers import sim_physics as phys
-from rigd_drivers.sim_options import PlantOptions
-from rigd_drivers.sim_params import ParamBlocks, bearing_augmented
-from rigd_drivers.sim_plant import SimPlantDriver
+from rigd_drivers.plant import physics as phys
+from rigd_drivers.sim import kernel as k
+from rigd_drivers.sim.driver import SimPlantDriver
+from rigd_drivers.sim.options import PlantOptions
+from rigd_drivers.sim.params import ParamBlocks, bearing_augmented
 
 ALL_ON = {"effects": {name: {"enabled": True} for name in
                       ("extra_mode", "cubic_stiffness", "runout", "creep", "hysteresis",

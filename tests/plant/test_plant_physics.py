@@ -1,10 +1,10 @@
-"""True parameters vs operating point (rigd_drivers.sim_physics)."""
+"""True parameters vs operating point (rigd_drivers.plant.physics)."""
 
 import control
 import numpy as np
 import pytest
 
-from rigd_drivers import sim_physics as phys
+from rigd_drivers.plant import physics as phys
 
 
 def test_modes_inside_band_over_the_whole_range():

@@ -6,9 +6,9 @@ import pytest
 
 from rigd.configio import read_yaml, validate
 from rigd.frame import IN_YP1
-from rigd_drivers import sim_physics as phys
-from rigd_drivers.sim_options import PlantOptions
-from rigd_drivers.sim_plant import SimPlantDriver
+from rigd_drivers.plant import physics as phys
+from rigd_drivers.sim.driver import SimPlantDriver
+from rigd_drivers.sim.options import PlantOptions
 
 QUIET = {"noise": {"e_um": 0.0, "y_p_v": 0.0}}
 

@@ -8,7 +8,7 @@ import pytest
 from rigd.driver import driver_class
 from rigd.errors import InputError
 from rigd.loop.sim import simulate_record
-from rigd_drivers.sim_reynolds import ReynoldsPlantDriver
+from rigd_drivers.reynolds.driver import ReynoldsPlantDriver
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "config" / "sim_reynolds.yaml"

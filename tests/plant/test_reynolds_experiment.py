@@ -7,7 +7,7 @@ import pytest
 
 from rigd.api.experiment import run_experiment
 from rigd.api.impact import analyze_impact
-from rigd_drivers.sim_reynolds import ReynoldsPlantDriver
+from rigd_drivers.reynolds.driver import ReynoldsPlantDriver
 
 CONFIG = Path(__file__).resolve().parents[2] / "config" / "sim_reynolds.yaml"
 

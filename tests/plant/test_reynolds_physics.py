@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from rigd.frame import IN_E_X, IN_E_Y, N_IN
-from rigd_drivers import sim_reynolds_analysis as an
-from rigd_drivers import sim_reynolds_kernel as k
-from rigd_drivers import sim_reynolds_layout as L
+from rigd_drivers.reynolds import analysis as an
+from rigd_drivers.reynolds import kernel as k
+from rigd_drivers.reynolds import layout as L
 
 QUIET = {"noise": {"e_um": 0.0, "y_p_v": 0.0}}
 C = 25e-6
@@ -186,7 +186,7 @@ def test_rest_state_is_at_rest():
 _ALLOC = """
 import numpy as np
 from numba.core.runtime import rtsys
-from rigd_drivers import sim_reynolds_analysis as an, sim_reynolds_kernel as k
+from rigd_drivers.reynolds import analysis as an, kernel as k
 from rigd.frame import N_IN
 pa = an.make_arrays({})
 an.rest(pa, 5.0)

@@ -17,7 +17,7 @@ unplug — or long enough to delay the plant past what the valve loop tolerates,
 ``shaft_displacement`` at seq 800).
 
 :class:`EmulatorProcess` has the attributes and methods the tests use of
-:class:`rigd_drivers.frontend_emulator.FrontendEmulator` (``port``, counters, ``holding``,
+:class:`rigd_drivers.serial.emulator.FrontendEmulator` (``port``, counters, ``holding``,
 ``applied``, fault injection by assignment, ``unplug``/``replug``/``stop``); each access is
 one round trip over a pipe, and a method call returns once the child has done it (so an
 ``unplug`` fired as a loop event has happened before the loop's next cycle).
@@ -41,7 +41,7 @@ def _child(conn, args, kwargs) -> None:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(EMULATOR_PRIORITY))
     except (OSError, AttributeError):
         pass
-    from rigd_drivers.frontend_emulator import FrontendEmulator
+    from rigd_drivers.serial.emulator import FrontendEmulator
 
     emu = FrontendEmulator(*args, **kwargs).start()
     # a powered front-end streams: ready once its first frame is out (the first iteration

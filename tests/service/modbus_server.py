@@ -13,7 +13,7 @@ import tty
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
-from rigd_drivers.modbus import float_to_regs, regs_to_float
+from rigd_drivers.modbus.driver import float_to_regs, regs_to_float
 
 
 def free_port():

@@ -158,7 +158,7 @@ def test_fault_serial_disconnect_then_reconnect(tmp_path):
     from emuproc import EmulatorProcess
     from faultkit import wait_for
 
-    from rigd_drivers.serial_frame import DRV_DISCONNECT
+    from rigd_drivers.serial.driver import DRV_DISCONNECT
 
     emu = EmulatorProcess(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.5,
                           tx_buffer_s=0.5)
@@ -171,7 +171,7 @@ def test_fault_serial_disconnect_then_reconnect(tmp_path):
                 # a generous frame timeout: on a saturated CI host the emulator can be starved
                 # for more than 250 ms (CI on f682e5e latched a timeout, status bits 0x100, at
                 # cycle 635, before the unplug). The unplug is seen by EIO/HUP on the port, not
-                # by the timeout (serial_frame.read), so 5 s takes nothing from this test; the
+                # by the timeout (rigd_drivers.serial.driver.read), so 5 s takes nothing from this test; the
                 # timeout fault has its own test (test_serial.py)
                 "port": emu.port, "reconnect_s": 0.05, "timeout_ms": 5000.0,
                 "fault_on_gap": False}}},

@@ -75,7 +75,7 @@ def test_recordings(tmp_path, umask):
     from rigd.loop.loop import ControlLoop
     from rigd.loop.sinks import RecordSpec
     from rigd.rigconfig import default_config
-    from rigd_drivers.sim_plant import SimPlantDriver
+    from rigd_drivers.sim.driver import SimPlantDriver
 
     loop = ControlLoop(default_config(clock={"mode": "lockstep"}),
                        SimPlantDriver({"seed": 1}, fs=5000.0))

@@ -9,7 +9,7 @@ from modbus_server import NullModem, PlcServer, free_port
 from rigd.configio import load_model
 from rigd.errors import FaultError, InputError
 from rigd.frame import IN_OMEGA, IN_P_INJ, N_IN
-from rigd_drivers.modbus import ModbusDriver, ModbusOptions, float_to_regs, regs_to_float
+from rigd_drivers.modbus.driver import ModbusDriver, ModbusOptions, float_to_regs, regs_to_float
 
 
 def _wait(pred, timeout=5.0):
@@ -132,7 +132,7 @@ def test_shipped_rig_config_validates_with_these_drivers():
     from pathlib import Path
 
     from rigd.rigconfig import load_config
-    from rigd_drivers.serial_frame import SerialFrameDriver, SerialFrameOptions
+    from rigd_drivers.serial.driver import SerialFrameDriver, SerialFrameOptions
 
     lc = load_config(Path(__file__).resolve().parents[2] / "config" / "rig.yaml")
     cls, opts = lc.driver_options("fast")

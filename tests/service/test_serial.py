@@ -14,8 +14,8 @@ from faultkit import wait_for
 
 from rigd.errors import FaultError
 from rigd.frame import IN_E_X, IN_PHI, IN_SEQ, IN_STATUS, IN_YP2, N_IN
-from rigd_drivers import serial_protocol as sp
-from rigd_drivers.serial_frame import (
+from rigd_drivers.serial import protocol as sp
+from rigd_drivers.serial.driver import (
     DRV_CRC,
     DRV_DISCONNECT,
     DRV_GAP,

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rigd_drivers import sim_physics as phys
-from rigd_drivers import sim_reynolds_layout as L
-from rigd_drivers.sim_params import zoh
-from rigd_drivers.sim_reynolds_film import (
+from rigd.lti import zoh
+from rigd_drivers.plant import physics as phys
+from rigd_drivers.reynolds import layout as L
+from rigd_drivers.reynolds.film import (
     G_AREA,
     G_C,
     G_CDA,
@@ -32,8 +32,8 @@ from rigd_drivers.sim_reynolds_film import (
     NR,
     NV,
 )
-from rigd_drivers.sim_reynolds_options import ReynoldsOptions
-from rigd_drivers.sim_reynolds_shaft import ShaftGeometry, ShaftModel, build_shaft
+from rigd_drivers.reynolds.options import ReynoldsOptions
+from rigd_drivers.reynolds.shaft import ShaftGeometry, ShaftModel, build_shaft
 
 R_AIR = 287.05        # J/(kg K)
 GAMMA_AIR = 1.4

@@ -23,7 +23,7 @@ class Noise(StrictModel):
 
 
 class Valves(StrictModel):
-    """Piezo valves (true parameters in ``sim_physics.VALVE_*``)."""
+    """Piezo valves (true parameters in ``rigd_drivers.plant.physics.VALVE_*``)."""
 
     f_scale: float = Field(1.0, gt=0.25, le=4.0, description="scales every valve's frequencies")
     initial_drive_v: float = Field(5.0, ge=0.0, le=10.0,

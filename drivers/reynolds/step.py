@@ -2,7 +2,7 @@
 
 The shaft unknowns are eliminated (x_b = C_b F(p) + x_known, with C_b = Φ_b S⁻¹ Φ_bᵀ and
 S = α² I + α C_r + K_r, α = 3/(2 dt)); Newton on the film pressures solves the
-block-cyclic-tridiagonal film Jacobian (:func:`rigd_drivers.sim_reynolds_solver.block_cyclic_solve`)
+block-cyclic-tridiagonal film Jacobian (:func:`rigd_drivers.reynolds.solver.block_cyclic_solve`)
 with the shaft (rank 2) and the four orifices (rank 4) as a Sherman–Morrison–Woodbury update.
 Nothing allocates (views into the kernel's arrays).
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numba
 
-from rigd_drivers.sim_reynolds_film import (
+from rigd_drivers.reynolds.film import (
     G_AREA,
     G_C,
     G_N,
@@ -21,7 +21,7 @@ from rigd_drivers.sim_reynolds_film import (
     film_force,
     film_rates,
 )
-from rigd_drivers.sim_reynolds_layout import (
+from rigd_drivers.reynolds.layout import (
     H_ACT,
     H_M,
     H_MZ,
@@ -79,7 +79,7 @@ from rigd_drivers.sim_reynolds_layout import (
     W_TMP,
     W_VR,
 )
-from rigd_drivers.sim_reynolds_solver import block_cyclic_solve, inv_small
+from rigd_drivers.reynolds.solver import block_cyclic_solve, inv_small
 
 
 @numba.njit(cache=True, nogil=True)

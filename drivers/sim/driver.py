@@ -2,10 +2,10 @@
 
 Four piezo valves (drive voltage → position, second order, optional hysteresis and creep), the
 lumped 2-DOF bearing of Eq. 4 with M, D, G, K, B_p depending on the operating point
-(Ω, P_I) (see :mod:`rigd_drivers.sim_physics`), encoder angle, optional run-out and mass
+(Ω, P_I) (see :mod:`rigd_drivers.plant.physics`), encoder angle, optional run-out and mass
 unbalance, sensor noise, an impact hammer, and hidden effects switched on in ``plant.effects``.
 
-The compiled kernel (:func:`rigd_drivers.sim_kernel.plant_step`) is exposed as
+The compiled kernel (:func:`rigd_drivers.sim.kernel.plant_step`) is exposed as
 ``driver.kernel`` with its arrays ``driver.state`` and ``driver.params`` so that the lock-step
 runner can call it from its own compiled loop; :meth:`read`/:meth:`write` use the same kernel.
 """
@@ -17,11 +17,11 @@ from typing import Any
 import numpy as np
 
 from rigd.frame import N_IN
-from rigd_drivers import sim_kernel as k
-from rigd_drivers import sim_physics as phys
-from rigd_drivers.sim_base import SimulatedPlantDriver
-from rigd_drivers.sim_options import PlantOptions
-from rigd_drivers.sim_params import ParamBlocks, rest_state
+from rigd_drivers.plant import physics as phys
+from rigd_drivers.plant.base import SimulatedPlantDriver
+from rigd_drivers.sim import kernel as k
+from rigd_drivers.sim.options import PlantOptions
+from rigd_drivers.sim.params import ParamBlocks, rest_state
 
 
 class SimPlantDriver(SimulatedPlantDriver):

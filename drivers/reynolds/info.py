@@ -1,4 +1,4 @@
-"""``python -m rigd_drivers.sim_reynolds_info``: the physics-grade plant's figures as JSON.
+"""``python -m rigd_drivers.reynolds.info``: the physics-grade plant's figures as JSON.
 
 Prints the checks of docs/plant.md ("The physics-grade plant"): grid convergence, the Ausman
 comparison, stiffness and modes against P_I and Ω, the film mass balance and the kernel's CPU
@@ -15,9 +15,9 @@ import time
 import numpy as np
 
 from rigd.frame import N_IN
-from rigd_drivers import sim_reynolds_analysis as an
-from rigd_drivers import sim_reynolds_kernel as k
-from rigd_drivers import sim_reynolds_layout as L
+from rigd_drivers.reynolds import analysis as an
+from rigd_drivers.reynolds import kernel as k
+from rigd_drivers.reynolds import layout as L
 
 C = 25e-6
 

@@ -1,21 +1,21 @@
 """The operating-point part of the simulated plant's parameter block, compiled without the GIL.
 
 An operating-point change while the 5 kHz loop runs is prepared in the caller's thread
-(:meth:`rigd_drivers.sim_base.SimulatedPlantDriver.prepare_operating_point`). Every moment
+(:meth:`rigd_drivers.plant.base.SimulatedPlantDriver.prepare_operating_point`). Every moment
 that thread holds the GIL, the loop thread may have to wait for it when it wakes for its next
 cycle, and a GIL hand-over costs up to the switch interval (200 µs, one period) plus a
 wake-up: an overrun (docs/loop.md, bench figure ``op_change_miss_fraction``). The Python and
 numpy glue around the matrix exponentials (balancing, block assembly, about 150 µs per change)
 held it; here all of it runs in one compiled call with the GIL released:
 
-* the bearing matrices of Eq. 4 (:func:`rigd_drivers.sim_physics.bearing_core`);
+* the bearing matrices of Eq. 4 (:func:`rigd_drivers.plant.physics.bearing_core`);
 * the first-order-hold discretisation of the augmented bearing for one period and for one
   sub-step (the same Van Loan block and power-of-two balancing as :func:`rigd.lti.foh`);
 * the block entries that depend on (Ω, P_I): Φ/G0/G1 (period and sub-step), the cubic
   stiffness (its ratio to the mean film stiffness), the unbalance force, Ω and P_I.
 
 Everything else in the block does not depend on the operating point and comes from a
-template built once per driver (:class:`rigd_drivers.sim_params.ParamBlocks`).
+template built once per driver (:class:`rigd_drivers.sim.params.ParamBlocks`).
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ import math
 import numpy as np
 from numba import njit
 
-from rigd_drivers import sim_kernel as k
-from rigd_drivers.sim_expm import expm
-from rigd_drivers.sim_physics import GAP_UM, bearing_core
+from rigd_drivers.plant.physics import GAP_UM, bearing_core
+from rigd_drivers.sim import kernel as k
+from rigd_drivers.sim.expm import expm
 
 
 @njit(cache=True, nogil=True)

@@ -1,6 +1,6 @@
 """An emulator of the microcontroller front-end, speaking the serial frame protocol.
 
-It plays the device side of :mod:`rigd_drivers.serial_protocol` on a serial port or on the
+It plays the device side of :mod:`rigd_drivers.serial.protocol` on a serial port or on the
 master side of a pseudo-terminal: sensor frames at ``fs`` (5 kHz by default, paced by the
 monotonic clock and sent in small bursts), drive frames read back and applied to a simple
 valve/shaft model, the device's own safe hold when the host goes quiet, and fault injection
@@ -8,7 +8,7 @@ valve/shaft model, the device's own safe hold when the host goes quiet, and faul
 
 Use it in tests and to bench-test a rig PC without hardware::
 
-    python -m rigd_drivers.frontend_emulator --link /tmp/rigd-frontend
+    python -m rigd_drivers.serial.emulator --link /tmp/rigd-frontend
     # then in the rig config: drivers.serial.port: /tmp/rigd-frontend
 
 The "unplug" of :meth:`FrontendEmulator.unplug` closes the pty master (the host sees EIO/HUP,
@@ -27,7 +27,7 @@ import tty
 
 import numpy as np
 
-from rigd_drivers import serial_protocol as sp
+from rigd_drivers.serial import protocol as sp
 
 
 class FrontendEmulator:

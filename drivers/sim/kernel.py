@@ -39,8 +39,8 @@ from rigd.frame import (
     IN_YP1,
     N_IN,
 )
-from rigd_drivers.sim_amplifier import amplifier_output as _amplifier_output
-from rigd_drivers.sim_noise import sensor_noise as _sensor_noise
+from rigd_drivers.plant.amplifier import amplifier_output as _amplifier_output
+from rigd_drivers.plant.noise import sensor_noise as _sensor_noise
 
 NX = 6          # bearing states: e_x, e_y, de_x, de_y, q, dq (q: extra mode)
 NW = 4          # FOH inputs: u_x, u_y (V), f_x, f_y (N)

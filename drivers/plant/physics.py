@@ -1,6 +1,6 @@
 """True physical parameters of the simulated rotor-gas bearing rig vs operating point.
 
-Plain functions, no state: the simulated plant (:mod:`rigd_drivers.sim_plant`) builds its
+Plain functions, no state: the simulated plant (:mod:`rigd_drivers.sim.driver`) builds its
 kernel parameters from them, tests compare identified models against them, and the H∞
 design engineer can read the "truth" they are designing for.
 

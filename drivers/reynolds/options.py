@@ -8,7 +8,7 @@ from __future__ import annotations
 from pydantic import Field, model_validator
 
 from rigd.configio import StrictModel
-from rigd_drivers.sim_options import Noise, Valves
+from rigd_drivers.sim.options import Noise, Valves
 
 
 class Grid(StrictModel):

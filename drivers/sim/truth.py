@@ -2,7 +2,7 @@
 identified operating-range model there). It lives with the simulator it reads (``rigd.design``
 must not import the simulator).
 
-G_p = G_bear·G_act with G_bear from ``rigd_drivers.sim_physics.bearing_ss`` (Eqs. 5–6) and
+G_p = G_bear·G_act with G_bear from ``rigd_drivers.plant.physics.bearing_ss`` (Eqs. 5–6) and
 G_act the lumped valve pairs under their PD loops (``lumped_actuator_tf``, Eq. 8), both as the
 simulated plant implements them. Discrete at ``fs_hz`` (ZOH bearing) — this is the loop the
 lock-step simulation runs — or, for design, continuous with a second-order actuator fitted to
@@ -17,7 +17,7 @@ import numpy as np
 
 
 def _sp():
-    from rigd_drivers import sim_physics
+    from rigd_drivers.plant import physics as sim_physics
 
     return sim_physics
 

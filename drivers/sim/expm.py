@@ -1,6 +1,6 @@
 """Matrix exponential compiled without the GIL, for the simulated plant's parameter blocks.
 
-An operating-point change builds the plant's discretisation (ZOH/FOH, :mod:`.sim_params`) in
+An operating-point change builds the plant's discretisation (ZOH/FOH, :mod:`.params`) in
 the caller's thread while the 5 kHz loop thread runs. ``scipy.linalg.expm`` holds the GIL
 while it works, and every GIL hand-over can cost the loop thread a period (docs/loop.md, the
 ``op_change_miss_fraction`` bench figure); this version runs with the GIL released.

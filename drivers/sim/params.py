@@ -1,9 +1,9 @@
 """Kernel parameter and state arrays of the simulated plant, built from its options.
 
 :class:`ParamBlocks` (and :func:`param_block`) turn (options, Ω, P_I, f_s) into the
-active-parameter block of :mod:`rigd_drivers.sim_kernel` (exact ZOH/FOH discretisations
+active-parameter block of :mod:`rigd_drivers.sim.kernel` (exact ZOH/FOH discretisations
 included); :func:`rest_state` gives the plant at rest under a constant drive. The
-operating-point part is one compiled call without the GIL (:mod:`.sim_opblock`): an
+operating-point part is one compiled call without the GIL (:mod:`.opblock`): an
 operating-point change is prepared in another thread while the loop thread cycles.
 """
 
@@ -15,11 +15,11 @@ import math
 import numpy as np
 
 from rigd.lti import zoh
-from rigd_drivers import sim_kernel as k
-from rigd_drivers import sim_physics as phys
-from rigd_drivers.sim_expm import expm
-from rigd_drivers.sim_opblock import fill_operating_point
-from rigd_drivers.sim_options import PlantOptions
+from rigd_drivers.plant import physics as phys
+from rigd_drivers.sim import kernel as k
+from rigd_drivers.sim.expm import expm
+from rigd_drivers.sim.opblock import fill_operating_point
+from rigd_drivers.sim.options import PlantOptions
 
 
 def bearing_augmented(opts: PlantOptions, omega_rpm: float, p_inj_bar: float):
@@ -68,7 +68,7 @@ class ParamBlocks:
 
     The entries that do not depend on (Ω, P_I) — sensors, valves, effects, noise — are built
     once, here (the template); each operating point is then one compiled call without the GIL
-    (:func:`rigd_drivers.sim_opblock.fill_operating_point`) on a copy of the template, so an
+    (:func:`rigd_drivers.sim.opblock.fill_operating_point`) on a copy of the template, so an
     operating-point change prepared while the loop runs barely holds the GIL.
 
     Parameters

@@ -1,8 +1,8 @@
 """What the simulated plant drivers share: options validation, loop-rate check, the staged
 operating-point swap, the impact hammer request and the open-loop batch.
 
-:class:`SimulatedPlantDriver` is the base of the ``sim`` (:mod:`rigd_drivers.sim_plant`) and
-``sim_reynolds`` (:mod:`rigd_drivers.sim_reynolds`) drivers. Each subclass keeps its own
+:class:`SimulatedPlantDriver` is the base of the ``sim`` (:mod:`rigd_drivers.sim.driver`) and
+``sim_reynolds`` (:mod:`rigd_drivers.reynolds.driver`) drivers. Each subclass keeps its own
 physics: it builds its ``state``/``params`` arrays and the two views the base uses
 (``_frame_view``, ``_staged_view``), names its compiled kernel module (``_kmod``: ``plant_step``,
 ``plant_sense``, ``run_batch``) and the module holding its ``params`` header indices (``_hdr``:
@@ -23,7 +23,7 @@ from pydantic import BaseModel, ValidationError
 from rigd.driver import FastDriver
 from rigd.errors import InputError
 from rigd.frame import N_IN, N_OUT
-from rigd_drivers import sim_physics as phys
+from rigd_drivers.plant import physics as phys
 
 
 def _fmt_loc(loc: tuple) -> str:

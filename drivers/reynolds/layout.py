@@ -2,7 +2,7 @@
 scalar regions.
 
 Array sizes depend on the grid and the number of modes, so every offset is stored in the
-``params`` header by :func:`rigd_drivers.sim_reynolds_params.build_layout`: ``H_*`` are fixed
+``params`` header by :func:`rigd_drivers.reynolds.params.build_layout`: ``H_*`` are fixed
 header slots, ``O_*`` header slots holding block-relative offsets, ``T_*``/``W_*`` header slots
 holding state offsets (T: plant state, W: work arrays); ``SC_*`` index the scalars of the
 parameter block, ``ST_*`` the scalars of the state.

@@ -14,8 +14,8 @@ Grid: ``n_theta`` cells in θ (index i), ``mz`` cells in z (index j, j = 0 at th
 unknown k = i·mz + j. Face fluxes: central p_f, exact h_f at the face, gradients by two-point
 differences; the θ-wedge term central (cell Péclet number ≪ 1 at these bearing numbers).
 
-The time stepping (BDF2, Newton) is in :mod:`rigd_drivers.sim_reynolds_step`, the linear
-solver in :mod:`rigd_drivers.sim_reynolds_solver`. Nothing allocates.
+The time stepping (BDF2, Newton) is in :mod:`rigd_drivers.reynolds.step`, the linear
+solver in :mod:`rigd_drivers.reynolds.solver`. Nothing allocates.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ exactly (ZOH, as the ``sim`` plant), then ``n_sub`` BDF2 sub-steps of the couple
 shaft system (:func:`substep`), with the orifice areas interpolated linearly between the valve
 positions at the start and the end of the period, then the sensors at the disc.
 
-Array layouts: :mod:`rigd_drivers.sim_reynolds_layout` (every offset is stored in the
+Array layouts: :mod:`rigd_drivers.reynolds.layout` (every offset is stored in the
 ``params`` header); the parameter block is active/staged/scratch with a sequence lock, as in
 the ``sim`` plant.
 Nothing allocates per step (views only).
@@ -30,10 +30,10 @@ from rigd.frame import (
     IN_YP1,
     N_IN,
 )
-from rigd_drivers.sim_amplifier import amplifier_output as _amplifier_output
-from rigd_drivers.sim_noise import sensor_noise as _sensor_noise
-from rigd_drivers.sim_reynolds_film import NV
-from rigd_drivers.sim_reynolds_layout import (
+from rigd_drivers.plant.amplifier import amplifier_output as _amplifier_output
+from rigd_drivers.plant.noise import sensor_noise as _sensor_noise
+from rigd_drivers.reynolds.film import NV
+from rigd_drivers.reynolds.layout import (
     H_ACT,
     H_IMP_AXIS,
     H_IMP_DUR,
@@ -81,7 +81,7 @@ from rigd_drivers.sim_reynolds_layout import (
     T_XV,
     W_AF,
 )
-from rigd_drivers.sim_reynolds_step import substep
+from rigd_drivers.reynolds.step import substep
 
 TWO_PI = 2.0 * math.pi
 

@@ -1,4 +1,4 @@
-"""Figures of the simulated plant for docs/plant.md: ``python -m rigd_drivers.sim_info``.
+"""Figures of the simulated plant for docs/plant.md: ``python -m rigd_drivers.sim.info``.
 
 Prints (as JSON) the mode table over the operating grid, the valve closed-loop step figures
 under the suggested PD gains, the change each hidden effect makes to an identification
@@ -13,9 +13,9 @@ import time
 import numpy as np
 
 from rigd.frame import IN_YP1, N_IN
-from rigd_drivers import sim_kernel as k
-from rigd_drivers import sim_physics as phys
-from rigd_drivers.sim_plant import SimPlantDriver
+from rigd_drivers.plant import physics as phys
+from rigd_drivers.sim import kernel as k
+from rigd_drivers.sim.driver import SimPlantDriver
 
 QUIET = {"noise": {"e_um": 0.0, "y_p_v": 0.0}}
 

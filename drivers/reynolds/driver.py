@@ -14,13 +14,13 @@ from typing import Any
 import numpy as np
 
 from rigd.frame import N_IN
-from rigd_drivers import sim_physics as phys
-from rigd_drivers import sim_reynolds_analysis as an
-from rigd_drivers import sim_reynolds_kernel as k
-from rigd_drivers import sim_reynolds_layout as L
-from rigd_drivers.sim_base import SimulatedPlantDriver
-from rigd_drivers.sim_reynolds_options import ReynoldsOptions
-from rigd_drivers.sim_reynolds_params import param_block
+from rigd_drivers.plant import physics as phys
+from rigd_drivers.plant.base import SimulatedPlantDriver
+from rigd_drivers.reynolds import analysis as an
+from rigd_drivers.reynolds import kernel as k
+from rigd_drivers.reynolds import layout as L
+from rigd_drivers.reynolds.options import ReynoldsOptions
+from rigd_drivers.reynolds.params import param_block
 
 
 class ReynoldsPlantDriver(SimulatedPlantDriver):

@@ -12,13 +12,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rigd_drivers import sim_reynolds_kernel as k
-from rigd_drivers import sim_reynolds_layout as L
-from rigd_drivers import sim_reynolds_step as S
-from rigd_drivers.sim_reynolds_film import G_AREA, G_C, G_N, NV, film_force, film_rates
-from rigd_drivers.sim_reynolds_options import ReynoldsOptions
-from rigd_drivers.sim_reynolds_params import Layout, build_layout, param_block, shaft_model
-from rigd_drivers.sim_reynolds_shaft import ShaftModel
+from rigd_drivers.reynolds import kernel as k
+from rigd_drivers.reynolds import layout as L
+from rigd_drivers.reynolds import step as S
+from rigd_drivers.reynolds.film import G_AREA, G_C, G_N, NV, film_force, film_rates
+from rigd_drivers.reynolds.options import ReynoldsOptions
+from rigd_drivers.reynolds.params import Layout, build_layout, param_block, shaft_model
+from rigd_drivers.reynolds.shaft import ShaftModel
 
 
 @dataclass
@@ -136,7 +136,7 @@ def film_stiffness(pa: PlantArrays, afrac, x0=(0.0, 0.0), de: float = 0.05e-6) -
 
 def valve_area_fractions(opts: ReynoldsOptions, drive_v: float) -> np.ndarray:
     """Area fractions of the four valves at rest under a constant drive (V)."""
-    from rigd_drivers import sim_physics as phys
+    from rigd_drivers.plant import physics as phys
 
     out = np.zeros(NV)
     for i, v in enumerate(phys.valve_params(opts.valves.f_scale)):
@@ -159,7 +159,7 @@ def equilibrium(pa: PlantArrays, afrac, *, tol_n: float = 1e-9) -> np.ndarray:
 
 def rest(pa: PlantArrays, drive_v: float) -> None:
     """Put the plant at rest under a constant drive: valves, film, shaft, histories."""
-    from rigd_drivers import sim_physics as phys
+    from rigd_drivers.plant import physics as phys
 
     pa.state[:] = 0.0
     pa.p[:] = pa.geo[7]
