@@ -171,8 +171,8 @@ def test_fault_serial_disconnect_then_reconnect(tmp_path):
                 # a generous frame timeout: on a saturated CI host the emulator can be starved
                 # for more than 250 ms (CI on f682e5e latched a timeout, status bits 0x100, at
                 # cycle 635, before the unplug). The unplug is seen by EIO/HUP on the port, not
-                # by the timeout (rigd_drivers.serial.driver.read), so 5 s takes nothing from this test; the
-                # timeout fault has its own test (test_serial.py)
+                # by the timeout (rigd_drivers.serial.driver), so 5 s takes nothing from this
+                # test; the timeout fault has its own test (test_serial.py)
                 "port": emu.port, "reconnect_s": 0.05, "timeout_ms": 5000.0,
                 "fault_on_gap": False}}},
             supervisor={"stale_frames": 0}, clock={"overrun": "catch_up"})
