@@ -44,6 +44,7 @@ from rigd.loop.realtime import RealTimeClock
 from rigd.loop.recorder import Recorder
 from rigd.loop.safeword import W_ACK_CODE, W_ACK_FAULT_SEQ, SafeWord
 from rigd.loop.segment import Segment, SegmentPlayer, SegmentResult, segment_inputs
+from rigd.loop.setpoint import SetPoint
 from rigd.loop.sinks import H5Sink, MemorySink, RecordSpec, Sink, make_sink
 from rigd.loop.slow import SlowPollers
 from rigd.loop.state import KernelState, PackedController
@@ -110,6 +111,10 @@ class ControlLoop:
         self.supervisor.slow = self.slow_pollers
         self.rt = RealTimeClock(cfg, self)
         self.lockstep = LockstepClock(cfg, self)
+        #: what ``set_operating_point`` last applied (``status()["set_point"]``); a simulated
+        #: plant starts at its configured operating point
+        op0 = getattr(fast_driver, "operating_point", None)
+        self.set_point = SetPoint(tuple(op0) if op0 is not None else None)
         if controller is not None:
             self.state.swap_controller(PackedController(self._as_controller(controller)))
 
@@ -298,7 +303,9 @@ class ControlLoop:
             with boosted(self.rt.helper_priority if self.rt.alive else None):
                 swap = prepare(om, pi)
         if swap is not None:
-            return self.commands.call(swap, gen, deadline)
+            ticket = self.commands.call(swap, gen, deadline)
+            self.set_point.queued(ticket, om, pi)
+            return ticket
         if gen is not None and gen != self.safe_generation:
             raise CommandDropped(f"operating_point.set: {DROP_SAFE}")
         if deadline is not None and time.monotonic() > deadline:
@@ -307,6 +314,7 @@ class ControlLoop:
             self.fast.set_operating_point(om, pi)    # its own thread-safe staging, here
         else:
             self.slow_pollers.set_points(om, pi)
+        self.set_point.applied(om, pi)
         return None
 
     def stop(self) -> None:
@@ -370,6 +378,8 @@ class ControlLoop:
                            "p_eq_um": [float(st[L.S_PEQ_X]), float(st[L.S_PEQ_Y])]},
             "last_frame": {n: float(last[F.REC[n]]) for n in
                            ("e_x", "e_y", "u_x", "u_y", "r_x", "r_y", "omega_rpm", "p_inj_bar")},
+            # what `op` last applied (the measured Ω and P_I above follow it at their pace)
+            "set_point": self.set_point.status(),
             "recorder": {"written": w, "consumed": int(st[L.S_RD]),
                          "dropped": int(st[L.S_DROPPED]), "ring_frames": self.recorder.n},
             "overruns": self.rt.overruns,

@@ -194,6 +194,7 @@ class StreamHub:
                          "text": f.get("text", ""), "seq": f.get("seq")},
                "omega_rpm": _finite(last.get("omega_rpm")),
                "p_inj_bar": _finite(last.get("p_inj_bar")),
+               "set_point": st.get("set_point"),
                "misses": tm.get("overruns"), "miss_fraction": _finite(tm.get("miss_fraction")),
                "cycles_timed": tm.get("cycles"),
                "compute_us": tm.get("compute_us"), "lateness_us": tm.get("lateness_us"),

@@ -143,11 +143,23 @@ def test_fault_banner_with_reset_and_a_refusal_that_clears_with_the_fault(browse
 def test_operating_point_form_follows_refuses_and_confirms(browser, screenshot, rig):
     d, web = rig["d"], rig["web"]
     _clear_fault(d)
-    d.ctl("op", "2000", "5")
     _open(browser, web)
     omega, pinj = browser.find_element(By.ID, "op-omega"), browser.find_element(By.ID, "op-pinj")
+    # the fields show the daemon's set-point (status.set_point), whatever it is now ...
+    sp = d.ctl_json("status")["set_point"]
+    _wait(browser, lambda drv: omega.get_attribute("value") == f"{sp['omega_rpm']:.0f}"
+          and pinj.get_attribute("value") == f"{sp['p_inj_bar']:.2f}",
+          what="fields show the daemon's set-point")
+    assert _text(browser, "op-now").startswith(
+        f"set-point {sp['omega_rpm']:.0f} rpm / {sp['p_inj_bar']:.2f} bar")
+    # ... and follow it when someone else changes it (rigd ctl op while the page is open)
+    d.ctl("op", "2000", "5")
+    assert d.ctl_json("status")["set_point"] == {"omega_rpm": 2000.0, "p_inj_bar": 5.0,
+                                                 "source": "op"}
     _wait(browser, lambda drv: omega.get_attribute("value") == "2000"
-          and pinj.get_attribute("value") == "5.00", what="fields show the live set-point")
+          and pinj.get_attribute("value") == "5.00", what="fields follow the set-point")
+    _wait(browser, lambda drv: _text(browser, "op-now").startswith(
+        "set-point 2000 rpm / 5.00 bar · measured "), what="set-point and measured shown")
     # an empty field: refused in the page, nothing sent
     omega.clear()
     browser.find_element(By.ID, "op-set").click()
@@ -170,9 +182,15 @@ def test_operating_point_form_follows_refuses_and_confirms(browser, screenshot, 
     browser.find_element(By.ID, "op-set").click()
     _wait(browser, lambda drv: "applied Ω = 1500 rpm, P_I = 5.00 bar" in _text(browser, "message"),
           what="confirmed with the applied value")
+    # confirmed only once applied: the daemon's set-point is the new one already
+    assert d.ctl_json("status")["set_point"]["omega_rpm"] == 1500.0
+    assert "edited" not in omega.get_attribute("class")        # following the set-point again
+    _wait(browser, lambda drv: _text(browser, "op-now").startswith("set-point 1500 rpm / 5.00 bar")
+          and omega.get_attribute("value") == "1500", what="the page's set-point 1500")
     wait_for(lambda: abs(d.ctl_json("status")["last_frame"]["omega_rpm"] - 1500) < 1, timeout=60,
              what="daemon at 1500 rpm")
-    _wait(browser, lambda drv: "1500" in _text(browser, "op-now"), what="live value 1500")
+    _wait(browser, lambda drv: "measured 1500 rpm" in _text(browser, "op-now"),
+          what="measured 1500")
     _shot(screenshot, "console-op")
     errors = browser.take_console_errors()              # the 400 of the raw fetch
     assert all("400" in e for e in errors), errors

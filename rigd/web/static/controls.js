@@ -64,7 +64,13 @@ async function setOperatingPoint() {
   const r = await command("op", {omega_rpm: omega, p_inj_bar: pinj}, (res) =>
     "op: applied Ω = " + fmt(res.omega_rpm, 0) + " rpm, P_I = " + fmt(res.p_inj_bar, 2) +
     " bar (the rig follows at its own pace)");
-  if (r.ok) for (const id of ["op-omega", "op-pinj"]) markEdited($(id), false);
+  if (!r.ok) return;
+  // the daemon answered once the loop applied it: its reply is the set-point now
+  rigd.opApplied = {omega_rpm: r.body.omega_rpm, p_inj_bar: r.body.p_inj_bar, until: Date.now() + 3000};
+  for (const [id, v, d] of [["op-omega", r.body.omega_rpm, 0], ["op-pinj", r.body.p_inj_bar, 2]]) {
+    markEdited($(id), false);
+    $(id).value = fmt(v, d);
+  }
 }
 
 // ---------------------------------------------------------------- wiring

@@ -1,6 +1,6 @@
 // rigd console, state at a glance: the header (cycle, K∞, Ω, P_I, misses, fault), the fault
 // banner with its reset button, the "disconnected — values are stale" state that greys the
-// header, and the operating-point fields following the live set-point. docs/web.md.
+// header, and the operating-point fields following the daemon's set-point. docs/web.md.
 import {$, causeCleared, clock, fmt, rigd} from "./core.js";
 
 /** Without a good status for this long the header's values are stale, ms. */
@@ -79,11 +79,26 @@ export function checkStale(reason) {
 }
 
 // ---------------------------------------------------------------- operating point fields
-// The fields show the live values until the operator types into one; after a set (or on
-// "revert") they follow the live values again.
+// The fields show the daemon's set-point (status.set_point: what `op` last applied; the
+// measured Ω and P_I follow it at the rig's pace) until the operator types into one; after a
+// set (or on "revert") they follow the set-point again. Without a known set-point (a rig
+// before its first op) they show the measured values, and say so.
 function followSetPoint(s) {
-  setText("op-now", "now " + fmt(s.omega_rpm, 0) + " rpm / " + fmt(s.p_inj_bar, 2) + " bar");
-  for (const [id, v, d] of [["op-omega", s.omega_rpm, 0], ["op-pinj", s.p_inj_bar, 2]]) {
+  const sp = s.set_point, live = sp && sp.omega_rpm !== undefined && sp.omega_rpm !== null;
+  const om = live ? sp.omega_rpm : s.omega_rpm, pi = live ? sp.p_inj_bar : s.p_inj_bar;
+  rigd.setPoint = live ? {omega_rpm: om, p_inj_bar: pi, source: sp.source} : null;
+  setText("op-now", (live ? "set-point " + fmt(om, 0) + " rpm / " + fmt(pi, 2) + " bar" +
+    (sp.source === "config" ? " (configured)" : "") : "no set-point known") +
+    " · measured " + fmt(s.omega_rpm, 0) + " rpm / " + fmt(s.p_inj_bar, 2) + " bar");
+  // just after a set the fields hold the applied value until a status carries it (the
+  // stream's status may be a snapshot from before the daemon's answer)
+  const held = rigd.opApplied;
+  if (held && (Date.now() > held.until || (live && om === held.omega_rpm && pi === held.p_inj_bar))) {
+    rigd.opApplied = null;
+  } else if (held) {
+    return;
+  }
+  for (const [id, v, d] of [["op-omega", om, 0], ["op-pinj", pi, 2]]) {
     const el = $(id);
     if (el.dataset.edited || document.activeElement === el || v === null || v === undefined) continue;
     const text = Number(v).toFixed(d);

@@ -235,7 +235,7 @@ function settleTrigger() {
 function statusFromCtl(st) {
   const c = st.controller || {}, lf = st.last_frame || {};
   return {cycle: st.seq, k_on: !!c.enabled, k_loaded: !!c.loaded, fault: st.fault,
-    omega_rpm: lf.omega_rpm, p_inj_bar: lf.p_inj_bar, misses: st.overruns};
+    omega_rpm: lf.omega_rpm, p_inj_bar: lf.p_inj_bar, set_point: st.set_point, misses: st.overruns};
 }
 
 function takeStatus(s, seqNow) {
