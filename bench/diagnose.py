@@ -39,7 +39,6 @@ def mimo() -> dict:
 def run() -> dict:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "diagnose"))
     import plant
-
     from rigd.data.record import Record
     from rigd.diagnose.diagnosis import diagnose_record
 

@@ -7,9 +7,9 @@ Records from tests/diagnose/foreign_rotor.py: valves in analog P loops made with
 
 import foreign_rotor as F  # tests/diagnose/foreign_rotor.py
 import numpy as np
-import plant  # tests/diagnose/plant.py
 import pytest
 
+import plant  # tests/diagnose/plant.py
 from rigd.data.record import Record
 from rigd.diagnose.diagnosis import diagnose_record
 from rigd.diagnose.engine import diagnose_data

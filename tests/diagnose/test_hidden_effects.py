@@ -3,9 +3,9 @@ and adding it cuts the error (100 − fit) at least 3×; no hidden effect -> not
 two hidden effects -> both found and each added one lowers the error."""
 
 import numpy as np
-import plant  # tests/diagnose/plant.py
 import pytest
 
+import plant  # tests/diagnose/plant.py
 from rigd.diagnose.engine import diagnose_data
 from rigd.ident.mechanical import MechanicalStructure, structure_for
 

@@ -25,10 +25,10 @@ import dataclasses
 
 import benchmarks as B  # tests/diagnose/benchmarks.py
 import numpy as np
-import plant  # tests/diagnose/plant.py
 import pytest
 from conftest_paths import SHARED
 
+import plant  # tests/diagnose/plant.py
 from rigd.data.record import Record
 from rigd.diagnose.diagnosis import diagnose_record
 from rigd.diagnose.engine import diagnose_data
