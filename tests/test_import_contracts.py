@@ -73,14 +73,26 @@ def test_a_forbidden_import_breaks_its_contract(tree, where, code, contract):
     assert "_probe" in broken
 
 
-@pytest.mark.parametrize("module, code", [
-    ("rigd/service/daemon.py", "from rigd.service.reader import read_controller"),
-    ("rigd/service/bridge.py", "from rigd.service import frontend"),
-    ("rigd/service/protocol.py", "import rigd.service.reader"),
+@pytest.mark.parametrize("module, code, contract", [
+    # daemon, bridge, protocol run in the loop's process: importing the readers (directly or
+    # through the socket process's module) breaks "The loop's process never imports ..."
+    ("rigd/service/daemon.py", "from rigd.service.reader import read_controller",
+     "The loop's process never imports the file readers"),
+    ("rigd/service/bridge.py", "from rigd.service import frontend",
+     "The loop's process never imports the file readers"),
+    ("rigd/service/protocol.py", "import rigd.service.reader",
+     "The loop's process never imports the file readers"),
+    # HDF5 files are written by the writer process (spawned by module name)
+    ("rigd/loop/recorder.py", "from rigd.recording.h5sink import H5Sink",
+     "The loop's process never imports the HDF5 writer"),
+    ("rigd/service/daemon.py", "import rigd.recording.writer",
+     "The loop's process never imports the HDF5 writer"),
+    ("rigd/loop/sinks.py", "import h5py", "never import h5py"),
+    ("rigd/service/bridge.py", "import h5py", "never import h5py"),
 ])
-def test_the_loops_process_importing_a_file_reader_breaks_its_contract(tree, module, code):
-    """daemon, bridge, protocol run in the loop's process: importing the readers (directly or
-    through the socket process's module) breaks "The loop's process never imports ..."."""
+def test_the_loops_process_importing_a_reader_or_the_writer_breaks_its_contract(
+        tree, module, code, contract):
+    """What runs in the loop's process importing what must run outside it."""
     target = tree / module
     saved = target.read_text()
     target.write_text(saved + f"\n{code}  # noqa: E402\n")
@@ -90,5 +102,5 @@ def test_the_loops_process_importing_a_file_reader_breaks_its_contract(tree, mod
         target.write_text(saved)
     assert res.returncode != 0
     broken = res.stdout[res.stdout.index("Broken contracts"):]
-    assert "The loop's process never imports the file readers" in broken, res.stdout
+    assert contract in broken, res.stdout
     assert module.removesuffix(".py").replace("/", ".") in broken

@@ -67,8 +67,13 @@ def run(args: argparse.Namespace) -> int:
     status = 0
     with loop:
         if args.record:
-            sink = loop.start_recording(RecordSpec(args.record,
-                                                   data_source(loop.fast, loop.slow)))
+            from rigd.loop.recorder import RecordingFailed
+
+            try:
+                sink = loop.start_recording(RecordSpec(args.record,
+                                                       data_source(loop.fast, loop.slow)))
+            except RecordingFailed as exc:   # e.g. a folder it may not write: one line
+                raise InputError(str(exc)) from None
         if args.enable_controller:
             loop.enable_controller(True)
         logger.info("loop running", clock=loop.clock, fs_hz=loop.fs, config=args.config,

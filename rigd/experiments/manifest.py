@@ -55,11 +55,14 @@ def sha256_text(text: str | bytes | None) -> str | None:
 
 
 def software() -> dict[str, str]:
-    import h5py
+    """Versions of what wrote the run. h5py's from its distribution's metadata: the daemon
+    (the loop's process) runs experiments and never imports h5py (the writer process does)."""
+    from importlib.metadata import version
+
     import numpy
 
     return {"rigd_version": __version__, "python": platform.python_version(),
-            "numpy": numpy.__version__, "h5py": h5py.__version__}
+            "numpy": numpy.__version__, "h5py": version("h5py")}
 
 
 def new_run_dir(out: str | Path | None, name: str, root: str | Path = "runs") -> Path:

@@ -176,7 +176,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
                               if isinstance(exp.spec, SweepSpec) else "loop", confirm)
                     settle = (exp.spec.settle if isinstance(exp.spec, SweepSpec)
                               else SettleSpec())
-                    pt["settle"] = settle_check(loop, op, settle, fs, rd / ".settle.h5")
+                    pt["settle"] = settle_check(loop, op, settle, fs)
                     if not pt["settle"]["settled"]:
                         raise PointFailed("operating point not reached within "
                                           f"{settle.timeout_s:g} s")

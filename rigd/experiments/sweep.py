@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -39,7 +38,7 @@ def set_point(loop: Any, op: OperatingPoint, how: str,
 
 
 def settle_check(loop: Any, op: OperatingPoint, settle: SettleSpec, fs: float,
-                 scratch: Path) -> dict[str, Any]:
+                 ) -> dict[str, Any]:
     """Wait until Ω and P_I are within tolerance for ``hold_s``; returns what was measured.
 
     Returns
@@ -47,26 +46,22 @@ def settle_check(loop: Any, op: OperatingPoint, settle: SettleSpec, fs: float,
     dict
         ``{"settled": bool, "omega_rpm": mean, "p_inj_bar": mean, "waited_s": s}``.
     """
-    from rigd.data.h5io import read_h5
     from rigd.experiments.points import SegmentFault
-    from rigd.loop.sinks import RecordSpec
+    from rigd.frame import REC
 
     n = max(1, int(round(settle.hold_s * fs)))
     t0 = time.monotonic()
     waited = 0.0
     result: dict[str, Any] = {"settled": False}
     while True:
-        try:
-            res = loop.run_segment(np.zeros((n, 2)), record=RecordSpec(str(scratch),
-                                                                      {"kind": "settle"}),
-                                   stop_on_fault=True)
-            if getattr(res, "fault", None):
-                raise SegmentFault(res.fault, "the settling check")
-            rec = read_h5(scratch)
-        finally:
-            scratch.unlink(missing_ok=True)
+        # in memory (the loop's process writes no HDF5: the writer process does, and this
+        # short check needs no file)
+        res = loop.run_segment(np.zeros((n, 2)), record="memory", stop_on_fault=True)
+        if getattr(res, "fault", None):
+            raise SegmentFault(res.fault, "the settling check")
         waited += n / fs
-        w, p = rec.columns.get("omega_rpm"), rec.columns.get("p_inj_bar")
+        fr = res.frames
+        w, p = fr[:, REC["omega_rpm"]], fr[:, REC["p_inj_bar"]]
         ok = True
         for name, x, target, tol in (("omega_rpm", w, op.omega_rpm, settle.tolerance_rpm),
                                      ("p_inj_bar", p, op.p_inj_bar, settle.tolerance_bar)):

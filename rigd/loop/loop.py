@@ -5,7 +5,7 @@ One ``ControlLoop`` per process. It owns and wires together:
 * :class:`~rigd.loop.state.KernelState` — the preallocated arrays of the compiled cycle;
 * :class:`~rigd.loop.requests.FaultRequests` — the single-writer fault request slots;
 * :class:`~rigd.loop.commands.CommandQueue` — commands from any thread, applied at a boundary;
-* :class:`~rigd.loop.recorder.Recorder` — ring buffer and writer thread;
+* :class:`~rigd.loop.recorder.Recorder` — ring buffer, keeper thread, writer process link;
 * :class:`~rigd.loop.supervisor.Supervisor` — fault events, monitor thread, loop death;
 * :class:`~rigd.loop.slow.SlowPollers` — slow-driver threads;
 * :class:`~rigd.loop.segment.SegmentPlayer` — the excitation segment being played;
@@ -45,7 +45,7 @@ from rigd.loop.recorder import Recorder
 from rigd.loop.safeword import W_ACK_CODE, W_ACK_FAULT_SEQ, SafeWord
 from rigd.loop.segment import Segment, SegmentPlayer, SegmentResult, segment_inputs
 from rigd.loop.setpoint import SetPoint
-from rigd.loop.sinks import H5Sink, MemorySink, RecordSpec, Sink, make_sink
+from rigd.loop.sinks import FileSink, MemorySink, RecordSpec, Sink, make_sink
 from rigd.loop.slow import SlowPollers
 from rigd.loop.state import KernelState, PackedController
 from rigd.loop.supervisor import Supervisor
@@ -101,6 +101,7 @@ class ControlLoop:
         self.recorder = Recorder(cfg.recorder.ring_frames, self.state.st,
                                  flush_interval_s=cfg.recorder.flush_interval_s,
                                  on_error=self._recorder_failed, fs=self.fs)
+        self.recorder.helper_priority = lambda: self.rt.helper_priority
         if self.clock == "lockstep":     # frames written beyond the published count, at most
             self.recorder.shared.set_ahead(cfg.clock.batch_cycles)
         self.supervisor = Supervisor(self.state, self.requests, self.recorder, self.log,
@@ -381,7 +382,8 @@ class ControlLoop:
             # what `op` last applied (the measured Ω and P_I above follow it at their pace)
             "set_point": self.set_point.status(),
             "recorder": {"written": w, "consumed": int(st[L.S_RD]),
-                         "dropped": int(st[L.S_DROPPED]), "ring_frames": self.recorder.n},
+                         "dropped": int(st[L.S_DROPPED]), "ring_frames": self.recorder.n,
+                         "writer_pid": self.recorder.writer_pid},
             "overruns": self.rt.overruns,
             "drivers": {"fast": {"name": getattr(self.fast, "name", "?"),
                                  **self.fast.counters()},
@@ -462,10 +464,15 @@ class ControlLoop:
 
     def start_recording(self, spec: RecordSpec | str | Path) -> Sink:
         """Record every frame from the next cycle on into an HDF5 file, until
-        :meth:`stop_recording`."""
+        :meth:`stop_recording`.
+
+        The file is created by the writer process first (spawned on the first recording;
+        RecordingFailed if it cannot be): the recording starts at the cycle after that.
+        """
         sink = self._make_sink(spec, 0)
+        self.recorder.add_sink(sink)
         sink.first_seq = self.state.seq
-        return self.recorder.add_sink(sink)
+        return sink
 
     def stop_recording(self, sink: Sink) -> None:
         """Write what the loop produced so far to ``sink`` and close the file."""
@@ -531,7 +538,7 @@ class ControlLoop:
                 self.recorder.finish(sink, seg.last_seq)
         faults = self.faults()
         return SegmentResult(seg.first_seq, seg.last_seq, seg.last_seq - seg.first_seq + 1,
-                             str(sink.path) if isinstance(sink, H5Sink) else None,
+                             str(sink.path) if isinstance(sink, FileSink) else None,
                              sink.frames if isinstance(sink, MemorySink) else None,
                              faults[n_fault0:], seg.fault_event(faults, self.state.st))
 

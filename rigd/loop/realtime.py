@@ -78,7 +78,7 @@ class RealTimeClock:
         if not any("SCHED_FIFO" in x for x in problems):
             # the helper threads share the GIL with the loop: run them just below it, or a
             # preempted helper holding the GIL would stall the loop (priority inversion)
-            helpers = [p.recorder.native_id, p.supervisor.native_id,
+            helpers = [p.recorder.native_id, p.recorder.link_native_id, p.supervisor.native_id,
                        *p.slow_pollers.native_ids]
             self.helper_priority = max(1, cfg.priority - 1)
             CLK.boost_threads([t for t in helpers if t is not None], self.helper_priority)

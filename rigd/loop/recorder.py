@@ -1,65 +1,56 @@
-"""Recorder: preallocated ring buffer -> writer thread -> HDF5 (h5py, chunked, SWMR).
+"""Recorder: preallocated ring buffer in shared memory -> memory sinks here, HDF5 files in the
+writer process.
 
 The cycle kernel writes one frame per cycle into ``ring`` (float64 (ring_n, N_REC)) at row
 ``w % ring_n`` and never waits. The loop *publishes* the total written count ``w`` after each
-kernel call; the writer thread copies published frames to every active *sink* (an HDF5 file or
-an in-memory array) whose sequence range covers them, then frees the rows by advancing the read
-count ``st[S_RD]`` that the kernel checks. A full ring is never a silent drop: lock-step waits
-for the writer, the real-time cycle counts the frame in ``st[S_DROPPED]`` and latches
-RECORDER_OVERFLOW.
+kernel call. Two consumers read the published frames:
 
-HDF5 layout (docs/ARCHITECTURE.md): ``/frames`` float64 (N, N_REC), chunked, resizable,
-attributes ``channels`` and ``units``; root attributes ``fs``, ``omega_rpm``, ``p_inj_bar``,
-``kind``, ``config``, ``rigd_version``, ``created`` and any extra metadata; ``/events/seq``,
-``/events/code``, ``/events/text`` (faults and markers). The file is written in SWMR mode and
-flushed every ``flush_interval_s``: after a crash (even SIGKILL) it is readable up to the last
-flush. Open such a file with :func:`open_recording` (``swmr=True``).
+* the **keeper thread** here copies them to the in-memory sinks (:class:`MemorySink`,
+  ``simulate_record``) and frees ring rows by advancing the read count ``st[S_RD]`` that the
+  kernel checks;
+* the **writer process** (:mod:`rigd.recording.writer`, spawned on the first file recording
+  through :class:`~rigd.loop.writer_link.WriterLink`) writes HDF5 files and publishes its own
+  consumer index in the ring's header (``H_RD``). While it runs, ``st[S_RD]`` never passes it.
 
-The sinks (:class:`~rigd.loop.sinks.H5Sink`, :class:`~rigd.loop.sinks.MemorySink`), the
-:class:`~rigd.loop.sinks.RecordSpec` and :func:`~rigd.loop.sinks.open_recording` live in
-:mod:`rigd.loop.sinks`.
+A full ring is never a silent drop: lock-step waits for the consumers, the real-time cycle
+counts the frame in ``st[S_DROPPED]`` and latches RECORDER_OVERFLOW. A recording the writer
+could not write, or whose writer process died, fails loudly (:class:`RecordingFailed`, the
+``on_error`` callback: the loop latches RECORDER_OVERFLOW too).
+
+HDF5 layout: :mod:`rigd.recording.h5sink` (docs/ARCHITECTURE.md). This process never imports
+h5py (import contract).
 """
 
 from __future__ import annotations
 
 import threading
-import time
 
 import numpy as np
 
 from rigd.frame import N_REC, REC
 from rigd.loop.layout import S_RD
 from rigd.loop.shared_ring import SharedRing
-from rigd.loop.sinks import Sink
+from rigd.loop.sinks import FileSink, Sink
+from rigd.loop.writer_link import RecordingFailed, WriterLink
+
+__all__ = ["Recorder", "RecordingFailed"]
 
 _SEQ = REC["seq"]
 
 
-class RecordingFailed(OSError):
-    """A recording could not be written (disk full, file too large, I/O error).
-
-    The message names the file, the reason and what the file still holds (the frames up to its
-    last successful flush); ``cause`` is the original exception.
-    """
-
-    def __init__(self, message: str, cause: BaseException | None = None):
-        super().__init__(message)
-        self.cause = cause
-
-
 class Recorder:
-    """Owns the ring buffer and the writer thread.
+    """Owns the ring buffer, the keeper thread and the link to the writer process.
 
     Parameters
     ----------
     ring_frames : int
         Ring capacity, frames.
     st : numpy.ndarray
-        The loop's state array (the writer advances ``st[S_RD]``).
+        The loop's state array (the keeper thread advances ``st[S_RD]``).
     flush_interval_s : float
-        HDF5 flush period.
+        HDF5 flush period (the writer process's), s.
     on_error : callable, optional
-        ``on_error(exc)`` when a sink fails (the loop latches a fault).
+        ``on_error(exc)`` when a recording fails (the loop latches a fault).
     fs : float
         Loop rate, Hz (told to the ring's readers).
     """
@@ -67,24 +58,33 @@ class Recorder:
     def __init__(self, ring_frames: int, st: np.ndarray, *, flush_interval_s: float = 0.5,
                  on_error=None, fs: float = 0.0) -> None:
         #: the ring lives in shared memory so that the daemon's socket process can read recent
-        #: frames for the live stream (read-only, never through the loop thread)
+        #: frames for the live stream (read-only) and the writer process can write them to
+        #: HDF5, never through the loop thread
         self.shared = SharedRing(ring_frames, N_REC, fs)
         self.ring = self.shared.ring
         self._share = self.shared.publish
         self.n = ring_frames
         self._st = st
         self.published = 0                 # frames the loop has published (total)
-        self.read = int(st[S_RD])          # frames consumed (total)
+        self.read = int(st[S_RD])          # frames freed for the kernel (total)
+        self._mem_read = self.read         # frames the keeper has handed to memory sinks
         self.flush_interval_s = flush_interval_s
-        self._sinks: list[Sink] = []
+        self._sinks: list[Sink] = []       # memory sinks (the keeper's)
         self._pending_events: list[tuple[int, int, str]] = []
         self._lock = threading.Lock()
         self._wake = threading.Event()
         self._freed = threading.Condition()
+        self._waiting = 0
         self._stop = False
         self._on_error = on_error
         self._thread: threading.Thread | None = None
         self.error: BaseException | None = None
+        #: the writer process's link (None until the first file recording, or after it died)
+        self.writer: WriterLink | None = None
+        self._writer_lock = threading.Lock()
+        #: ``helper_priority()``: the real-time helper priority while the loop runs (the
+        #: writer link's thread takes it; set by the loop)
+        self.helper_priority = None
 
     # --- lifecycle -------------------------------------------------------------------
     def start(self) -> None:
@@ -94,12 +94,32 @@ class Recorder:
 
     @property
     def native_id(self) -> int | None:
-        """Kernel thread id of the writer thread (None before :meth:`start`)."""
+        """Kernel thread id of the keeper thread (None before :meth:`start`)."""
         return self._thread.native_id if self._thread is not None else None
 
+    @property
+    def link_native_id(self) -> int | None:
+        """Kernel thread id of the writer link's receiving thread (None: no writer)."""
+        w = self.writer
+        return w.native_id if w is not None else None
+
+    @property
+    def writer_pid(self) -> int | None:
+        """The writer process's pid (None when none runs)."""
+        w = self.writer
+        return w.pid if w is not None and not w.gone.is_set() else None
+
     def close(self, timeout: float = 30.0) -> None:
-        """Write what is published, close every sink, stop the thread."""
+        """Write what is published, close every sink and file, stop the thread and the writer."""
         self.drain(timeout)
+        w = self.writer
+        if w is not None:
+            for s in list(w.sinks.values()):
+                if s.last_seq is None:
+                    s.last_seq = self.published - 1
+                w.close(s)
+            w.stop(timeout)
+            self.writer = None
         self._stop = True
         self._wake.set()
         if self._thread is not None:
@@ -115,7 +135,7 @@ class Recorder:
         """The loop has written frames up to total count ``w`` (called after a kernel call).
 
         Runs in: loop thread — O(1), allocation-free, non-blocking (sets an event at most;
-        :meth:`SharedRing.publish` stores ``w`` and the wall time for the stream readers).
+        :meth:`SharedRing.publish` stores ``w`` and the wall time for the other processes).
         """
         self.published = w
         self._share(w)
@@ -123,25 +143,47 @@ class Recorder:
             self._wake.set()
 
     def wait_free(self, timeout: float = 10.0) -> None:
-        """Block until the writer frees rows (lock-step only; never on the real-time path)."""
-        self._wake.set()
-        with self._freed:
-            self._freed.wait_for(lambda: self.published - self.read < self.n or self._stop,
-                                 timeout)
+        """Block until the consumers free rows (lock-step only; never on the real-time path)."""
+        self._wait(lambda: self.published - self.read < self.n or self._stop, timeout)
 
     def drain(self, timeout: float = 30.0) -> None:
-        """Block until every published frame has been handed to the sinks."""
+        """Block until every published frame has been handed to the sinks and the writer."""
         if self._thread is None:
             self._consume()
             return
-        self._wake.set()
+        self._wait(lambda: self.read >= self.published or self._stop, timeout)
+
+    def _wait(self, pred, timeout: float) -> None:
         with self._freed:
-            self._freed.wait_for(lambda: self.read >= self.published, timeout)
+            self._waiting += 1
+        self._wake.set()
+        try:
+            with self._freed:
+                self._freed.wait_for(pred, timeout)
+        finally:
+            with self._freed:
+                self._waiting -= 1
 
     def add_sink(self, sink: Sink) -> Sink:
+        """Add a memory sink, or open a file sink in the writer process (spawned on the first
+        one; RecordingFailed when the file cannot be created or no writer can run)."""
+        if isinstance(sink, FileSink):
+            self._writer().open(sink)
+            return sink
         with self._lock:
             self._sinks.append(sink)
         return sink
+
+    def _writer(self) -> WriterLink:
+        with self._writer_lock:
+            w = self.writer
+            if w is None or w.gone.is_set():
+                w = WriterLink(self.shared, self.flush_interval_s, self._failed, self._changed,
+                               self.helper_priority)
+                self.writer = w
+        w.wait_ready()
+        self._wake.set()
+        return w
 
     def finish(self, sink: Sink, last_seq: int | None = None, timeout: float = 60.0) -> None:
         """End ``sink`` after ``last_seq`` (default: what is published), wait until closed."""
@@ -149,52 +191,63 @@ class Recorder:
             last_seq = self.published - 1 if sink.first_seq is not None else -1
         sink.last_seq = last_seq
         sink.closing = True
-        self._wake.set()
-        if self._thread is None:
-            self._consume()
+        if isinstance(sink, FileSink):
+            if not sink.done.is_set():
+                w = self.writer
+                if w is None:
+                    raise RecordingFailed(f"recording {sink.path}: no writer process holds it")
+                w.close(sink)
+        else:
+            self._wake.set()
+            if self._thread is None:
+                self._consume()
         if not sink.done.wait(timeout):
             raise TimeoutError(f"recorder did not finish {sink} within {timeout} s")
         if sink.error is not None:
             raise sink.error
 
     def add_event(self, seq: int, code: int, text: str) -> None:
-        """Record a fault or marker in every open file covering ``seq``."""
+        """Record a fault or marker in every open recording covering ``seq``."""
         with self._lock:
             self._pending_events.append((int(seq), int(code), str(text)))
+        w = self.writer
+        if w is not None:
+            w.event(seq, code, text)
         self._wake.set()
 
-    # --- writer thread ---------------------------------------------------------------
+    # --- keeper thread ---------------------------------------------------------------
+    def _failed(self, exc: BaseException) -> None:
+        self.error = exc
+        if self._on_error is not None:
+            self._on_error(exc)
+
+    def _changed(self) -> None:
+        self._wake.set()
+
     def _run(self) -> None:
-        last_flush = time.monotonic()
         while not self._stop:
-            self._wake.wait(0.02)
+            # 1 ms while someone waits for the writer process to free rows, else 20 ms
+            self._wake.wait(0.001 if self._waiting else 0.02)
             self._wake.clear()
             self._consume()
-            now = time.monotonic()
-            if now - last_flush >= self.flush_interval_s:
-                last_flush = now
-                for s in list(self._sinks):
-                    self._guard(s, s.flush)
         self._consume()
 
     def _guard(self, sink: Sink, fn, *args) -> None:
         try:
             fn(*args)
-        except BaseException as exc:  # disk full, permission...: loud, never silent
+        except BaseException as exc:  # loud, never silent
             sink.abandon()
             exc = RecordingFailed(sink.describe_failure(exc), exc)
             sink.error = exc
-            self.error = exc
             with self._lock:
                 if sink in self._sinks:
                     self._sinks.remove(sink)
-            if self._on_error is not None:   # the fault is requested before anyone waiting
-                self._on_error(exc)          # on the sink learns of the failure
+            self._failed(exc)        # the fault is requested before the waiter learns of it
             sink.done.set()
 
     def _consume(self) -> None:
         pub = self.published
-        rd = self.read
+        rd = self._mem_read
         with self._lock:
             sinks = list(self._sinks)
             events, self._pending_events = self._pending_events, []
@@ -213,10 +266,13 @@ class Recorder:
                     self._guard(s, s.write, block[lo - s0:hi - s0 + 1])
                     s.last_written_seq = hi
             rd += m
+        self._mem_read = rd
+        w = self.writer
+        if w is not None and w.ready.is_set() and not w.gone.is_set():
+            rd = min(rd, w.consumed)        # never free what the writer has not written
+        if rd > self.read:
             self.read = rd
             self._st[S_RD] = rd
-            with self._freed:
-                self._freed.notify_all()
         for seq, code, text in events:
             for s in sinks:
                 if s.first_seq is not None and seq >= s.first_seq and \
@@ -224,7 +280,7 @@ class Recorder:
                     self._guard(s, s.event, seq, code, text)
         for s in sinks:
             if s.closing and s.last_seq is not None and s.error is None and \
-                    (s.last_seq < (s.first_seq or 0) or rd > s.last_seq or
+                    (s.last_seq < (s.first_seq or 0) or self._mem_read > s.last_seq or
                      (s.last_written_seq is not None and s.last_written_seq >= s.last_seq)):
                 self._close_sink(s)
         with self._freed:
@@ -239,7 +295,5 @@ class Recorder:
                 s.close()
             except BaseException as exc:
                 s.error = RecordingFailed(s.describe_failure(exc), exc)
-                self.error = s.error
-                if self._on_error is not None:
-                    self._on_error(s.error)
+                self._failed(s.error)
             s.done.set()

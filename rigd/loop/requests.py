@@ -25,7 +25,7 @@ from rigd.loop.layout import N_REQ_SRC, S_FREQ
 #: request sources (fixed slots; never renumber)
 OPERATOR = 0      # trip() from any thread (service, signals, tests)
 LOOP = 1          # the thread running the cycles: driver exceptions, overrun storm
-RECORDER = 2      # the recorder's writer thread (or a finish() in the caller's thread)
+RECORDER = 2      # the recorder: keeper thread, writer link thread (or the caller finishing)
 SLOW = 3          # slow-driver threads and the monitor's staleness check
 
 SOURCE_NAMES = ("operator", "loop", "recorder", "slow")

@@ -20,6 +20,13 @@ Header (int64 slots before the ring, :data:`HDR_SLOTS` of them):
              batch; 1 on the real-time clock)
 ``H_MAGIC``  :data:`MAGIC` (layout version)
 ``H_FS``     loop rate, mHz
+``H_RD``     frames consumed by the **writer process** (total; written by it only,
+             :mod:`rigd.recording.writer`): the loop's recorder frees ring rows up to it
+``H_SINKS``  :data:`N_SINK_SLOTS` pairs (``first_seq``, ``last_seq``) of the recordings
+             the writer process holds open, written by the loop's process only (the loop
+             thread sets ``first_seq`` at a segment's first cycle, before its first frame
+             is published): ``first_seq`` -1 = not begun, ``last_seq`` :data:`OPEN_END` =
+             open-ended
 =========  ===========================================================================
 
 Torn reads: the reader copies frames ``[w1 - k, w1)`` after reading ``H_W = w1``, then reads
@@ -41,9 +48,12 @@ from multiprocessing import reduction
 
 import numpy as np
 
-MAGIC = 0x72696764_0001      # "rigd", layout 1
-H_W, H_WALL, H_N, H_COLS, H_AHEAD, H_MAGIC, H_FS = 0, 1, 2, 3, 4, 5, 6
-HDR_SLOTS = 16               # 128 bytes: the ring starts 64-byte aligned
+MAGIC = 0x72696764_0002      # "rigd", layout 2 (layout 1 had no H_RD nor sink slots)
+H_W, H_WALL, H_N, H_COLS, H_AHEAD, H_MAGIC, H_FS, H_RD = 0, 1, 2, 3, 4, 5, 6, 7
+H_SINKS = 16                 # sink slots: (first_seq, last_seq) pairs from here
+N_SINK_SLOTS = 8             # recordings open at once through the writer process, at most
+OPEN_END = 1 << 62           # last_seq of an open-ended recording
+HDR_SLOTS = H_SINKS + 2 * N_SINK_SLOTS   # 256 bytes: the ring starts 64-byte aligned
 
 
 def _size(n: int, cols: int) -> int:
@@ -154,7 +164,7 @@ class SharedRing:
 
 
 class RingHandle:
-    """What the socket process receives to map the ring (pickled through ``spawn``).
+    """What the socket and writer processes receive to map the ring (pickled through ``spawn``).
 
     The file descriptor is duplicated into the child by :mod:`multiprocessing` while the
     process is started (:func:`multiprocessing.reduction.DupFd`), like the listening socket.
@@ -180,13 +190,19 @@ class RingReader:
         As received through ``spawn`` (or :meth:`SharedRing.handle` in the same process,
         e.g. tests); the descriptor is reopened ``O_RDONLY`` and mapped ``PROT_READ``: this
         process cannot write the loop's memory.
+    writable : bool
+        Map it read-write (the writer process only: it stores its consumer index ``H_RD``
+        and never writes the frames).
     """
 
-    def __init__(self, handle: RingHandle) -> None:
-        fd = os.open(f"/proc/self/fd/{handle.fd}", os.O_RDONLY | os.O_CLOEXEC)
+    def __init__(self, handle: RingHandle, *, writable: bool = False) -> None:
+        # the writer process alone maps it writable: it publishes its consumer index H_RD
+        mode, prot = ((os.O_RDWR, mmap.PROT_READ | mmap.PROT_WRITE) if writable
+                      else (os.O_RDONLY, mmap.PROT_READ))
+        fd = os.open(f"/proc/self/fd/{handle.fd}", mode | os.O_CLOEXEC)
         try:
             self._mm = mmap.mmap(fd, _size(handle.n, handle.cols), flags=mmap.MAP_SHARED,
-                                 prot=mmap.PROT_READ)
+                                 prot=prot)
         finally:
             os.close(fd)
         self.hdr = np.ndarray((HDR_SLOTS,), dtype=np.int64, buffer=self._mm)

@@ -1,17 +1,16 @@
-"""Recording sinks: where the recorder's writer thread puts frames and events.
+"""Recording sinks: where the recorder puts frames and events.
 
 :class:`Sink` (a destination of a contiguous sequence range), :class:`MemorySink` (frames in
-memory) and :class:`H5Sink` (an HDF5 file in SWMR mode, layout in ``docs/ARCHITECTURE.md``:
-``/frames`` float64 (N, N_REC) with ``channels``/``units``, root attributes, ``/events``;
-flushed periodically so a crashed file is readable up to the last flush), :class:`RecordSpec`
-(where and with which metadata a loop records) and :func:`open_recording` to read such a file.
-Used by :class:`rigd.loop.recorder.Recorder`.
+memory, consumed in the loop's process), :class:`FileSink` (an HDF5 file written by the
+**writer process**, :mod:`rigd.recording.writer`: this is its proxy in the loop's process,
+holding the file's name, metadata and sequence range, the latter mirrored into the shared
+ring's sink slots), :class:`RecordSpec` (where and with which metadata a loop records).
+Used by :class:`rigd.loop.recorder.Recorder`. Nothing here imports h5py: the loop's process
+never does (import contract); read a recording with :func:`rigd.recording.h5sink.open_recording`.
 """
 
 from __future__ import annotations
 
-import datetime as _dt
-import json
 import os
 import re
 import threading
@@ -21,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from rigd import __version__
-from rigd.frame import N_REC, RECORD_NAMES, RECORD_UNITS
+from rigd.frame import N_REC
+from rigd.loop.shared_ring import H_SINKS, OPEN_END
 
 EVENT_TEXT_LEN = 120
 
@@ -38,7 +37,7 @@ class RecordSpec:
     meta: dict[str, Any] = field(default_factory=dict)
 
 
-def _reason(exc: BaseException) -> str:
+def reason(exc: BaseException) -> str:
     """Short reason of a failed write: the OS error text when it can be found."""
     errno_ = getattr(exc, "errno", None)
     if not isinstance(errno_, int):
@@ -48,6 +47,17 @@ def _reason(exc: BaseException) -> str:
         return f"{os.strerror(errno_)} (errno {errno_})"
     text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
     return text[:200]
+
+
+def file_failure(sink: Sink, why: str) -> str:
+    """One line: recording ``sink.path`` failed, ``why``, and what the file keeps (the frames
+    up to its last flush, ``sink.n_flushed`` from ``sink.first_seq``)."""
+    n = sink.n_flushed
+    kept = (f"the file keeps every frame up to the last flush ({n} frames, seq "
+            f"{sink.first_seq}..{sink.first_seq + n - 1})" if n and sink.first_seq is not None
+            else "no frame had been flushed to it")
+    return (f"recording {sink.path} failed: {why}; {kept}, readable with "
+            f"rigd.recording.h5sink.open_recording (h5py swmr=True)")
 
 
 class Sink:
@@ -69,7 +79,7 @@ class Sink:
 
     def describe_failure(self, exc: BaseException) -> str:
         """One line: what failed and what the destination still holds."""
-        return f"recording failed: {_reason(exc)}"
+        return f"recording failed: {reason(exc)}"
 
     # called by the writer thread only
     def write(self, block: np.ndarray) -> None:
@@ -113,101 +123,80 @@ class MemorySink(Sink):
         return self._buf[:self.n_written]
 
 
-class H5Sink(Sink):
-    """An HDF5 recording in SWMR mode (see module docstring)."""
+class FileSink(Sink):
+    """An HDF5 recording written by the writer process; its proxy in the loop's process.
+
+    ``first_seq`` and ``last_seq`` are mirrored into the shared ring's sink slot once the
+    recorder has given it one (:meth:`attach`): the loop thread sets ``first_seq`` at the
+    segment's first cycle, before that cycle's frame is published, so the writer process
+    (which reads the published count before the slots) never misses a frame of the range.
+    ``n_written``, ``n_flushed`` and ``error`` come back from the writer process.
+    """
 
     def __init__(self, path: str | Path, *, fs: float, meta: dict[str, Any] | None = None,
                  config_text: str = "", chunk_frames: int = 4096) -> None:
-        import h5py
-
+        self._hdr = None
+        self._slot = -1
         super().__init__()
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        meta = dict(meta or {})
-        f = h5py.File(self.path, "w", libver="latest")
-        try:
-            ds = f.create_dataset("frames", shape=(0, N_REC), maxshape=(None, N_REC),
-                                  dtype="f8", chunks=(chunk_frames, N_REC))
-            ds.attrs["channels"] = np.array(RECORD_NAMES, dtype=h5py.string_dtype())
-            ds.attrs["units"] = np.array(RECORD_UNITS, dtype=h5py.string_dtype())
-            ev = f.create_group("events")
-            for name, dt in (("seq", "i8"), ("code", "i8"), ("text", f"S{EVENT_TEXT_LEN}")):
-                ev.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dt, chunks=(256,))
-            attrs = {"fs": float(fs), "omega_rpm": 0.0, "p_inj_bar": float("nan"),
-                     "kind": "run", "config": config_text, "rigd_version": __version__,
-                     "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
-            attrs.update(meta)
-            for k, v in attrs.items():
-                f.attrs[k] = _attr_value(v)
-            f.swmr_mode = True
-        except BaseException:
-            f.close()
-            raise
-        self._f = f
-        self._ds = ds
-        self._ev = ev
+        self.fs = float(fs)
+        self.meta = dict(meta or {})
+        self.config_text = config_text
+        self.chunk_frames = int(chunk_frames)
+        #: what the writer process said when it failed (one line), or None
+        self.failure: str | None = None
 
-    def write(self, block: np.ndarray) -> None:
-        n0 = self._ds.shape[0]
-        self._ds.resize(n0 + len(block), axis=0)
-        self._ds[n0:] = block
-        self.n_written = n0 + len(block)
+    def spec(self) -> dict[str, Any]:
+        """What the writer process needs to open the file (pickled to it)."""
+        return {"path": str(self.path), "fs": self.fs, "meta": self.meta,
+                "config_text": self.config_text, "chunk_frames": self.chunk_frames}
 
-    def event(self, seq: int, code: int, text: str) -> None:
-        n = self._ev["seq"].shape[0]
-        for name in ("seq", "code", "text"):
-            self._ev[name].resize(n + 1, axis=0)
-        self._ev["seq"][n] = seq
-        self._ev["code"][n] = code
-        self._ev["text"][n] = text.encode("utf-8")[:EVENT_TEXT_LEN]
+    def attach(self, hdr, slot: int) -> None:
+        """Mirror the range into sink slot ``slot`` of the ring's header ``hdr`` from now on."""
+        self._hdr, self._slot = hdr, int(slot)
+        self._store()
 
-    def flush(self) -> None:
-        n = self._ds.shape[0]
-        self._ds.flush()
-        for name in ("seq", "code", "text"):
-            self._ev[name].flush()
-        self._f.flush()
-        self.n_flushed = n
+    def detach(self) -> None:
+        self._hdr, self._slot = None, -1
+
+    @property
+    def slot(self) -> int:
+        return self._slot
+
+    def _store(self) -> None:
+        hdr, i = self._hdr, H_SINKS + 2 * self._slot
+        if hdr is not None:
+            # last first: a writer never sees a begun range with a stale end
+            hdr[i + 1] = OPEN_END if self._last is None else self._last
+            hdr[i] = -1 if self._first is None else self._first
+
+    @property
+    def first_seq(self) -> int | None:
+        return self._first
+
+    @first_seq.setter
+    def first_seq(self, v: int | None) -> None:
+        """Runs in: loop thread (a segment's start) — two stores, no allocation."""
+        self._first = v
+        if self._hdr is not None:
+            self._store()
+
+    @property
+    def last_seq(self) -> int | None:
+        return self._last
+
+    @last_seq.setter
+    def last_seq(self, v: int | None) -> None:
+        """Runs in: loop thread (a fault ends a segment) or the caller's — two stores."""
+        self._last = v
+        if self._hdr is not None:
+            self._store()
 
     def describe_failure(self, exc: BaseException) -> str:
-        n = self.n_flushed
-        kept = (f"the file keeps every frame up to the last flush ({n} frames, seq "
-                f"{self.first_seq}..{self.first_seq + n - 1})" if n and self.first_seq is not None
-                else "no frame had been flushed to it")
-        return (f"recording {self.path} failed: {_reason(exc)}; {kept}, readable with "
-                f"rigd.loop.sinks.open_recording (h5py swmr=True)")
+        return self.failure if self.failure is not None else file_failure(self, reason(exc))
 
-    def close(self) -> None:
-        try:
-            self.flush()
-        except BaseException:
-            self.abandon()   # a failed final flush: keep the file as last flushed (see below)
-            raise
-        self._f.close()
-
-    def abandon(self) -> None:
-        """After a failed write (disk full, I/O error): freeze the file as it is on disk.
-
-        The file was flushed in SWMR mode, so what is on disk is consistent up to the last
-        flush. Any further write by the HDF5 library (cache eviction, the close) could leave
-        metadata pointing past the end of the file, so the file descriptor is pointed at
-        /dev/null before the h5py file is closed.
-        """
-        if not self._f.id.valid:
-            return
-        try:
-            fd = self._f.id.get_vfd_handle()
-            null = os.open(os.devnull, os.O_RDWR)
-            try:
-                os.dup2(null, fd)
-            finally:
-                os.close(null)
-        except Exception:  # noqa: BLE001 - best effort; the error is already reported
-            pass
-        try:
-            self._f.close()
-        except Exception:  # noqa: BLE001
-            pass
+    def __repr__(self) -> str:
+        return f"FileSink({str(self.path)!r})"
 
 
 def make_sink(record, n_expected: int, *, fs: float, config, config_text: str,
@@ -231,25 +220,7 @@ def make_sink(record, n_expected: int, *, fs: float, config, config_text: str,
     if controller is not None:
         meta["controller"] = str(controller.source)
     meta.update(spec.meta)
-    return H5Sink(spec.path, fs=fs, meta=meta, config_text=config_text,
-                  chunk_frames=config.recorder.chunk_frames)
+    return FileSink(spec.path, fs=fs, meta=meta, config_text=config_text,
+                    chunk_frames=config.recorder.chunk_frames)
 
 
-def _attr_value(v: Any):
-    if v is None:
-        return "null"
-    if isinstance(v, (bool, int, float, str, np.integer, np.floating)):
-        return v
-    if isinstance(v, (list, tuple)) and all(isinstance(x, (int, float)) for x in v):
-        return np.asarray(v, dtype=float)
-    return json.dumps(v, default=str)
-
-
-def open_recording(path: str | Path):
-    """Open a recording for reading (SWMR-aware: works on a live or crashed file).
-
-    Returns an ``h5py.File``; the caller closes it.
-    """
-    import h5py
-
-    return h5py.File(path, "r", libver="latest", swmr=True)

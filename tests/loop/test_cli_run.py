@@ -13,7 +13,7 @@ from loop_helpers import make_plant
 
 from rigd.frame import REC
 from rigd.loop.loop import ControlLoop
-from rigd.loop.sinks import open_recording
+from rigd.recording.h5sink import open_recording
 from rigd.rigconfig import default_config
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -47,6 +47,20 @@ def test_rigd_run_bad_config_subprocess_one_line(tmp_path):
     assert p.returncode == 2
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "supervisor.stale_frames" in lines[0] and f"{bad}:" in lines[0]
+
+
+def test_rigd_run_record_where_no_file_can_be_made_one_line(tmp_path):
+    """The writer process cannot create the file (its folder is a file): one line, exit 2."""
+    (tmp_path / "plain").write_text("x")
+    rec = tmp_path / "plain" / "run.h5"
+    p = subprocess.run([*RIGD, "run", "--config", "config/sim.yaml", "--lockstep",
+                        "--duration", "1", "--record", str(rec)],
+                       cwd=ROOT, capture_output=True, text=True, timeout=PROCESS_S)
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert lines[-1] == (f"rigd run: recording {rec}: cannot create it: File exists "
+                         f"(errno 17)"), lines
+    assert "Traceback" not in p.stderr
 
 
 def test_realtime_clock_runs_at_rate_with_timing_and_recording(tmp_path):

@@ -17,7 +17,7 @@ import numpy as np
 import yaml
 
 from rigd.frame import REC
-from rigd.loop.sinks import open_recording
+from rigd.recording.h5sink import open_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 RIGD = "import sys; from rigd.cli import main; sys.exit(main())"

@@ -16,7 +16,8 @@ from loop_helpers import make_plant
 
 from rigd.frame import REC, RECORD_NAMES
 from rigd.loop.loop import ControlLoop
-from rigd.loop.sinks import RecordSpec, open_recording
+from rigd.loop.sinks import RecordSpec
+from rigd.recording.h5sink import open_recording
 from rigd.rigconfig import default_config
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -101,36 +102,39 @@ def test_memory_and_file_sinks_get_identical_frames(tmp_path):
 
 
 def test_failed_recording_latches_fault_loop_goes_on_file_keeps_flushed_frames(tmp_path):
+    """The writer process under a file-size limit (a full disk as it sees it: EFBIG)."""
+    import resource
+
     from rigd.loop import faults as FC
-    from rigd.loop.sinks import H5Sink
 
-    class FailingSink(H5Sink):
-        """Fails like a full disk once 20000 frames are in (after flushing them)."""
-
-        def write(self, block):
-            # the disk fills at frame 20000 whatever the writer's block sizes are (one block of
-            # all 60000 frames when the writer thread first wakes after the batch)
-            room = 20000 - self.n_written
-            if len(block) > room:
-                if room > 0:
-                    super().write(block[:room])
-                self.flush()
-                raise OSError(28, "No space left on device")
-            super().write(block)
-
-    cfg = default_config(clock={"mode": "lockstep", "batch_cycles": 4096})
+    cfg = default_config(clock={"mode": "lockstep", "batch_cycles": 4096},
+                         recorder={"flush_interval_s": 0.05})
     loop = ControlLoop(cfg, make_plant())
     path = tmp_path / "full.h5"
     with loop:
-        sink = loop.recorder.add_sink(FailingSink(path, fs=5000.0))
-        sink.first_seq = int(loop.status()["seq"])
-        loop.run_cycles(60000)
-        loop.recorder.drain()
-        with pytest.raises(OSError, match="No space"):
+        sink = loop.start_recording(path)
+        pid = loop.status()["recorder"]["writer_pid"]
+        loop.run_cycles(5000)
+        end = time.monotonic() + 600                 # a hang bound: waits on the flush
+        while sink.n_flushed < 5000 and time.monotonic() < end:
+            time.sleep(0.01)
+        assert sink.n_flushed == 5000
+        limit = path.stat().st_size + (1 << 20)       # ~4 000 frames more of 31 channels
+        resource.prlimit(pid, resource.RLIMIT_FSIZE, (limit, limit))
+        loop.run_cycles(55000)
+        with pytest.raises(OSError, match=r"File too large \(errno 27\)") as e:
             loop.stop_recording(sink)
+        assert str(e.value).startswith(
+            f"recording {path} failed: File too large (errno 27); the file keeps every frame "
+            f"up to the last flush ({sink.n_flushed} frames, seq 0..{sink.n_flushed - 1})")
         loop.run_cycles(1000)                    # the loop goes on, in the safe state
         st = loop.status()
     assert st["fault"]["code"] == FC.RECORDER_OVERFLOW and st["seq"] == 61000
+    assert path.stat().st_size <= limit
+    seq = _seq_of(path)
+    assert len(seq) >= sink.n_flushed >= 5000 and np.all(np.diff(seq) == 1) and seq[0] == 0
+
+
+def _seq_of(path):
     with open_recording(path) as f:
-        seq = f["frames"][:, REC["seq"]]
-    assert len(seq) >= 20000 and np.all(np.diff(seq) == 1) and seq[0] == 0
+        return f["frames"][:, REC["seq"]]

@@ -15,7 +15,7 @@ from loop_helpers import InjectingDriver, make_plant
 from rigd.frame import REC
 from rigd.loop import faults as FC
 from rigd.loop.loop import ControlLoop
-from rigd.loop.sinks import open_recording
+from rigd.recording.h5sink import open_recording
 from rigd.rigconfig import default_config
 
 N = 20_000          # 4 s at 5 kHz: far longer than it takes to see the fault

@@ -72,12 +72,16 @@ class Daemon:
 
     def limit_fsize(self, nbytes):
         """From now on no file of the daemon may grow beyond ``nbytes`` (RLIMIT_FSIZE set on
-        the running process: a full disk, as the writer sees it — write() fails with EFBIG).
-        Set after start-up, not in the child before exec: the recorder's ring is a memfd of
-        about 80 MB, whose ftruncate the limit would refuse. Needs ``fsize_limit=True``."""
+        the running daemon and on its HDF5 writer process: a full disk, as the writer sees it
+        — write() fails with EFBIG). Set after start-up, not in the child before exec: the
+        recorder's ring is a memfd of about 80 MB, whose ftruncate the limit would refuse.
+        Needs ``fsize_limit=True`` (the writer process ignores SIGXFSZ itself)."""
         import resource
 
-        resource.prlimit(self.proc.pid, resource.RLIMIT_FSIZE, (nbytes, nbytes))
+        writer = self.ctl_json("status")["recorder"]["writer_pid"]
+        for pid in (self.proc.pid, writer):
+            if pid is not None:
+                resource.prlimit(pid, resource.RLIMIT_FSIZE, (nbytes, nbytes))
 
     def _collect(self):
         """Read NOTIFY_SOCKET all the time, as systemd does."""

@@ -14,7 +14,7 @@ from rigd.frame import REC
 from rigd.loop.app import build_drivers
 from rigd.loop.clock import boosted
 from rigd.loop.loop import ControlLoop
-from rigd.loop.sinks import open_recording
+from rigd.recording.h5sink import open_recording
 from rigd.rigconfig import load_config
 
 R0 = 5.0
