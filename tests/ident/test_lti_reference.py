@@ -167,3 +167,47 @@ def test_select_subspace_uses_the_estimation_data_only():
     assert res.order in (4, 5, 6) and scores[4] > scores[2] + 10
     fit, _ = heldout(res.model, u, y, 4000)
     assert fit[0] > 90
+
+
+def test_select_subspace_keeps_a_stable_refit(monkeypatch):
+    """The order is chosen on a split of the estimation data and refitted on all of it; a
+    refit that comes out unstable is not returned (the next best stable one is)."""
+    from rigd.ident.lti import subspace
+
+    fs = 50.0
+    b, a = _modes_tf([(2.0, 0.05), (7.0, 0.03)], fs)
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal(4000)
+    y = signal.lfilter(b, a, u) + 0.05 * rng.standard_normal(4000)
+    _, scores = select_subspace(u, y, orders=(2, 4, 6, 8), fs=fs)
+    first = max(scores, key=lambda k: (scores[k], -k))
+    real = subspace._Decomposition.model
+
+    def unstable_refit(self, nx, refine=True, stabilise=False):
+        m = real(self, nx, refine, stabilise)
+        if self.j > 3000 and nx == first and not stabilise:   # the refit on all 4000
+            m.A = 1.5 * m.A
+        return m
+
+    monkeypatch.setattr(subspace._Decomposition, "model", unstable_refit)
+    res, _ = select_subspace(u, y, orders=(2, 4, 6, 8), fs=fs)
+    assert res.model.stable() and res.order != first
+
+
+def test_arx_yardstick_delay_on_a_chain_of_high_relative_degree():
+    """Three cascaded modes (relative degree 6, no transport delay): the first significant
+    lag of the impulse response comes many samples late, but the ARX delay is chosen with
+    the order by the check fit, and the model reaches what a subspace model does."""
+    fs = 200.0
+    b, a = _modes_tf([(3.0, 0.03), (8.0, 0.02), (13.0, 0.02)], fs)
+    rng = np.random.default_rng(11)
+    u = rng.standard_normal(6000)
+    y = signal.lfilter(b, a, u)
+    y = y + 0.01 * y.std() * rng.standard_normal(6000)
+    naive = estimate_delays(u[:4000], y[:4000])[0].nk
+    sel = select_arx(u[:4000], y[:4000], orders=(4, 8, 15, 30), fs=fs)
+    arx_fit, _ = heldout(sel.model.to_linear(), u, y, 4000)
+    sub, _ = select_subspace(u[:4000], y[:4000], orders=(4, 6, 8), fs=fs)
+    sub_fit, _ = heldout(sub.model, u, y, 4000)
+    assert naive > 3 and sel.nk[0] < naive, (sel.nk, naive)
+    assert arx_fit[0] > sub_fit[0] - 1, (arx_fit, sub_fit)

@@ -143,7 +143,7 @@ class ArxSelection:
     model: ArxModel
     order: int
     nk: tuple[int, ...]
-    check_fit: dict[int, float]
+    check_fit: dict[int, float]   # per order, the best over the delays tried
 
 
 def select_arx(u: np.ndarray, y: np.ndarray, orders: Sequence[int] = tuple(range(1, 11)),
@@ -152,25 +152,38 @@ def select_arx(u: np.ndarray, y: np.ndarray, orders: Sequence[int] = tuple(range
 
     Each n in ``orders`` is fitted on the first two thirds and scored by the mean free-run
     fit on the last third (:func:`~rigd.ident.lti.linear.heldout`); the best is refitted on
-    all of (u, y). ``nk`` defaults to :func:`rigd.ident.lti.delay.estimate_delays`' lags.
+    all of (u, y). ``nk`` defaults to the delays chosen with the order: the lags of
+    :func:`rigd.ident.lti.delay.estimate_delays`, fractions of them (0, ¼, ½, ¾: the first
+    significant lag of a response of high relative degree comes late, so the estimate can be
+    far too long) and one sample more, each with every order, by the same check fit.
     """
     from rigd.ident.lti.delay import estimate_delays
 
     u, y = as_2d(u), as_2d(y)
     if nk is None:
-        nk = tuple(d.nk for d in estimate_delays(u, y))
-    nk = _per_input(nk, u.shape[1], "nk")
+        est = [d.nk for d in estimate_delays(u, y)]
+        tries = {tuple(int(round(f * k)) for k in est) for f in (0.0, 0.25, 0.5, 0.75, 1.0)}
+        tries.add(tuple(k + 1 for k in est))
+    else:
+        tries = {_per_input(nk, u.shape[1], "nk")}
     cut = (2 * len(u)) // 3
     scores: dict[int, float] = {}
-    for n in orders:
-        try:
-            m = fit_arx(u[:cut], y[:cut], n, n, nk, fs).to_linear()
-        except (ValueError, np.linalg.LinAlgError):
-            continue
-        fit, _ = heldout(m, u, y, cut)
-        scores[int(n)] = float(np.mean(fit))
-    if not scores:
+    best, best_key = None, None
+    for lags in sorted(tries):
+        lags = _per_input(lags, u.shape[1], "nk")
+        for n in orders:
+            try:
+                m = fit_arx(u[:cut], y[:cut], n, n, lags, fs).to_linear()
+            except (ValueError, np.linalg.LinAlgError):
+                continue
+            fit, _ = heldout(m, u, y, cut)
+            f = float(np.mean(fit))
+            key = (f, -n, -sum(lags))
+            if best_key is None or key > best_key:
+                best, best_key = (n, lags), key
+            scores[int(n)] = max(scores.get(int(n), -np.inf), f)
+    if best is None:
         raise ValueError(f"record too short for any ARX order in {tuple(orders)} "
                          f"({len(u)} samples)")
-    best = max(scores, key=lambda k: (scores[k], -k))
-    return ArxSelection(fit_arx(u, y, best, best, nk, fs), best, nk, scores)
+    n, lags = best
+    return ArxSelection(fit_arx(u, y, n, n, lags, fs), n, lags, scores)

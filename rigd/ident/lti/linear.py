@@ -127,17 +127,28 @@ class LinearModel:
             return self.x0
         m = min(len(u), n_fit or 20 * n + 200)
         y_free = self.simulate(u[:m], np.zeros(n))
-        obs = np.empty((m, self.C.shape[0], n))
-        Ak = np.eye(n)
-        for k in range(m):  # C A^k: the free response of each initial state
-            obs[k] = self.C @ Ak
-            Ak = self.A @ Ak
-            if not np.all(np.isfinite(Ak)):
-                obs[k + 1:] = 0.0
-                break
+        obs = free_responses(self.A, self.C, m)  # C A^k: free response of each initial state
+        obs[~np.isfinite(obs)] = 0.0
         resid = (as_2d(y)[:m] - y_free).reshape(-1)
         self.x0 = np.linalg.lstsq(obs.reshape(-1, n), resid, rcond=None)[0]
         return self.x0
+
+
+def free_responses(A: np.ndarray, C: np.ndarray, n: int) -> np.ndarray:
+    """(n, ny, nx): C A^t, the free response of each unit initial state over n samples (the
+    compiled simulation kernel, one run per state)."""
+    nx, ny = A.shape[0], C.shape[0]
+    G = np.empty((n, ny, nx))
+    zb, zu = np.zeros((nx, 1)), np.zeros((n, 1))
+    out = np.empty((n, ny))
+    A, C = np.ascontiguousarray(A, float), np.ascontiguousarray(C, float)
+    for a in range(nx):
+        e = np.zeros(nx)
+        e[a] = 1.0
+        with np.errstate(all="ignore"):
+            lsim_kernel(A, zb, C, e, zu, out)
+        G[:, :, a] = out
+    return G
 
 
 def heldout(model: LinearModel, u: np.ndarray, y: np.ndarray, n_est: int

@@ -87,10 +87,10 @@ def _lstsq(M: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(M / nrm, y, rcond=1e-12)[0] / (nrm if y.ndim == 1 else nrm[:, None])
 
 
-def gains_by_least_squares(model, lam, data) -> np.ndarray:
+def gains_by_least_squares(model, lam, data, skip: int = 0) -> np.ndarray:
     """theta of ``model`` (a :class:`~rigd.ident.lti.statespace.StateSpaceModel`) with the
     poles ``lam`` (one per block) and every gain, x0 and offset by least squares (module
-    docstring)."""
+    docstring); the first ``skip`` samples are left out of the least squares."""
     u = shift_inputs(np.ascontiguousarray(data.u, float), model.delays)
     y = np.asarray(data.y, float)
     n, nu, ny = u.shape[0], model.nu, model.ny
@@ -109,7 +109,7 @@ def gains_by_least_squares(model, lam, data) -> np.ndarray:
         cols += [u[:, j] for j in range(nu)]
     cols.append(np.ones(n))
     G = np.column_stack(cols)
-    coef = _lstsq(G, y)                                     # (ncols, ny)
+    coef = _lstsq(G[skip:], y[skip:])                       # (ncols, ny)
     Bm = np.zeros((model.nx, nu))
     Cm = np.zeros((ny, model.nx))
     pos = 0
@@ -155,8 +155,8 @@ def gains_by_least_squares(model, lam, data) -> np.ndarray:
         z[:, i] = w[i]
         cols.append(z)
         what.append(("yoff", i, 0))
-    M = np.column_stack([c.ravel() for c in cols])
-    sol = _lstsq(M, (y * w).ravel())
+    M = np.column_stack([c[skip:].ravel() for c in cols])
+    sol = _lstsq(M, (y * w)[skip:].ravel())
     x0 = np.zeros(model.nx)
     D = np.zeros((ny, nu))
     yoff = np.zeros(ny)

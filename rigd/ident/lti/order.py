@@ -7,26 +7,27 @@ not a rotor's (``generic``):
    estimate_delays` (ARX impulse response and prewhitened cross-correlation) on the
    estimation part; the lag of the first response becomes a delay in samples for the hold
    used (ZOH: nk − 1, FOH: nk);
-2. **order** — for 1, 2, … states: poles of a subspace model of that order (inputs shifted by
-   the delays), gains, initial state and offsets by least squares
-   (:mod:`rigd.ident.lti.modal`); a slow real pole (time constant beyond the estimation
-   part) is also tried as an explicit integrator. Each candidate gets the Bayesian
-   information criterion on the estimation part,
-   BIC = Σ_outputs N·ln(σ²_i) + p·ln(N·ny) (p: parameters, N: samples), and its fit on the
-   held-out part (free run from the estimation part's initial state). The scan stops
-   :data:`PATIENCE` orders after the last BIC improvement, or at ``max_states``;
-3. **family** — the general LTI candidates compete with the grey-box mechanical n-DOF model
-   (one DOF per output, when given) and the low-order process models
-   (:mod:`rigd.ident.lti.process`) by the same criterion: the *admissible* candidates are
-   those whose held-out fit is within :data:`MIN_GAIN` points of the best; among them the
-   lowest BIC wins — unless a model with fewer parameters fits the held-out part at least
-   as well (extra states must pay on data they were not fitted to) — and an admissible
-   grey-box mechanical model is kept (its parameters are physical and the state-level
-   effects need it);
-4. the delays are checked at the order the scan chose (:func:`_delay_search`: 0, d/4, d/2,
-   3d/4, then sample by sample, by the BIC); when they move, the orders are scanned again
-   with them; the admissible models are refined by output error (:func:`rigd.ident.pem.fit`)
-   before the final choice.
+2. **delays and order, cheaply** (:mod:`rigd.ident.lti.scan`): subspace models (one
+   decomposition per delay vector) of 1, 2, … states for the delays 0, ¼, ½, ¾ and all of
+   the estimate (the first significant lag of a response of high relative degree comes
+   late), then per input one sample either way at the best order; each is scored by the
+   Bayesian information criterion of its free run on the estimation part,
+   BIC = Σ_outputs N·ln(σ²_i) + p·ln(N·ny), and its held-out fit; the scan stops a few
+   orders after the last improvement;
+3. **the best few** (:data:`REFINED`, lowest BIC among those whose held-out fit is within
+   :data:`MIN_GAIN` points of the best, and the one with the fewest states) become the
+   modal family: subspace poles, gains, initial state and offsets by least squares
+   (:mod:`rigd.ident.lti.modal`; a slow real pole also as an explicit integrator), refined
+   by output error (:func:`rigd.ident.pem.fit`);
+4. **family** — they compete with the grey-box mechanical n-DOF model (one DOF per output,
+   when given) and the low-order process models (:mod:`rigd.ident.lti.process`) by the same
+   criterion: among the *admissible* candidates (held-out fit within :data:`MIN_GAIN` of
+   the best) the lowest BIC wins — unless a model with fewer parameters fits the held-out
+   part at least as well — and an admissible grey-box mechanical model is kept (its
+   parameters are physical and the state-level effects need it).
+
+The first samples whose outputs depend, through the delays, on inputs before the record are
+left out of every criterion and fit (:func:`~rigd.ident.lti.candidates.settle`).
 
 ``order=N`` fits the LTI family with exactly N states, or refuses with the reason
 (:class:`OrderRefused`): never silently another order.
@@ -39,14 +40,14 @@ from typing import Any
 
 import numpy as np
 
-from rigd.ident.lti.candidates import MIN_GAIN, Candidate, score
+from rigd.ident.lti.candidates import MIN_GAIN, Candidate, score, settle
 from rigd.ident.lti.modal import gains_by_least_squares, subspace_poles_by_order
 from rigd.ident.lti.statespace import StateSpaceModel
 
 #: most states tried by ``order="auto"`` (and accepted by ``order=N``)
 MAX_STATES = 30
-#: orders scanned past the last BIC improvement
-PATIENCE = 3
+#: LTI candidates (the subspace scan's best) turned into the modal family and refined
+REFINED = 3
 
 
 class OrderRefused(ValueError):
@@ -65,6 +66,7 @@ class BaseChoice:
     candidates: list[Candidate] = field(default_factory=list)
     reason: str = ""
     asked: str | int = "auto"
+    scan: list = field(default_factory=list)
 
     @property
     def modes(self) -> int:
@@ -105,10 +107,12 @@ def input_delays(d_est, hold: str) -> list[int]:
 
 
 def lti_candidates(data, d_est, est, val, states: int, delays, hold,
-                   poles: dict | None = None) -> list[Candidate]:
+                   poles: dict | None = None, skip: int | None = None) -> list[Candidate]:
     """LTI models of ``states`` states from the subspace poles (``poles``: by order, from
     :func:`~rigd.ident.lti.modal.subspace_poles_by_order`; computed when not given) and, for
-    a slow real pole, the same with an explicit integrator; gains by least squares."""
+    a slow real pole, the same with an explicit integrator; gains by least squares (the
+    first ``skip`` samples left out: default :func:`~rigd.ident.lti.candidates.settle`)."""
+    skip = settle(delays) if skip is None else skip
     if poles is None:
         poles = subspace_poles_by_order(d_est, [states], delays)
     lam = poles.get(states, [])
@@ -129,12 +133,12 @@ def lti_candidates(data, d_est, est, val, states: int, delays, hold,
             continue
         m.set_record(d_est.n)
         try:
-            th = gains_by_least_squares(m, pairs + real + [0j] * ni, d_est)
+            th = gains_by_least_squares(m, pairs + real + [0j] * ni, d_est, skip)
         except (np.linalg.LinAlgError, ValueError):
             continue
         th = _clip(m, th)
-        b, fe, fv = score(m, th, data, est, val)
-        out.append(Candidate("lti", states, m, th, b, fe, fv, len(m.names)))
+        b, fe, fv = score(m, th, data, est, val, skip)
+        out.append(Candidate("lti", states, m, th, b, fe, fv, len(m.names), skip))
     return out
 
 
@@ -148,47 +152,15 @@ def _refine(cand: Candidate, data, d_est, est, val, max_nfev) -> Candidate:
     from rigd.ident.pem import fit
 
     try:
-        res = fit(cand.structure, d_est, method="oe", theta0=cand.theta, max_nfev=max_nfev)
+        res = fit(cand.structure, d_est, method="oe", theta0=cand.theta, max_nfev=max_nfev,
+                  skip=cand.skip)
     except (np.linalg.LinAlgError, ValueError):
         return cand
-    b, fe, fv = score(cand.structure, res.theta, data, est, val)
+    b, fe, fv = score(cand.structure, res.theta, data, est, val, cand.skip)
     if not np.isfinite(b) or b > cand.bic:
         return cand
-    return Candidate(cand.family, cand.states, cand.structure, res.theta, b, fe, fv, cand.npar)
-
-
-def _delay_search(best: Candidate, data, d_est, est, val) -> Candidate:
-    """The LTI candidate's delays checked at the same number of states, input by input: a
-    coarse pass over 0, d/4, d/2, 3d/4 (the first significant lag of a response of high
-    relative degree — a chain of masses, a cascade of lags — comes late, so the estimate can
-    be far too long), then sample by sample from the best while the BIC improves."""
-    m = best.structure
-
-    def at(dl):
-        c = [x for x in lti_candidates(data, d_est, est, val, best.states, dl, m.hold)
-             if x.structure.ni == m.ni]
-        return c[0] if c else None
-
-    for j in range(m.nu):
-        d0 = m.delays[j]
-        for dj in sorted({0, d0 // 4, d0 // 2, (3 * d0) // 4} - {d0}):
-            dl = list(m.delays)
-            dl[j] = dj
-            c = at(dl)
-            if c is not None and c.bic < best.bic:
-                best = c
-        m = best.structure
-        for step in (-1, 1):
-            while True:
-                dl = list(m.delays)
-                dl[j] += step
-                if dl[j] < 0:
-                    break
-                c = at(dl)
-                if c is None or c.bic >= best.bic:
-                    break
-                best, m = c, c.structure
-    return best
+    return Candidate(cand.family, cand.states, cand.structure, res.theta, b, fe, fv, cand.npar,
+                     cand.skip)
 
 
 def admissible(cands: list[Candidate]) -> list[Candidate]:
@@ -219,71 +191,62 @@ def choose_base(data, est: slice, val: slice, order: str | int = "auto", hold: s
     process : bool
         Let the process family compete (SISO pairs, :mod:`rigd.ident.lti.process`).
     """
+    from rigd.ident.lti.modal import poles_from_discrete
+    from rigd.ident.lti.scan import ranked, scan_delays
+
     d_est = data.slice(est.start, est.stop)
     delays = input_delays(d_est, hold)
     want = None if order == "auto" else order
     if want is not None:
         return _exact(data, d_est, est, val, want, delays, hold, max_states, max_nfev)
-    cands = _scan(data, d_est, est, val, delays, hold, max_states)
-    ok = [c for c in admissible(cands) if c.family == "lti"]
-    if ok:   # delays checked at the chosen order; changed delays: the order scanned again
-        first = min(ok, key=lambda c: c.bic)
-        moved = _delay_search(first, data, d_est, est, val)
-        if list(moved.structure.delays) != list(delays):
-            delays = list(moved.structure.delays)
-            cands = _scan(data, d_est, est, val, delays, hold, max_states)
+    limit = min(max_states, _most_states(d_est))
+    points = scan_delays(data, est, val, delays, limit, MIN_GAIN, hold)
+    cands: list[Candidate] = []
+    best = ranked(points, MIN_GAIN, REFINED)
+    # one criterion for every candidate: the same samples left out (the longest delay)
+    skip = max([settle(p.delays) for p in best] + [settle(delays)])
+    for p in best:
+        poles = {p.states: poles_from_discrete(p.A, float(data.fs))}
+        cands += lti_candidates(data, d_est, est, val, p.states, list(p.delays), hold, poles,
+                                skip)
+    if best:
+        delays = list(best[0].delays)
     if process:
         from rigd.ident.lti.process import process_candidates
 
-        cands += process_candidates(data, d_est, est, val, delays, hold)
+        cands += process_candidates(data, d_est, est, val, delays, hold, skip)
     if mechanical is not None:
         from rigd.ident.pem import fit
 
         th = (mechanical_theta if mechanical_theta is not None else
               fit(mechanical, d_est, method="oe", max_nfev=max_nfev).theta)
-        b, fe, fv = score(mechanical, th, data, est, val)
+        b, fe, fv = score(mechanical, th, data, est, val, skip)
         cands.append(Candidate("mechanical", 2 * mechanical.ny, mechanical, np.asarray(th),
-                               b, fe, fv, len(mechanical.names)))
-    return _pick(cands, data, d_est, est, val, max_nfev)
-
-
-def _scan(data, d_est, est, val, delays, hold, max_states) -> list[Candidate]:
-    """LTI candidates of 1, 2, … states until :data:`PATIENCE` orders bring no better BIC."""
-    cands: list[Candidate] = []
-    best_bic, since = np.inf, 0
-    limit = min(max_states, _most_states(d_est))
-    poles = subspace_poles_by_order(d_est, range(1, limit + 1), delays)
-    for n in range(1, limit + 1):
-        got = lti_candidates(data, d_est, est, val, n, delays, hold, poles)
-        cands += got
-        b = min((c.bic for c in got), default=np.inf)
-        if b < best_bic:
-            best_bic, since = b, 0
-        else:
-            since += 1
-            if since >= PATIENCE:
-                break
-    return cands
+                               b, fe, fv, len(mechanical.names), skip))
+    choice = _pick(cands, data, d_est, est, val, max_nfev)
+    choice.scan = points
+    return choice
 
 
 def _pick(cands, data, d_est, est, val, max_nfev) -> BaseChoice:
     ok = admissible(cands)
     if not ok:
         raise OrderRefused("no candidate model could be simulated on this record")
-    # refine (output error): every admissible LTI candidate up to the one the least-squares
-    # scores chose (poles at their subspace values favour more states: the refit decides),
-    # and the best of every other family; then decide on the refined scores
+    # refine (output error) the LTI candidates (those of the scan's best points) and the
+    # best of every other family; then decide on the refined scores
     best_by_family: dict[str, Candidate] = {}
     for c in sorted(cands, key=lambda c: c.bic):
         if np.isfinite(c.bic):
             best_by_family.setdefault(c.family, c)
-    refined = []
-    lti_ok = [c for c in ok if c.family == "lti"]
-    if lti_ok:
-        top = min(lti_ok, key=lambda c: c.bic).states
-        refined += [_refine(c, data, d_est, est, val, max_nfev)
-                    for c in lti_ok if c.states <= top]
-        best_by_family.pop("lti", None)
+    # per model tried by the scan (delays, states) its best variant (with or without an
+    # integrator), admissible or not: the scores before the refit are not the final ones
+    per_point: dict[tuple, Candidate] = {}
+    for c in sorted((c for c in cands if c.family == "lti" and np.isfinite(c.bic)),
+                    key=lambda c: c.bic):
+        per_point.setdefault((tuple(c.structure.delays), c.states), c)
+    lti_ok = list(per_point.values())[:REFINED + 1]
+    refined = [_refine(c, data, d_est, est, val, max_nfev) for c in lti_ok]
+    best_by_family.pop("lti", None)
     if "process" in best_by_family:
         best_by_family["process"] = _refine(best_by_family["process"], data, d_est, est, val,
                                             max_nfev)

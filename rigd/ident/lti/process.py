@@ -214,13 +214,14 @@ def fit_by_grid(model: ProcessModel, data) -> tuple[np.ndarray, float]:
     return best, best_sse
 
 
-def process_candidates(data, d_est, est, val, delays, hold) -> list:
-    """One candidate per process kind (for :func:`rigd.ident.lti.order.choose_base`)."""
+def process_candidates(data, d_est, est, val, delays, hold, skip: int = 0) -> list:
+    """One candidate per process kind (for :func:`rigd.ident.lti.order.choose_base`);
+    ``skip``: samples left out of the criterion (:func:`~rigd.ident.lti.candidates.settle`)."""
     out = []
     for kind in KINDS:
         m = ProcessModel(d_est.input_names, d_est.output_names, data.fs, kind, delays, hold)
         m.set_record(d_est.n)
         th, _ = fit_by_grid(m, d_est)
-        b, fe, fv = score(m, th, data, est, val)
-        out.append(Candidate("process", m.nx, m, th, b, fe, fv, len(m.names)))
+        b, fe, fv = score(m, th, data, est, val, skip)
+        out.append(Candidate("process", m.nx, m, th, b, fe, fv, len(m.names), skip))
     return out

@@ -27,7 +27,7 @@ import numpy as np
 import scipy.linalg
 
 from rigd.ident.figures import fit_percent
-from rigd.ident.lti.linear import LinearModel, as_2d
+from rigd.ident.lti.linear import LinearModel, as_2d, free_responses
 from rigd.ident.lti.lsq import solve_r, stacked_r
 
 #: largest order considered by ``order="auto"``
@@ -117,12 +117,7 @@ def _refine_bd(A, C, du, dy):
             e = np.zeros((nx, 1))
             e[a] = 1.0
             lsim_kernel(A, e, C, zero, ub, resp[b, a])
-    G = np.zeros((n, ny, nx))   # C A^t: free response of each initial state
-    G[0] = C
-    for k in range(1, n):
-        G[k] = G[k - 1] @ A
-        if np.abs(G[k]).max() < 1e-12 * max(np.abs(C).max(), 1e-300):
-            break
+    G = free_responses(A, C, n)   # C A^t: free response of each initial state
     d = nx * nu + ny * nu + nx
 
     def rows(t0, t1):
@@ -168,6 +163,21 @@ def n4sid(u: np.ndarray, y: np.ndarray, order: int | str = "auto",
     return SubspaceResult(dec.model(nx), sv, nx, dec.i)
 
 
+def clamp_poles(A: np.ndarray) -> np.ndarray:
+    """``A`` with every eigenvalue outside the unit circle moved onto it (same angle); ``A``
+    itself when none is (or it cannot be diagonalised)."""
+    lam, V = np.linalg.eig(A)
+    r = np.abs(lam)
+    if not np.any(r > 1.0):
+        return A
+    lam = np.where(r > 1.0, lam / np.maximum(r, 1e-300), lam)
+    try:
+        out = V @ np.diag(lam) @ np.linalg.inv(V)
+    except np.linalg.LinAlgError:
+        return A
+    return np.ascontiguousarray(out.real) if np.all(np.isfinite(out)) else A
+
+
 class _Decomposition:
     """Steps 1–2 of the module docstring (LQ and SVD, shared by every order) and
     :meth:`model` (steps 3–4 for one order)."""
@@ -195,8 +205,11 @@ class _Decomposition:
         self.Wp = _hankel_rows([(self.du, 0), (self.dy, 0)], i)(0, j)   # (j, r2) past data
         self.fs, self.feedthrough, self.r3 = fs, feedthrough, r3
 
-    def model(self, nx: int) -> LinearModel:
-        """The order-``nx`` model in the record's units."""
+    def model(self, nx: int, refine: bool = True, stabilise: bool = False) -> LinearModel:
+        """The order-``nx`` model in the record's units (``refine``: step 4, B, D and x0 by
+        least squares on the free-run output; ``stabilise``: poles outside the unit circle
+        brought onto it first (:func:`clamp_poles`: closed-loop or short records can give an
+        integrator's estimate just outside), so that step 4 applies)."""
         du, dy, i, j, fs = self.du, self.dy, self.i, self.j, self.fs
         nu, ny = du.shape[1], dy.shape[1]
         if not 1 <= nx < self.r3:
@@ -204,6 +217,8 @@ class _Decomposition:
         s_half = np.sqrt(self.sv[:nx])
         Gam = self.U1[:, :nx] * s_half               # extended observability (scaled data)
         A = np.linalg.lstsq(Gam[:-ny], Gam[ny:], rcond=None)[0]   # shift invariance
+        if stabilise:
+            A = clamp_poles(A)
         C = Gam[:ny]
         Mx = np.linalg.pinv(Gam) @ self.L32 @ self.L22p      # X = Mx W_p
         X = self.Wp @ Mx.T                            # (j, nx): state at t = i + c
@@ -217,7 +232,7 @@ class _Decomposition:
         K = _kalman_gain(A, C, res[:, :nx], res[:, nx:])
         m = LinearModel(A, B, C, D, K, np.zeros(nx), np.zeros(nu), np.zeros(ny), fs)
         m.fit_x0(du, dy)
-        if np.max(np.abs(np.linalg.eigvals(A))) < 1.0:
+        if refine and np.max(np.abs(np.linalg.eigvals(A))) <= 1.0 + 1e-9:
             try:
                 B2, D2, x02 = _refine_bd(A, C, du, dy)
                 if not self.feedthrough:
@@ -237,8 +252,9 @@ def select_subspace(u: np.ndarray, y: np.ndarray, orders=tuple(range(1, 21)),
                     fs: float | None = None) -> tuple[SubspaceResult, dict[int, float]]:
     """Subspace model with the order chosen on the estimation data (u, y) alone: each order
     is fitted on the first two thirds and scored by the free-run fit on the last third
-    (:func:`~rigd.ident.lti.linear.heldout`); the best is refitted on all of (u, y). One
-    decomposition serves every order (horizon for the largest).
+    (:func:`~rigd.ident.lti.linear.heldout`); the best is refitted on all of (u, y) and kept
+    when that refit is stable (else the next best order whose refit is). One decomposition
+    serves every order (horizon for the largest).
 
     Returns the result and the check fit (%) of every order tried (−inf: diverged).
     """
@@ -261,9 +277,22 @@ def select_subspace(u: np.ndarray, y: np.ndarray, orders=tuple(range(1, 21)),
     if not scores:
         raise ValueError(f"record too short for any subspace order in {tuple(orders)} "
                          f"({len(u)} samples)")
-    best = max(scores, key=lambda k: (scores[k], -k))
     full = _Decomposition(u, y, top, None, fs, True)
-    return SubspaceResult(full.model(best), full.sv, best, full.i), scores
+    # the refit on all of (u, y) is checked again: the best check order whose refit is
+    # stable (a refit can move a pole outside the unit circle); none: the best, its poles
+    # brought onto the unit circle
+    ranked = sorted(scores, key=lambda k: (-scores[k], k))
+    for nx in ranked:
+        if not np.isfinite(scores[nx]):
+            break
+        try:
+            m = full.model(nx)
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        if m.stable():
+            return SubspaceResult(m, full.sv, nx, full.i), scores
+    best = ranked[0]
+    return SubspaceResult(full.model(best, stabilise=True), full.sv, best, full.i), scores
 
 
 def continuous_modes(A: np.ndarray, fs: float) -> list[tuple[float, float]]:
