@@ -109,6 +109,11 @@ COMMANDS: dict[str, tuple[type[Args], str]] = {
 }
 
 
+#: the commands that act on the rig (not queries, not the stream): what the connections kept
+#: beyond ``max_clients`` take when every slot is held (rigd.service.server.RESERVED)
+CONTROL = ("safe", "fault.reset", "controller.enable", "controller.disable", "controller.load",
+           "operating_point.set", "experiment.start", "experiment.stop")
+
 class RequestError(Exception):
     """A request the daemon refuses; becomes an ``ok: false`` reply."""
 

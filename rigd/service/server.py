@@ -7,8 +7,10 @@ silent or hostile client can never block another one or the loop:
   is disconnected (its buffer is bounded);
 * a client that does not read its replies is disconnected once ``max_pending`` bytes of
   replies are waiting;
-* beyond ``max_clients`` connections, :data:`RESERVED` more are accepted for ``safe`` only
-  (any other request there gets one error line saying the daemon is full, and is closed);
+* beyond ``max_clients`` connections, :data:`RESERVED` more are accepted for control only
+  (:data:`rigd.service.protocol.CONTROL`: ``safe``, reset, the controller, the operating
+  point, experiments — a query or a stream there gets one error line saying the daemon is
+  full, and is closed): however many clients hold the slots, the operator can still act;
   beyond those, new ones get one error line and are closed;
 * a client that sends nothing for ``idle_s`` (no request waiting, no push) is closed, so idle
   connections cannot hold the slots for ever;
@@ -45,18 +47,19 @@ from pathlib import Path
 from rigd.service import protocol
 from rigd.service.listen import listen
 
-#: connections accepted beyond ``max_clients``, for ``safe`` only
+#: connections accepted beyond ``max_clients``, for control commands only (protocol.CONTROL)
 RESERVED = 4
 #: a client silent this long is closed, s (default of ``ControlServer(idle_s=...)``)
 IDLE_S = 60.0
 
 
-def _is_safe_request(line: bytes) -> bool:
+def _is_control_request(line: bytes) -> bool:
+    """Is ``line`` a request for one of the control commands (protocol.CONTROL)?"""
     try:
         req = json.loads(line)
-    except ValueError:
+    except (ValueError, RecursionError):
         return False
-    return isinstance(req, dict) and req.get("cmd") == "safe"
+    return isinstance(req, dict) and req.get("cmd") in protocol.CONTROL
 
 
 class _Client:
@@ -310,11 +313,12 @@ class ControlServer:
             if not line:
                 continue
             self.stats["requests"] += 1
-            if c.reserved and not _is_safe_request(line):
+            if c.reserved and not _is_control_request(line):
                 self.stats["refused_clients"] += 1
                 c.wbuf += protocol.error(None, f"too many clients (max {self.max_clients}): "
-                                               "the daemon is full; only `safe` is taken on "
-                                               "this connection")
+                                               "the daemon is full; only control commands "
+                                               "(safe, reset, enable, disable, load, op, "
+                                               "start, stop) are taken on this connection")
                 c.closing = True
                 c.rbuf.clear()
                 break

@@ -161,9 +161,11 @@ class _SafeFake(FakeLoop):
         return {"fault": {"code": self.fault, "name": "operator_safe", "seq": 1, "text": ""}}
 
 
-def test_a_full_daemon_keeps_a_slot_for_safe_and_says_it_is_full(tmp_path):
-    """Every slot taken: a reserved connection takes ``safe`` and nothing else, and the client
-    says in one line that the daemon is full (it once said "reply id None does not match")."""
+def test_a_full_daemon_keeps_a_slot_for_control_and_says_it_is_full(tmp_path):
+    """Every slot taken: a reserved connection takes a control command (``safe``, a reset, a
+    controller switch, ...) and no query, and the client says in one line that the daemon is
+    full (it once said "reply id None does not match"). A nested line there is refused, and
+    the server goes on serving (a RecursionError in its thread would have ended it)."""
     loop = _SafeFake()
     srv = ControlServer(tmp_path / "rigd.sock", Dispatcher(loop).handle_line, max_clients=8)
     srv.start()
@@ -174,8 +176,16 @@ def test_a_full_daemon_keeps_a_slot_for_safe_and_says_it_is_full(tmp_path):
         socks.append(s)
     with ControlClient(srv.path, timeout=5) as c, \
             pytest.raises(InputError, match=r"refused the connection: too many clients \(max 8\)"
-                                            r": the daemon is full; only `safe`"):
+                                            r": the daemon is full; only control commands"):
         c.request("status")
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.settimeout(5)
+        s.connect(srv.path)
+        s.sendall(b"[" * 60000 + b"\n")
+        assert b"too many clients" in s.recv(4096)
+    with ControlClient(srv.path, timeout=5) as c:
+        assert c.call("controller.enable") == {"enabled": True}
+    assert loop.enabled
     with ControlClient(srv.path, timeout=5) as c:
         assert c.call("safe")["safe"] is True
     assert loop.fault

@@ -1,5 +1,5 @@
 """SAFE cannot be refused: with 200 browser streams on ``rigd web`` and 200 idle connections on
-the daemon's socket (every client slot taken, the 4 kept for ``safe`` too), ``rigd ctl safe``
+the daemon's socket (every client slot taken, the 4 kept for control too), ``rigd ctl safe``
 and the console's SAFE still latch ``operator_safe`` within 250 cycles (50 ms at 5 kHz) of the
 request — counted on the loop's own cycle counter, not the wall clock. The 200 browsers cost
 the daemon one client.
@@ -78,12 +78,13 @@ def _held(c: socket.socket) -> bool:
 
 
 def _assert_full(sock: str) -> None:
-    """A new client is refused at the door: every slot *and* the 4 kept for `safe` are taken
-    (a free reserved one would take it and answer "only `safe` is taken on this connection")."""
+    """A new client is refused at the door: every slot *and* the 4 kept for control are taken
+    (a free reserved one would take it and answer "only control commands are taken on this
+    connection")."""
     r = subprocess.run([RIGD, "ctl", "--socket", sock, "--timeout", HANG, "status"],
                        capture_output=True, text=True, timeout=PROCESS_S)
     assert r.returncode == 2 and "too many clients (max 64)" in r.stderr, r.stderr
-    assert "only `safe`" not in r.stderr and "does not match" not in r.stderr, r.stderr
+    assert "only control" not in r.stderr and "does not match" not in r.stderr, r.stderr
 
 
 class _Siege(threading.Thread):
@@ -147,7 +148,7 @@ def test_safe_latches_within_250_cycles_with_every_slot_taken(tmp_path):
             # every browser shares one daemon subscription: the daemon sees 1 + this ping
             assert _ping(d.sock)["clients"] == 2
             # as a flood would, non-blocking: more than the 64 slots and the 4 kept for
-            # `safe` are made (waiting while the niced socket process drains its backlog),
+            # control are made (waiting while the niced socket process drains its backlog),
             # the others are tried once (a full backlog refuses them at once)
             for i in range(N_IDLE):
                 while True:
@@ -165,10 +166,10 @@ def test_safe_latches_within_250_cycles_with_every_slot_taken(tmp_path):
             assert len(idle) > 68, len(idle)
             siege = _Siege(streams, idle)
             siege.start()
-            # the socket is full, the slots kept for `safe` too: a client says so in one line
+            # the socket is full, the slots kept for control too: a client says so in one line
             _assert_full(d.sock)
             held = [c for c in idle if _held(c)]
-            assert len(held) >= 67, len(held)     # 63 + the web's subscription, and 4 for safe
+            assert len(held) >= 67, len(held)     # 63 + the web's subscription, and 4 kept
             # the operator's SAFE: through the SAFE word, no slot needed
             r = subprocess.run([RIGD, "ctl", "--socket", d.sock, "--timeout", HANG, "safe"],
                                capture_output=True, text=True, timeout=PROCESS_S)
