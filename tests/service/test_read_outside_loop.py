@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bigcontroller import write_big_controller
+from daemon_helpers import PROCESS_S
 from fakeloop import FakeLoop
 
 from rigd import bounded, configio
@@ -77,7 +78,7 @@ def daemon_side(tmp_path, monkeypatch):
     fe = SocketFrontend(sock, 0o660, handle, snapshot, fs_hz=5000.0,
                         runs_root=str(runs)).start()
     try:
-        assert fe.ready.wait(120), "socket process did not come up"
+        assert fe.ready.wait(PROCESS_S), "socket process did not come up"   # a hang bound
         yield sock, loop, exps, got, runs, fe
     finally:
         fe.stop()
