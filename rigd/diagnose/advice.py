@@ -42,6 +42,9 @@ def cannot_reveal(effect: str, code: str, ev: dict[str, Any], domain: str
         return ev["why"], f"re-run with multi-level excitation ({_multilevel(ev, domain)})"
     if effect == "creep":
         return ev["why"], _creep(ev, domain)
+    words = NEUTRAL.get((effect, code))
+    if words is not None:
+        return words(ev, domain)
     raise KeyError((effect, code))
 
 
@@ -75,3 +78,78 @@ def _creep(ev: dict[str, Any], domain: str) -> str:
     return (f"re-run with steps held for {N.duration(lo)}–{N.duration(hi)} (multi-level, one "
             "to ten of the model's slowest time constant) and a record several times "
             "longer than the creep's slow time constant")
+
+
+def closed_loop(ev: dict[str, Any]) -> str:
+    """What to do about an integrating plant (advice code ``identify_closed_loop``): the
+    input reacts to the output under feedback, so an open-loop fit of the plant is biased."""
+    seen = ("the input reacts to what the model cannot explain (closed-loop data): "
+            if ev.get("feedback_suspected") else "")
+    return (f"{seen}identify it in closed loop — the controller's reference as the input and "
+            "the controller in the model — or record it in open loop around an operating "
+            "point held by a slow outer loop")
+
+
+# --- the domain-neutral entries -----------------------------------------------------------
+def _detect(ev: dict[str, Any]) -> str:
+    """The detectability's numbers (rigd.effects.detectability.Detectability) in words."""
+    d = ev["detectability"]
+    return (f"{100 * d['absorbed']:.3g} % of it would be absorbed by the base model; the rest "
+            f"is {d['snr']:.2g}× the residual level, {d['fit_points']:.2g} fit points, F test "
+            f"p = {d['p']:.2g}")
+
+
+def _slowest(ev: dict[str, Any]) -> float:
+    """The base model's slowest time constant (s), else 20 samples."""
+    taus = ev.get("time_constants_s") or []
+    return max(taus) if taus else 20.0 / ev["fs"]
+
+
+def _static_curve(ev: dict[str, Any], domain: str) -> tuple[str, str]:
+    return (f"a static curve bending the input or the output by "
+            f"{N.share(ev['nominal_share'])} of its spread would not show on this record "
+            f"({_detect(ev)})",
+            f"re-run with an input that visits many levels over the whole operating range: "
+            f"{_multilevel(ev, domain)}")
+
+
+def _integrating(ev: dict[str, Any], domain: str) -> tuple[str, str]:
+    lo, hi = holds(ev["fs"], ev.get("time_constants_s", []))
+    length = max(10.0 * hi, 3.0 * ev["record_seconds"])
+    return (f"an integrating path adding {N.share(ev['nominal_share'])} of the output's "
+            f"spread would not show on this record ({_detect(ev)})",
+            f"re-run for at least {N.duration(length)} (this record: "
+            f"{N.duration(ev['record_seconds'])}) with slower input changes — levels held "
+            f"{N.duration(lo)}–{N.duration(hi)} — or identify in closed loop")
+
+
+def _lag_path(ev: dict[str, Any], domain: str) -> tuple[str, str]:
+    lo, hi = holds(ev["fs"], ev.get("time_constants_s", []))
+    return (f"a first-order lag path adding {N.share(ev['nominal_share'])} of the output's "
+            f"spread would not show on this record at any time constant tried "
+            f"(at best: {_detect(ev)})",
+            f"re-run with steps held {N.duration(lo)}–{N.duration(hi)}, longer than the "
+            f"suspected lag, and a record of at least {N.duration(10 * hi)}")
+
+
+def _no_reversal(ev: dict[str, Any], domain: str) -> tuple[str, str]:
+    t = _slowest(ev)
+    share = N.share(ev["min_each_way"])
+    if domain == "process":
+        why = (f"the output never turns back (each direction of change under {share} of "
+               "the record): an opposition of constant size against every change cannot be "
+               "told from an offset")
+    else:
+        why = (f"the motion never reverses (each direction under {share} of the record): a "
+               "force of constant size against the motion cannot be told from an offset")
+    return why, (f"re-run with an input that moves back and forth: a slow triangle or a "
+                 f"low-frequency multisine with periods of {N.duration(2 * t)}–"
+                 f"{N.duration(20 * t)} (two to twenty of the model's slowest time constant)")
+
+
+NEUTRAL = {
+    ("static_nonlinearity", "too_small"): _static_curve,
+    ("integrator", "too_small"): _integrating,
+    ("extra_dynamics", "too_small"): _lag_path,
+    ("friction", "no_reversal"): _no_reversal,
+}

@@ -14,8 +14,12 @@ per sub-model and used by :mod:`rigd.diagnose.wording` and :mod:`rigd.diagnose.a
   chemical, level, flow plants): time constants, no resonance, no stiffness;
 * ``generic`` — no linear part to read poles from: neutral words.
 
-Effects that need a mechanical base (a restoring force, a stiffness) or a rotating part
-(a shaft angle) are not offered on a record of another domain (:func:`offered`).
+An effect declares the domains its physics belongs to (``Effect.domains``: a stiffness or a
+restoring force for rotor, mechanical and generic records, a shaft's run-out where parts may
+rotate); one of another domain is not offered (:func:`offered`). What the *base model* must
+carry (``Effect.requires``: velocity states for ``friction``) is a separate question,
+answered by ``Effect.not_offered(structure)``: friction is domain-neutral (a positioning
+stage, a sticking control valve) but needs a base with velocities.
 """
 
 from __future__ import annotations
@@ -30,23 +34,6 @@ import numpy as np
 LIGHT_DAMPING = 0.3
 
 DOMAINS = ("rotor", "mechanical", "process", "generic")
-
-#: what each effect needs of the record's domain (an effect may declare ``requires``
-#: itself; this is the default for the catalogue's names)
-REQUIRES: dict[str, tuple[str, ...]] = {
-    "runout": ("rotation",),
-    "cubic_stiffness": ("mechanical",),
-    "hysteresis_restoring": ("mechanical",),
-}
-
-#: what each domain provides
-PROVIDES: dict[str, tuple[str, ...]] = {
-    "rotor": ("mechanical", "rotation"),
-    "mechanical": ("mechanical", "rotation"),
-    "process": (),
-    "generic": ("mechanical", "rotation"),
-}
-
 
 @dataclass(frozen=True)
 class Domain:
@@ -111,11 +98,10 @@ def decide(submodel: str, meta: dict[str, Any], structure: Any = None,
 
 def offered(effect: Any, domain: Domain) -> bool:
     """True when ``effect`` (an :class:`rigd.effects.base.Effect`) applies to the domain:
-    all it requires (``effect.requires`` and :data:`REQUIRES`: every effect has a
-    ``requires``, often empty, so the catalogue's defaults add to it) the domain provides."""
-    need = set(getattr(effect, "requires", None) or ())
-    need.update(REQUIRES.get(getattr(effect, "name", ""), ()))
-    return all(n in PROVIDES[domain.name] for n in need)
+    ``effect.domains`` (None: every domain) names it. What the base must carry
+    (``effect.requires``) is the base's question (``Effect.not_offered``), not the domain's."""
+    doms = getattr(effect, "domains", None)
+    return doms is None or domain.name in doms
 
 
 def time_constants(structure: Any, theta: np.ndarray) -> list[float]:

@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from rigd.diagnose.advice import closed_loop
 from rigd.effects import numbers as N
 
 Words = Callable[[dict[str, Any]], str]
@@ -102,6 +103,58 @@ TEMPLATES: dict[tuple[str, str], dict[str, Words]] = {
     ("delay", "too_short"): {d: (lambda ev, d=d: _short_lag(ev, d))
                              for d in ("rotor", "mechanical", "process", "generic")},
 }
+
+
+# --- the domain-neutral entries -----------------------------------------------------------
+def _static(ev: dict[str, Any]) -> str:
+    site = ev["site"]
+    signal = "the input" if site == "input" else "the model output"
+    bend = max(ev["bend_at_spread"] or [0.0])
+    form = "Hammerstein" if site == "input" else "Wiener"
+    return (f"the error is a smooth function of the level of {signal} ({ev['channel']}): a "
+            f"static curve at the {site} bending it by about {N.share(bend)} at its spread "
+            f"({form} form); {_explains(ev)}")
+
+
+def _friction(ev: dict[str, Any], domain: str) -> str:
+    sense = "against" if ev["against_motion"] else "along"
+    if domain == "process":
+        return (f"the error jumps with the sign of the rate of change of {ev['output']}: an "
+                f"opposition of constant size {sense} every change (a dead "
+                f"band in an actuator: stiction); {_explains(ev)}")
+    return (f"the error jumps with the sign of the velocity of {ev['output']}: a force of "
+            f"constant size {sense} the motion (dry friction; the viscous part is the "
+            f"model's damping); {_explains(ev)}")
+
+
+def _integrator(ev: dict[str, Any]) -> str:
+    if ev["in_base"]:
+        what = (f"the model integrates: its slowest pole has a time constant of "
+                f"{N.duration(ev['time_constant_s'])}, longer than the "
+                f"{N.duration(ev['estimation_seconds'])} it was fitted on, so on this record "
+                f"it is a pole at zero (an integrating plant)")
+    else:
+        what = (f"the error drifts like the integral of {ev['input']} on {ev['output']}: a "
+                f"pole at zero the model lacks; {_explains(ev)}")
+    return f"{what}; {closed_loop(ev)}"
+
+
+def _lag_path(ev: dict[str, Any]) -> str:
+    return (f"the error follows a first-order lag of the input with a time constant of "
+            f"about {N.duration(ev['time_constant_s'])}: a real pole (lag) the model lacks; "
+            f"{_explains(ev)}")
+
+
+NEUTRAL: dict[tuple[str, str], dict[str, Words]] = {
+    ("static_nonlinearity", "static_nonlinearity.input"): {"*": _static},
+    ("static_nonlinearity", "static_nonlinearity.output"): {"*": _static},
+    ("friction", "friction.coulomb"): {d: (lambda ev, d=d: _friction(ev, d))
+                                       for d in ("rotor", "mechanical", "process", "generic")},
+    ("integrator", "integrator.in_base"): {"*": _integrator},
+    ("integrator", "integrator.added"): {"*": _integrator},
+    ("extra_dynamics", "extra_dynamics.real_pole"): {"*": _lag_path},
+}
+TEMPLATES.update(NEUTRAL)
 
 
 def explanation(effect: str, code: str, evidence: dict[str, Any], domain: str) -> str:

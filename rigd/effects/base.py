@@ -32,13 +32,19 @@ from typing import Any
 
 import numpy as np
 
+from rigd.effects import detectability as DT
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.scales import RecordScale
 from rigd.effects.signature import SignatureFit, signature_fit
 from rigd.effects.state_level import fixed_point
 from rigd.ident.simulate import Hooks
 
-__all__ = ["ExtendedStructure", "Effect", "accepts_hooks", "dims", "is_mechanical"]
+__all__ = ["ExtendedStructure", "Effect", "STRUCTURAL", "accepts_hooks", "dims",
+           "is_mechanical"]
+
+#: domains of records with structures that have stiffness and restoring forces (not a
+#: process of time constants: rigd.diagnose.domain)
+STRUCTURAL = ("rotor", "mechanical", "generic")
 
 
 # --------------------------------------------------------------------------------------
@@ -165,11 +171,16 @@ class Effect:
         What the base model must be to carry the effect (``mechanical``: a mechanical
         state-space model, p̈ + D ṗ + K p = B u, that takes the simulator's hooks);
         :meth:`not_offered` says why a base cannot.
+    domains : tuple of str or None
+        The record domains (rigd.diagnose.domain: ``rotor``, ``mechanical``, ``process``,
+        ``generic``) whose physics the effect belongs to; None: every domain (the
+        domain-neutral entries). A stiffness or a restoring force is :data:`STRUCTURAL`.
     """
 
     name: str = "effect"
     level: str = "input"  # "state" (mechanical model), "input" (pre-transform), "output"
     requires: tuple[str, ...] = ()
+    domains: tuple[str, ...] | None = None
     submodels: tuple[str, ...] = ("actuator", "bearing", "generic")
     physics: str = ""
     min_score: float = 0.05
@@ -201,8 +212,35 @@ class Effect:
         return f"{self.physics}; explains {100 * sig.score:.0f} % of the residual", {}
 
     def signature(self, ctx: Context) -> SignatureFit:
+        """The effect's signature on ``ctx``, computed once per context (reveal, the
+        screening and the refit's warm start share it): :meth:`_signature`."""
+        key = ("signature", self.name)
+        if key not in ctx.cache:
+            ctx.cache[key] = self._signature(ctx)
+        return ctx.cache[key]
+
+    def _signature(self, ctx: Context) -> SignatureFit:
         """Regress the residual on :meth:`regressors` (est part), score on validation part."""
         return signature_fit(ctx, self.regressors(ctx))
+
+    def reveal_at_nominal(self, ctx: Context, nominal: Callable[[], list[np.ndarray]], k: int,
+                          code: str, evidence: dict[str, Any]) -> CannotReveal | None:
+        """The "cannot tell" rule of the regression signatures
+        (:mod:`rigd.effects.detectability`): None when the residual already shows the
+        signature (``seen``) or the most detectable of the ``nominal()`` signatures — the
+        effect at a plausible size on this record — would be seen with ``k`` parameters;
+        else a :class:`CannotReveal` with the evidence ``code``, ``evidence`` and the
+        detectability's numbers (worded by rigd.diagnose.advice for the record's domain)."""
+        if DT.seen(ctx, self.signature(ctx)):
+            return None
+        d, _ = DT.best(ctx, nominal(), k=k)
+        if d.detectable:
+            return None
+        n_est = len(range(*ctx.est.indices(ctx.n)))
+        ev = dict(evidence, record_seconds=ctx.n / ctx.fs, estimation_seconds=n_est / ctx.fs,
+                  detectability={"absorbed": d.absorbed, "snr": d.snr,
+                                 "fit_points": d.fit_gain, "p": d.p})
+        return CannotReveal(self.name, "", "", ctx.submodel, code=code, evidence=ev)
 
     # --- model extension ----------------------------------------------------------------
     def extend(self, structure: Any) -> ExtendedStructure:

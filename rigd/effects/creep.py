@@ -162,9 +162,6 @@ class Creep(Effect):
         return [ctx.through_model(h, j) for j in range(ctx.nu)
                 for h in (*creep_terms(x[:, j], taus, ctx.fs), *initial_terms(n, taus, ctx.fs))]
 
-    def signature(self, ctx: Context) -> SignatureFit:
-        return DT.cached_signature(ctx, self)
-
     def _signature(self, ctx: Context) -> SignatureFit:
         grid = tau_pairs(ctx.n, ctx.fs) or [(1.0 / ctx.fs, ctx.n / ctx.fs)]
         best, best_t = None, grid[0]

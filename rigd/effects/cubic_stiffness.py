@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from rigd.effects import numbers as N
-from rigd.effects.base import Effect, dims
+from rigd.effects.base import STRUCTURAL, Effect, dims
 
 
 def amplitude_profile(ctx, nbins: int = 4) -> tuple[np.ndarray, np.ndarray]:
@@ -30,6 +30,7 @@ def amplitude_profile(ctx, nbins: int = 4) -> tuple[np.ndarray, np.ndarray]:
 class CubicStiffness(Effect):
     name = "cubic_stiffness"
     level = "state"
+    domains = STRUCTURAL  # a restoring force
     submodels = ("bearing", "generic")
     physics = "stiffness that grows with amplitude (cubic, Duffing)"
 

@@ -214,11 +214,3 @@ def seen(ctx: Context, sig) -> bool:
     err = float(np.mean(100.0 * np.linalg.norm(y - yh, axis=0) / dy))
     gain = err * (1.0 - np.sqrt(max(1.0 - float(sig.score), 0.0)))
     return bool(sig.f_p < P_LEVEL and sig.score >= min_share and gain >= min_points)
-
-
-def cached_signature(ctx: Context, effect):
-    """``effect``'s signature on ``ctx``, computed once (reveal and the screening share it)."""
-    key = ("signature", effect.name)
-    if key not in ctx.cache:
-        ctx.cache[key] = effect._signature(ctx)
-    return ctx.cache[key]

@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigd.effects import detectability as DT
-from rigd.effects import numbers as N
 from rigd.effects._signals import lag1
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
@@ -58,48 +56,39 @@ class ExtraDynamics(Effect):
                 out.append(g)
         return out
 
-    def signature(self, ctx: Context) -> SignatureFit:
-        key = ("signature", self.name)
-        if key in ctx.cache:
-            return ctx.cache[key]
+    def _signature(self, ctx: Context) -> SignatureFit:
         best = None
         for tau in self._taus(ctx):
             s = signature_fit(ctx, self._regs(ctx, tau))
             s.extra["tau_s"] = float(tau)
             if best is None or s.score_est > best.score_est:
                 best = s
-        ctx.cache[key] = best
         return best
 
     def regressors(self, ctx):
         return self._regs(ctx, self.signature(ctx).extra["tau_s"])
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
-        if DT.seen(ctx, self.signature(ctx)):
-            return None
-        noms = []
-        for tau in self._taus(ctx)[::3]:
-            regs = self._regs(ctx, tau)
-            size = [NOMINAL_SHARE * np.std(ctx.y[ctx.est, k % ctx.ny])
-                    / max(np.std(g[ctx.est, k % ctx.ny]), 1e-300) for k, g in enumerate(regs)]
-            noms.append(sum(c * g for c, g in zip(size, regs)))
-        d, _ = DT.best(ctx, noms, k=1 + ctx.nu * ctx.ny)
-        if d.detectable:
-            return None
-        return CannotReveal(self.name, f"a first-order lag path adding "
-                            f"{100 * NOMINAL_SHARE:.0f} % of the output's spread would not show "
-                            f"on this record at any time constant tried (at best: "
-                            f"{d.describe()})", "re-run with steps held longer than the "
-                            "suspected lag and a record many times longer", ctx.submodel)
+        def nominal():
+            noms = []
+            for tau in self._taus(ctx)[::3]:
+                regs = self._regs(ctx, tau)
+                size = [NOMINAL_SHARE * np.std(ctx.y[ctx.est, k % ctx.ny])
+                        / max(np.std(g[ctx.est, k % ctx.ny]), 1e-300)
+                        for k, g in enumerate(regs)]
+                noms.append(sum(c * g for c, g in zip(size, regs)))
+            return noms
 
-    def explain(self, ctx, sig):
+        return self.reveal_at_nominal(ctx, nominal, 1 + ctx.nu * ctx.ny, "too_small",
+                                      {"nominal_share": NOMINAL_SHARE})
+
+    def evidence(self, ctx, sig):
+        """Evidence code and numbers (worded by rigd.diagnose.wording)."""
         tau = float(sig.extra.get("tau_s", 0.0))
         g = np.asarray(sig.beta, float).reshape(ctx.nu, ctx.ny)
-        ev = {"code": "extra_dynamics.real_pole", "time_constant_s": tau,
-              "time_constant_samples": tau * ctx.fs, "gain": g.tolist()}
-        return (f"the error follows a first-order lag of the input with a time constant of "
-                f"about {N.duration(tau)}: a real pole (lag) the model lacks; explains "
-                f"{100 * sig.score:.0f} % of the residual", ev)
+        return "extra_dynamics.real_pole", {"time_constant_s": tau,
+                                            "time_constant_samples": tau * ctx.fs,
+                                            "gain": g.tolist()}
 
     def implausible(self, ctx, theta_e):
         tau = float(theta_e[0])

@@ -26,8 +26,8 @@ import numpy as np
 
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
-from rigd.effects.detectability import parameter_responses
-from rigd.effects.signature import SignatureFit, effective_n
+from rigd.effects.linearised import joint_signature
+from rigd.effects.signature import SignatureFit
 
 #: sgn(v) is smoothed as tanh(v / v_ε), v_ε this share of the rms velocity of the record
 SMOOTH = 0.05
@@ -63,52 +63,39 @@ class Friction(Effect):
             s = smooth_sign(ctx.yhat[:, i], ctx.fs, ve[i])
             if min(np.mean(s > 0.5), np.mean(s < -0.5)) >= MIN_EACH_WAY:
                 return None
-        return CannotReveal(self.name, "the motion never reverses (each direction under "
-                            f"{100 * MIN_EACH_WAY:.0f} % of the record): a force of constant "
-                            "size against the motion cannot be told from an offset",
-                            "re-run with an input that moves back and forth (a slow triangle "
-                            "or a low-frequency multisine)", ctx.submodel)
+        # worded by rigd.diagnose.advice for the record's domain
+        return CannotReveal(self.name, "", "", ctx.submodel, code="no_reversal",
+                            evidence={"min_each_way": MIN_EACH_WAY})
 
     def regressors(self, ctx):
         ve = self._veps(ctx)
         return [ctx.through_force(smooth_sign(ctx.yhat[:, i], ctx.fs, ve[i]), i)
                 for i in range(ctx.ny)]
 
-    def signature(self, ctx: Context) -> SignatureFit:
+    def _signature(self, ctx: Context) -> SignatureFit:
         """The linearised refit (module docstring): share and F test of the friction forces
         beyond the base model's sensitivities; ``beta`` their coefficients."""
-        key = ("signature", self.name)
-        if key in ctx.cache:
-            return ctx.cache[key]
-        regs = self.regressors(ctx)
-        J = sensitivities(ctx)
-        if J is None or not regs:
-            sig = SignatureFit(0.0, np.zeros(len(regs)), 1.0, len(regs))
-        else:
-            share, p, beta = joint_share(ctx, np.stack(regs, axis=-1), J)
-            sig = SignatureFit(share, beta[:len(regs)], p, len(regs), share)
-        ctx.cache[key] = sig
-        return sig
+        return joint_signature(ctx, self.regressors(ctx))
 
-    def explain(self, ctx, sig):
+    def evidence(self, ctx, sig):
+        """Evidence code and numbers (worded by rigd.diagnose.wording): the Coulomb force
+        per axis (acceleration units, and through the base's input gain in input units),
+        the smoothing velocity and the base's viscous damping."""
         fc = -np.asarray(sig.beta, float)
-        ev = {"code": "friction.coulomb", "coulomb_accel": fc.tolist(),
-              "smoothing_velocity": self._veps(ctx).tolist()}
+        ev = {"coulomb_accel": fc.tolist(), "smoothing_velocity": self._veps(ctx).tolist()}
         cont = getattr(ctx.structure, "continuous", None)
         if callable(cont):
-            _, B, _, _, _ = cont(ctx.theta)
-            B = np.asarray(B, float)
+            A, B, _, _, _ = cont(ctx.theta)
+            A, B = np.asarray(A, float), np.asarray(B, float)
             m = B.shape[0] // 2
-            A = np.asarray(cont(ctx.theta)[0], float)
             ev["viscous_per_s"] = (-np.diag(A[m:, m:])).tolist()   # the base's damping D_ii
             j = [int(np.argmax(np.abs(B[m + i]))) for i in range(ctx.ny)]
             ev["coulomb_input_units"] = [float(fc[i] / B[m + i, j[i]]) if B[m + i, j[i]]
                                          else None for i in range(ctx.ny)]
         i = int(np.argmax(np.abs(fc))) if fc.size else 0
-        return (f"the error jumps with the sign of the velocity of {ctx.label(i)}: a force of "
-                f"constant size {'against' if fc.size and fc[i] > 0 else 'along'} the motion "
-                f"(dry friction; the viscous part is the model's damping); explains "
-                f"{100 * sig.score:.0f} % of the residual", ev)
+        ev["output"] = ctx.label(i)
+        ev["against_motion"] = bool(fc.size and fc[i] > 0)
+        return "friction.coulomb", ev
 
     # --- extension ----------------------------------------------------------------------
     def param_names(self, base):
@@ -158,50 +145,3 @@ class Friction(Effect):
         m = th.size // 2
         s = np.column_stack([smooth_sign(p[:, i], fs, th[m + i]) for i in range(p.shape[1])])
         return (-s * th[None, :m])[:, :nu]
-
-
-def sensitivities(ctx: Context) -> np.ndarray | None:
-    """∂ŷ/∂θ of the base model over the whole record, (n, ny, q), from the stepped
-    simulations of :func:`rigd.effects.detectability.parameter_responses` (the parameters
-    that move the output) and one constant column per output; None if one failed."""
-    y0 = np.asarray(ctx.yhat, float)
-    cols = []
-    for _, h, yi in parameter_responses(ctx):
-        if yi is None:
-            return None
-        d = (yi - y0) / h
-        if np.all(np.isfinite(d)) and np.any(d):
-            cols.append(d)
-    for i in range(ctx.ny):
-        c = np.zeros_like(y0)
-        c[:, i] = 1.0
-        cols.append(c)
-    return np.stack(cols, axis=-1)
-
-
-def joint_share(ctx: Context, G: np.ndarray, J: np.ndarray) -> tuple[float, float, np.ndarray]:
-    """(share, F-test p, coefficients): the share of the base residual's energy (estimation
-    part, outputs weighted 1/std as the fit) that the regressors ``G`` (n, ny, k) add to the
-    sensitivities ``J`` (n, ny, q), and the joint least-squares coefficients [G, J]."""
-    from scipy import stats
-
-    w = 1.0 / np.maximum(np.std(ctx.y[ctx.est], axis=0), 1e-300)
-    re = (ctx.residual[ctx.est] * w).reshape(-1)
-    X = np.concatenate([G, J], axis=-1)[ctx.est] * w[None, :, None]
-    k, q = G.shape[-1], X.shape[-1]
-    Xe = X.reshape(-1, q)
-    if not np.all(np.isfinite(Xe)):
-        return 0.0, 1.0, np.zeros(q)
-    nrm = np.linalg.norm(Xe, axis=0)
-    nrm[nrm == 0] = 1.0
-    fits = []
-    for cols in (slice(0, q), slice(k, q)):        # with the forces, and without
-        b = np.linalg.lstsq(Xe[:, cols] / nrm[cols], re, rcond=None)[0] / nrm[cols]
-        e = re - Xe[:, cols] @ b
-        fits.append((float(e @ e), b))
-    (sse1, beta), (sse0, _) = fits
-    share = max(0.0, (sse0 - sse1) / (float(re @ re) or 1e-300))
-    neff = min(effective_n(ctx.residual[ctx.est, i]) for i in range(ctx.ny)) * ctx.ny
-    dof = max(neff - q, 1.0)
-    F = ((sse0 - max(sse1, 1e-300)) / k) / (max(sse1, 1e-300) / dof)
-    return share, float(stats.f.sf(max(F, 0.0), k, dof)), beta

@@ -126,9 +126,6 @@ class Hysteresis(Effect):
         h = operator_inputs(ctx.data, c)
         return [ctx.through_model(-h[:, j], j) for j in range(ctx.nu)]
 
-    def signature(self, ctx: Context) -> SignatureFit:
-        return DT.cached_signature(ctx, self)
-
     def _signature(self, ctx: Context) -> SignatureFit:
         sc = drive_spread(ctx.data)
         best, best_c = None, GRID[0] / sc

@@ -27,8 +27,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigd.effects import detectability as DT
-from rigd.effects import numbers as N
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.ident.figures import fit_percent
@@ -106,23 +104,19 @@ class Integrator(Effect):
         return self._regs(ctx)
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
-        if DT.seen(ctx, self.signature(ctx)):
-            return None
-        iu = integral(ctx.u - ctx.u[ctx.est].mean(axis=0), ctx.fs)
-        noms = []
-        for j in range(ctx.nu):
-            s = np.std(iu[ctx.est, j]) or 1.0
-            for i in range(ctx.ny):
-                g = np.zeros((ctx.n, ctx.ny))
-                g[:, i] = NOMINAL_SHARE * np.std(ctx.y[ctx.est, i]) * iu[:, j] / s
-                noms.append(g)
-        d, _ = DT.best(ctx, noms, k=ctx.nu * ctx.ny + ctx.ny)
-        if d.detectable:
-            return None
-        return CannotReveal(self.name, f"an integrating path adding {100 * NOMINAL_SHARE:.0f} "
-                            f"% of the output's spread would not show on this record "
-                            f"({d.describe()})", "re-run longer, with slower input changes",
-                            ctx.submodel)
+        def nominal():
+            iu = integral(ctx.u - ctx.u[ctx.est].mean(axis=0), ctx.fs)
+            noms = []
+            for j in range(ctx.nu):
+                s = np.std(iu[ctx.est, j]) or 1.0
+                for i in range(ctx.ny):
+                    g = np.zeros((ctx.n, ctx.ny))
+                    g[:, i] = NOMINAL_SHARE * np.std(ctx.y[ctx.est, i]) * iu[:, j] / s
+                    noms.append(g)
+            return noms
+
+        return self.reveal_at_nominal(ctx, nominal, ctx.nu * ctx.ny + ctx.ny, "too_small",
+                                      {"nominal_share": NOMINAL_SHARE})
 
     def carried_by_base(self, ctx: Context) -> Finding | None:
         """A finding when the base model already integrates: its slowest real pole is slower
@@ -136,12 +130,8 @@ class Integrator(Effect):
         ev = self._evidence(ctx, in_base=True)
         ev["time_constant_s"] = tau
         ev["estimation_seconds"] = t_est
-        loop = (" and the input reacts to what the model cannot explain: closed-loop data"
-                if ev["feedback_suspected"] else "")
-        text = (f"the model integrates: its slowest pole has a time constant of "
-                f"{N.duration(tau)}, longer than the {N.duration(t_est)} it was fitted on, so "
-                f"on this record it is a pole at zero (an integrating plant){loop}")
-        return Finding(self.name, 0.0, True, text, ctx.submodel, 0.0, fp, ev)
+        # the words are the diagnosis' (rigd.diagnose.wording, from the code)
+        return Finding(self.name, 0.0, True, "", ctx.submodel, 0.0, fp, ev)
 
     def _evidence(self, ctx: Context, in_base: bool) -> dict:
         fb = feedback_evidence(ctx.u[ctx.val], ctx.residual[ctx.val])
@@ -150,16 +140,15 @@ class Integrator(Effect):
                 # an integrating plant is identified in closed loop or with its controller
                 "advice": "identify_closed_loop"}
 
-    def explain(self, ctx, sig):
+    def evidence(self, ctx, sig):
+        """Evidence code and numbers (worded by rigd.diagnose.wording)."""
         k = ctx.nu * ctx.ny
         g = np.asarray(sig.beta, float)[:k].reshape(ctx.nu, ctx.ny)
         j, i = np.unravel_index(int(np.argmax(np.abs(g))), g.shape) if k else (0, 0)
-        ev = dict(self._evidence(ctx, in_base=False), gain_per_s=g.tolist())
-        fb = ev["feedback_suspected"]
-        return (f"the error drifts like the integral of {ctx.label(int(j), 'in')} on "
-                f"{ctx.label(int(i))}: a pole at zero the model lacks"
-                f"{' (the input follows the output: closed-loop data)' if fb else ''}; "
-                f"explains {100 * sig.score:.0f} % of the residual", ev)
+        ev = self._evidence(ctx, in_base=False)
+        code = ev.pop("code")
+        return code, dict(ev, gain_per_s=g.tolist(), input=ctx.label(int(j), "in"),
+                          output=ctx.label(int(i)))
 
     # --- extension ----------------------------------------------------------------------
     def param_names(self, base):

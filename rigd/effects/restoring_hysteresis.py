@@ -25,7 +25,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from rigd.effects.base import Effect, ExtendedStructure, dims
+from rigd.effects.base import STRUCTURAL, Effect, ExtendedStructure, dims
 from rigd.effects.context import Context
 from rigd.effects.signature import SignatureFit, signature_fit
 
@@ -192,6 +192,7 @@ class RestoringHysteresis(Effect):
     reported_as = "hysteresis"
     site = "restoring force"
     level = "state"
+    domains = STRUCTURAL  # a restoring force
     # generic records: in the default screening (docs/diagnose.md). Not offered on the
     # rotor's bearing sub-model: a gas film's force is not known to be hysteretic and no
     # rotor record has shown it; ask for it there with --effects if a record suggests it

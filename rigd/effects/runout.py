@@ -16,7 +16,7 @@ import numpy as np
 
 from rigd.effects import detectability as DT
 from rigd.effects import numbers as N
-from rigd.effects.base import Effect, dims
+from rigd.effects.base import STRUCTURAL, Effect, dims
 from rigd.effects.context import CannotReveal, Context
 from rigd.ident.iddata import get_phi
 
@@ -36,6 +36,7 @@ def harmonics(phi: np.ndarray) -> list[np.ndarray]:
 class Runout(Effect):
     name = "runout"
     level = "output"
+    domains = STRUCTURAL  # a shaft that may turn: not a process plant
     submodels = ("bearing", "generic")
     physics = "mass unbalance or surface run-out locked to the shaft angle"
 
@@ -67,9 +68,6 @@ class Runout(Effect):
                             f"({d.describe()})",
                             "re-run at Ω > 0 (e.g. 3000 rpm) or add a run-out record "
                             "(--runout)", ctx.submodel)
-
-    def signature(self, ctx: Context):
-        return DT.cached_signature(ctx, self)
 
     def _signature(self, ctx: Context):
         return super().signature(ctx)

@@ -8,9 +8,11 @@ site). Posed as a polynomial of degree 3 on each input and each output,
 
 the block form of a Hammerstein–Wiener model (input blocks → base → output blocks).
 
-Signature: the residual is regressed on the base model's response to the input's square and
-cube (input site) and on the square and cube of the model output (output site); the site whose
-regressors explain more of the residual (estimation part) is the one named (``site`` in the
+Signature: the linearised refit (:mod:`rigd.effects.linearised`) of the base model's response
+to the input's square and cube (input site) and of the square and cube of the model output
+(output site), each together with the base model's own sensitivities (a linear fit absorbs a
+strong curve into a wrong gain and time constants; the residual alone then barely shows it);
+the site whose regressors add more (estimation part) is the one named (``site`` in the
 finding) and refitted, the other site's coefficients stay at 0. ``rigd identify --add
 static_nonlinearity`` fits both sites. Parameters are in the signals' units; their step sizes
 and bounds are relative to the record's spreads (:class:`rigd.effects.scales.RecordScale`).
@@ -20,10 +22,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigd.effects import detectability as DT
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
-from rigd.effects.signature import SignatureFit, signature_fit
+from rigd.effects.linearised import joint_signature
+from rigd.effects.signature import SignatureFit
 from rigd.ident.iddata import replace_inputs
 
 #: largest |coefficient| × spread^(k−1): the curve may bend the signal by a few times its
@@ -46,11 +48,11 @@ class StaticNonlinearity(Effect):
     level = "input"
     site = "input/output"
     submodels = ("generic",)
-    #: not screened by default yet: on the cascaded tanks its output curve takes up the
-    #: overflow (a saturation of the upper tank's state, not a static curve) and on a Duffing
-    #: record it competed with cubic_stiffness; asked for with --effects / --add
-    screened = False
     physics = "a static curve at the input or output (valve or sensor characteristic)"
+    #: not screened by default yet: on the cascaded tanks it is named at the input (the
+    #: square-root outflows' level-dependent gain) and on a Duffing record it competed with
+    #: cubic_stiffness; asked for with --effects / --add
+    screened = False
 
     # --- signature --------------------------------------------------------------------
     def _regs(self, ctx: Context, site: str) -> list[np.ndarray]:
@@ -68,45 +70,40 @@ class StaticNonlinearity(Effect):
                 out.append(g)
         return out
 
-    def signature(self, ctx: Context) -> SignatureFit:
-        key = ("signature", self.name)
-        if key in ctx.cache:
-            return ctx.cache[key]
-        fits = {site: signature_fit(ctx, self._regs(ctx, site)) for site in SITES}
+    def _signature(self, ctx: Context) -> SignatureFit:
+        """The linearised refit of each site's regressors (rigd.effects.linearised: beyond
+        what the base's own parameters absorb — a linear fit takes a saturating valve into a
+        wrong gain and time constants); the site with the larger share is named."""
+        fits = {site: joint_signature(ctx, self._regs(ctx, site)) for site in SITES}
         site = max(SITES, key=lambda s: fits[s].score_est)
         sig = fits[site]
         sig.extra["site"] = site
         sig.extra["score_est_by_site"] = {s: float(fits[s].score_est) for s in SITES}
-        ctx.cache[key] = sig
         return sig
 
     def regressors(self, ctx):
         return self._regs(ctx, self.signature(ctx).extra["site"])
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
-        if DT.seen(ctx, self.signature(ctx)):
-            return None
-        noms = []
-        for j in range(ctx.nu):  # input site: the nominal curve on the input's own spread
-            s = _spread(ctx.u[ctx.est, j])
-            noms.append(ctx.through_model(NOMINAL_BEND * _centred_powers(
-                ctx.u[:, j], ctx.est)[1] / s ** 2, j))
-        for i in range(ctx.ny):
-            s = _spread(ctx.yhat[ctx.est, i])
-            g = np.zeros((ctx.n, ctx.ny))
-            g[:, i] = NOMINAL_BEND * _centred_powers(ctx.yhat[:, i], ctx.est)[1] / s ** 2
-            noms.append(g)
-        d, _ = DT.best(ctx, noms, k=2)
-        if d.detectable:
-            return None
-        return CannotReveal(self.name, f"a static curve bending the input or the output by "
-                            f"{100 * NOMINAL_BEND:.0f} % of its spread would not show on this "
-                            f"record ({d.describe()})",
-                            "re-run with an input that visits many levels over the whole "
-                            "operating range (multi-level steps or a large multisine)",
-                            ctx.submodel)
+        def nominal():
+            noms = []
+            for j in range(ctx.nu):  # input site: the nominal curve on the input's spread
+                s = _spread(ctx.u[ctx.est, j])
+                noms.append(ctx.through_model(NOMINAL_BEND * _centred_powers(
+                    ctx.u[:, j], ctx.est)[1] / s ** 2, j))
+            for i in range(ctx.ny):
+                s = _spread(ctx.yhat[ctx.est, i])
+                g = np.zeros((ctx.n, ctx.ny))
+                g[:, i] = NOMINAL_BEND * _centred_powers(ctx.yhat[:, i], ctx.est)[1] / s ** 2
+                noms.append(g)
+            return noms
 
-    def explain(self, ctx, sig):
+        return self.reveal_at_nominal(ctx, nominal, 2, "too_small",
+                                      {"nominal_share": NOMINAL_BEND})
+
+    def evidence(self, ctx, sig):
+        """Evidence code (the site: ``static_nonlinearity.input`` / ``.output``) and numbers
+        (worded by rigd.diagnose.wording)."""
         site = sig.extra.get("site", "input")
         beta = np.asarray(sig.beta, float).reshape(-1, 2)
         xs = ctx.u[ctx.est] if site == "input" else ctx.yhat[ctx.est]
@@ -114,15 +111,10 @@ class StaticNonlinearity(Effect):
         bend = [float(abs(b[0]) * _spread(xs[:, k]) + abs(b[1]) * _spread(xs[:, k]) ** 2)
                 for k, b in enumerate(beta)]
         k = int(np.argmax(bend)) if bend else 0
-        where = ctx.label(k, "in" if site == "input" else "out")
-        ev = {"code": f"static_nonlinearity.{site}", "site": site, "channel": where,
-              "bend_at_spread": bend, "coefficients": beta.tolist(),
-              "score_est_by_site": sig.extra.get("score_est_by_site", {})}
-        signal = "the input" if site == "input" else "the model output"
-        return (f"the error is a smooth function of the level of {signal} ({where}): a static "
-                f"curve at the {site} bending it by about {100 * max(bend or [0]):.0f} % at "
-                f"its spread ({'Hammerstein' if site == 'input' else 'Wiener'} form); "
-                f"explains {100 * sig.score:.0f} % of the residual", ev)
+        return f"static_nonlinearity.{site}", {
+            "site": site, "channel": ctx.label(k, "in" if site == "input" else "out"),
+            "bend_at_spread": bend, "coefficients": beta.tolist(),
+            "score_est_by_site": sig.extra.get("score_est_by_site", {})}
 
     # --- extension ----------------------------------------------------------------------
     def param_names(self, base):

@@ -166,8 +166,7 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         Generic records: number of modes, or ``auto`` to choose it from the data
         (:func:`rigd.ident.order.choose_order`, as ``rigd diagnose``).
     """
-    from rigd.ident.pipeline import FitSettings, effects_for, fit_base, refit_with, start_values
-    from rigd.ident.sanity import model_warnings
+    from rigd.ident.pipeline import FitSettings, effects_for, fit_base
 
     if isinstance(submodels, str):
         submodels = resolve_submodels(record, submodels)
@@ -181,41 +180,10 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     split_info = {}
     for sm in submodels:
         bf = fit_base(record, sm, settings)
-        data, es, vs, est_data = bf.data, bf.est, bf.val, bf.est_data
         prefilter_reports[sm] = bf.prefilter
-        structure, res = bf.structure, bf.result
-        applied = effects_for(effects, sm)
-        if applied:
-            nb = len(structure.names)
-            th_init = start_values(apply_effects(structure, applied), init, sm, est_data)
-            starts = [None if th_init is None else th_init[nb:]]
-            structure, res2, th0 = refit_with(structure, res.theta, applied, est_data, method,
-                                              starts=starts)
-            if res2 is None:
-                raise InputError(f"the {sm} model with {', '.join(e.name for e in applied)} "
-                                 "cannot be fitted on this record (every start failed)")
-            res = res2
-        theta, std, used = res.theta, res.std, res.method
-        ysim = np.asarray(structure.simulate(theta, data))
-        fe = fit_percent(data.y[es], ysim[es])
-        fv = fit_percent(data.y[vs], ysim[vs])
-        readouts = structure.readouts(theta) if hasattr(structure, "readouts") else {}
-        warn = model_warnings(structure, theta, res.info.get("at_bound"), std)
-        if not np.all(np.isfinite(ysim)):
-            warn.append("the model's simulated response is not finite on this record (the "
-                        "fit diverged; its fit is not a number): do not use this model")
-        if warn:  # flagged in the output and the model file, never used silently
-            readouts = dict(readouts, warnings=warn)
-        order_info = bf.order.to_json() if bf.order is not None else None
-        subs[sm] = Submodel(sm, structure, theta, std, used,
-                            {"estimation": fe.tolist(), "validation": fv.tolist(),
-                             "validation_mean": float(np.mean(fv)),
-                             "outputs": data.output_names,
-                             "input_hold": bf.hold.as_dict(),
-                             **({"order": order_info} if order_info else {})},
-                            readouts, residual_stats(data.y[vs], ysim[vs], data.output_names))
-        subs[sm].residual["iterations"] = {"nfev": res.nfev, "status": res.status}
-        a = bf.window[0]
+        structure, res = _with_effects(bf, effects_for(effects, sm), sm, init, method)
+        subs[sm] = _submodel(sm, bf, structure, res)
+        a, es, vs = bf.window[0], bf.est, bf.val
         split_info = {"estimation": [a + es.start, a + es.stop],
                       "validation": [a + vs.start, a + vs.stop],
                       **({"fraction": split} if est is None and bf.window == (0, record.n)
@@ -225,3 +193,50 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                      {"omega_rpm": record.omega_rpm, "p_inj_bar": record.p_inj_bar},
                      prefilter_reports, {"path": record.source, "sha256": data_hash,
                                          "n_samples": record.n}, split_info)
+
+
+def _with_effects(bf, applied: list[Any], sm: str, init: ModelFile | None, method: str):
+    """(structure, fit result): the base of ``bf`` (rigd.ident.pipeline.BaseFit), refitted
+    with the effects ``applied`` (start values from ``init`` where it has them)."""
+    from rigd.ident.pipeline import refit_with, start_values
+
+    structure, res = bf.structure, bf.result
+    if not applied:
+        return structure, res
+    nb = len(structure.names)
+    th_init = start_values(apply_effects(structure, applied), init, sm, bf.est_data)
+    starts = [None if th_init is None else th_init[nb:]]
+    structure, res2, _ = refit_with(structure, res.theta, applied, bf.est_data, method,
+                                    starts=starts)
+    if res2 is None:
+        raise InputError(f"the {sm} model with {', '.join(e.name for e in applied)} "
+                         "cannot be fitted on this record (every start failed)")
+    return structure, res2
+
+
+def _submodel(sm: str, bf, structure, res) -> Submodel:
+    """The identified sub-model: fits on the estimation and validation parts, read-outs
+    with the sanity warnings (flagged, never used silently), residual statistics."""
+    from rigd.ident.sanity import model_warnings
+
+    data, es, vs = bf.data, bf.est, bf.val
+    theta, std = res.theta, res.std
+    ysim = np.asarray(structure.simulate(theta, data))
+    fe = fit_percent(data.y[es], ysim[es])
+    fv = fit_percent(data.y[vs], ysim[vs])
+    readouts = structure.readouts(theta) if hasattr(structure, "readouts") else {}
+    warn = model_warnings(structure, theta, res.info.get("at_bound"), std)
+    if not np.all(np.isfinite(ysim)):
+        warn.append("the model's simulated response is not finite on this record (the "
+                    "fit diverged; its fit is not a number): do not use this model")
+    if warn:
+        readouts = dict(readouts, warnings=warn)
+    order_info = bf.order.to_json() if bf.order is not None else None
+    sub = Submodel(sm, structure, theta, std, res.method,
+                   {"estimation": fe.tolist(), "validation": fv.tolist(),
+                    "validation_mean": float(np.mean(fv)), "outputs": data.output_names,
+                    "input_hold": bf.hold.as_dict(),
+                    **({"order": order_info} if order_info else {})},
+                   readouts, residual_stats(data.y[vs], ysim[vs], data.output_names))
+    sub.residual["iterations"] = {"nfev": res.nfev, "status": res.status}
+    return sub

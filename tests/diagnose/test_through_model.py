@@ -92,7 +92,7 @@ def test_an_extension_that_cannot_be_simulated_on_the_model_gains_nothing_and_ne
     the mechanical model only). The diagnosis tried it on a model with ``delay`` during the
     forward selection on a friction stage and died with a ValueError; now the refit reports
     no gain."""
-    from rigd.diagnose.engine import _refit
+    from rigd.diagnose.selection import refit_effect as _refit
     from rigd.effects import REGISTRY
 
     rec = B.duffing(seed=0, n=3000)

@@ -20,6 +20,11 @@ EVIDENCE = {
     "cross_coupling": {"output": "y1", "input": "u2", "corr": 0.4, "antisymmetric": True,
                        "omega_hz": 50.0},
     "delay": {"delay_samples": 3.2, "min_samples": 0.5},
+    "static_nonlinearity": {"site": "input", "channel": "u1", "bend_at_spread": [0.3]},
+    "friction": {"output": "y1", "against_motion": True},
+    "integrator": {"in_base": True, "time_constant_s": 900.0, "estimation_seconds": 80.0,
+                   "feedback_suspected": True, "input": "u1", "output": "y1"},
+    "extra_dynamics": {"time_constant_s": 12.0},
 }
 
 
@@ -30,6 +35,10 @@ def test_every_code_has_words_in_every_domain(key, domain):
     ev = dict(EVIDENCE[effect], share=0.42, fs=1.0)
     if code == "lead":
         ev["delay_samples"] = -2.0
+    if code.endswith(".output"):
+        ev["site"] = "output"
+    if code == "integrator.added":
+        ev["in_base"] = False
     text = W.explanation(effect, code, ev, domain)
     assert text and "{" not in text
     if domain == "process":
@@ -94,4 +103,37 @@ def test_domain_from_the_poles_and_the_record():
     proc = D.decide("generic", {}, heavy, theta)
     offered = {n for n, e in REGISTRY.items() if D.offered(e, proc)}
     assert "cubic_stiffness" not in offered and "runout" not in offered
+    # friction is domain-neutral (a sticking actuator of a process too): whether the base
+    # can carry it (velocity states) is the base's question, Effect.not_offered
+    assert {"friction", "static_nonlinearity", "integrator", "extra_dynamics"} <= offered
     assert {"delay", "extra_mode", "cross_coupling"} <= offered
+
+
+def test_integrator_words_carry_the_closed_loop_advice():
+    ev = dict(EVIDENCE["integrator"], share=0.0, fs=10.0)
+    for dom in DOMAINS:
+        text = W.explanation("integrator", "integrator.in_base", ev, dom)
+        assert "identify it in closed loop" in text and "900 s" in text, text
+
+
+@pytest.mark.parametrize("key", sorted(A.NEUTRAL))
+def test_neutral_entries_cannot_tell_words_sized_by_the_record(key):
+    """What the domain-neutral entries cannot tell is worded here from their numbers, the
+    durations from the record's rate and the model's time constants (never a rotor file)."""
+    effect, code = key
+    det = {"absorbed": 0.8, "snr": 0.2, "fit_points": 0.3, "p": 0.3}
+    ev = {"nominal_share": 0.1, "min_each_way": 0.1, "detectability": det,
+          "record_seconds": 1500.0, "estimation_seconds": 1000.0}
+    slow = A.cannot_reveal(effect, code, dict(ev, fs=1.0, time_constants_s=[40.0, 3.0]),
+                           "process")
+    fast = A.cannot_reveal(effect, code, dict(ev, fs=1000.0, time_constants_s=[0.04]),
+                           "mechanical")
+    for why, exp in (slow, fast):
+        assert why and exp and "{" not in why + exp
+        assert not MECH.search(why + exp), (why, exp)
+    assert slow[1] != fast[1]  # sized by the record, not a fixed duration
+    if code == "too_small":
+        assert "80 % of it would be absorbed" in slow[0], slow[0]
+    # the slowest time constant (40 s vs 40 ms) sets the holds or periods
+    assert ("40 s" in slow[1] or "80 s" in slow[1]) and ("40 ms" in fast[1]
+                                                          or "80 ms" in fast[1]), (slow, fast)

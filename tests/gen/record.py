@@ -56,6 +56,16 @@ class Generated:
         t = np.arange(self.n) / self.fs
         return (["t", *self.inputs, *self.outputs], np.column_stack([t, self.u, self.y]))
 
+    def record(self):
+        """The same samples as a :class:`rigd.data.record.Record` (time column ``t``, names
+        and units in its metadata), for calling rigd's Python API directly."""
+        from rigd.data.record import Record
+
+        head, data = self.columns()
+        return Record(dict(zip(head, data.T)), self.fs,
+                      {"inputs": list(self.inputs), "outputs": list(self.outputs),
+                       "units": dict(self.units)}, f"<generated {self.truth.get('kind')}>")
+
     def write_csv(self, path: str | Path) -> Path:
         """Plain CSV (header line, comma-separated, time column ``t`` first)."""
         head, data = self.columns()

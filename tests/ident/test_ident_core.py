@@ -88,34 +88,3 @@ def test_delay_hook_shifts_input(rec):
     base = simulate_mechanical(K_TRUE, D_TRUE, B_TRUE, np.zeros(4), data.u, data.fs)
     d = simulate_mechanical(K_TRUE, D_TRUE, B_TRUE, np.zeros(4), data.u, data.fs, Hooks(delay=7))
     np.testing.assert_allclose(d[7:], base[:-7], atol=1e-9)
-
-
-class _OutputOffset:
-    """A minimal Extension: constant additive output offset per axis."""
-
-    name = "offset"
-    names = ["off_x", "off_y"]
-
-    def theta0(self, data, base, base_theta):
-        return np.zeros(2)
-
-    def bounds(self):
-        return np.full(2, -np.inf), np.full(2, np.inf)
-
-    def apply(self, theta, hooks, data):
-        hooks.output_add = np.tile(theta, (data.n, 1))
-
-
-def test_hooked_structure_fits_extension_parameters_with_pem(rec):
-    from rigd.ident.structure import Extension, HookedStructure
-
-    data = from_record(rec, "bearing").slice(0, 8000)
-    shifted = data.with_y(data.y + np.array([3.0, -2.0]))
-    S = HookedStructure(bearing_structure("foh"), [_OutputOffset()])
-    assert isinstance(_OutputOffset(), Extension)
-    assert S.names[-2:] == ["off_x", "off_y"] and S.effects == ["offset"]
-    th0 = S.theta0(shifted)
-    res = fit(S, shifted, method="pem", theta0=th0)
-    assert res.method == "pem"
-    np.testing.assert_allclose(res.theta[-2:], [3.0, -2.0], atol=0.05)
-    assert np.all(res.fit_percent > 95)

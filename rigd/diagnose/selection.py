@@ -1,0 +1,307 @@
+"""The forward selection of one sub-model's diagnosis (:func:`rigd.diagnose.engine.
+diagnose_data`): which effects are offered, each screened (signature, reveal, refit) on the
+current model, the top significant one added, the rest screened again.
+
+* :func:`offered` — the catalogue's effects for the sub-model, its domain, the record's length
+  and what the base can carry (each omission in the notes);
+* :func:`carried` — effects the base model already carries (named from it);
+* :func:`screen` — the signature test and refit of each effect on one model;
+* :class:`Selection` — the steps: add, refit, screen again; the input hold asked again once.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from rigd.diagnose import advice as A
+from rigd.diagnose import domain as D
+from rigd.diagnose import wording as W
+from rigd.effects import REGISTRY
+from rigd.effects.context import CannotReveal, Context, Finding
+from rigd.ident.figures import fit_percent
+from rigd.ident.thresholds import MIN_FIT_GAIN, MIN_REFIT_GAIN, P_LEVEL, STRONG_REFIT_GAIN
+
+
+@dataclass
+class Refit:
+    structure: Any
+    theta: np.ndarray
+    yhat: np.ndarray
+    fit_percent: float
+    seconds: float
+
+
+@dataclass
+class Step:
+    """One forward-selection step: ``added`` effect (None: the base model) and its fit."""
+
+    added: str | None
+    fit_percent: float
+    structure: Any
+    theta: np.ndarray
+    yhat: np.ndarray
+
+    def to_json(self) -> dict[str, Any]:
+        return {"added": self.added, "fit_percent": round(float(self.fit_percent), 3)}
+
+
+def fit_model(structure, data, theta0=None, max_nfev=None, fixed=None, method="oe"):
+    """OE/PEM fit of ``structure`` on ``data`` (rigd.ident.pem.fit)."""
+    from rigd.ident.pem import fit
+
+    return fit(structure, data, method=method, theta0=theta0, max_nfev=max_nfev, fixed=fixed)
+
+
+def val_err(ctx: Context, yhat: np.ndarray) -> float:
+    w = 1.0 / np.maximum(np.std(ctx.y[ctx.est], axis=0), 1e-300)
+    e = (ctx.y[ctx.val] - yhat[ctx.val]) * w
+    return float(np.sum(e ** 2))
+
+
+def refit_effect(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe") -> Refit:
+    """Fit ``ctx.structure`` extended by ``eff``, warm-started from the signature
+    (:func:`rigd.ident.pipeline.refit_with`, as ``rigd identify --add``)."""
+    from rigd.ident.pipeline import refit_with
+
+    t0 = time.perf_counter()
+    structure, theta, data = ctx.structure, ctx.theta, ctx.data
+    # an effect may offer several starts (loop shapes): the fit with the lowest estimation
+    # cost is kept (never chosen on the validation part)
+    starts = (eff.refit_starts(ctx, sig) if hasattr(eff, "refit_starts")
+              else [eff.warm_start(ctx, sig)])
+    # parameters an effect keeps at their start in the refit (a redundant scale)
+    fixed = list(getattr(eff, "refit_fixed", lambda e, s=None: [])(eff.extend(structure),
+                                                                    sig)) or None
+    ext, best, th0 = refit_with(structure, theta, [eff], data_est, method, starts=starts,
+                                fixed=fixed, max_nfev=max_nfev)
+    try:
+        th = best.theta if best is not None else th0
+        yw = np.asarray(ext.simulate(th, data), float)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+        try:
+            th, yw = th0, np.asarray(ext.simulate(th0, data), float)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+            # the extension cannot be simulated on this model at all (restoring-force
+            # hysteresis below an input-level effect): it gains nothing, nothing crashes
+            th, yw = th0, ctx.yhat
+    if not np.all(np.isfinite(yw)):
+        th, yw = th0, ctx.yhat
+    fw = float(np.mean(fit_percent(ctx.y[ctx.val], yw[ctx.val])))
+    return Refit(ext, th, yw, fw, time.perf_counter() - t0)
+
+
+def _words(eff, ctx: Context, sig) -> tuple[str, dict[str, Any]]:
+    """The explanation and evidence of ``eff``'s signature: an effect that emits an
+    evidence code (``evidence(ctx, sig) -> (code, numbers)``) is worded by
+    :mod:`rigd.diagnose.wording` for the record's domain; the others still word their own."""
+    if not hasattr(eff, "evidence"):
+        return eff.explain(ctx, sig)
+    code, ev = eff.evidence(ctx, sig)
+    text = W.explanation(eff.name, code, dict(ev, share=sig.score, fs=ctx.fs), ctx.domain)
+    return text, dict(ev, code=code)
+
+
+def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
+            cannot: list[CannotReveal] | None,
+            method: str = "oe") -> tuple[list[Finding], dict[str, Refit]]:
+    """Signature test (and refit) of each effect in ``names`` on the model of ``ctx``.
+
+    ``score`` is the share of *this* model's validation error energy the effect removes;
+    effects the record cannot reveal go to ``cannot`` (when given) and are skipped.
+    """
+    findings, refits = [], {}
+    err = val_err(ctx, ctx.yhat)
+    fp = float(np.mean(fit_percent(ctx.y[ctx.val], ctx.yhat[ctx.val])))
+    for name in names:
+        eff = REGISTRY[name]
+        if eff.not_offered(ctx.structure) is not None:  # listed by diagnose_data's notes
+            continue
+        why = eff.reveal(ctx)
+        if why is not None and why.code is not None:  # worded for the record's domain
+            why.why, why.experiment = A.cannot_reveal(
+                name, why.code, dict(why.evidence, fs=ctx.fs,
+                                     time_constants_s=ctx.time_constants_s), ctx.domain)
+        if why is not None:
+            if cannot is not None:
+                why.submodel = ctx.submodel
+                cannot.append(why)
+            if not why.partial:  # a partial one (slow creep only) is still tested
+                continue
+        sig = eff.signature(ctx)
+        text, ev = _words(eff, ctx, sig)
+        sig_ok = sig.score >= eff.min_score and sig.f_p < P_LEVEL
+        f = Finding(name, sig.score, False, text, ctx.submodel, sig.score, fp,
+                    dict(ev, signature_p=sig.f_p, signature_k=sig.k))
+        # an effect with a costly refit is refitted only when its signature's F test is
+        # decisive (without it the effect cannot be significant: both rules below need it)
+        # and the signature alone, in sample, is worth half the practical-significance gain
+        # (a first-order signature underestimates a large effect: it is not asked for all)
+        worth_refit = ((sig.f_p < P_LEVEL and (100.0 - fp) * (
+            1.0 - np.sqrt(1.0 - min(max(sig.score_est, 0.0), 1.0))) >= MIN_FIT_GAIN / 2)
+            if getattr(eff, "costly_refit", False)
+            else sig.score > 0.005 or sig.f_p < P_LEVEL)
+        if refit and worth_refit:
+            ref = refit_effect(eff, ctx, sig, data_est, max_nfev, method)
+            refits[name] = ref
+            gain = max(0.0, 1.0 - val_err(ctx, ref.yhat) / err) if err > 0 else 0.0
+            f.fit_percent_with = ref.fit_percent
+            f.score = gain
+            # a strong effect's first-order signature can be poor (a large cubic term
+            # shifts the resonance; the base fit absorbs part of it): a decisive F test and
+            # a refit that removes most of the error out of sample count as well
+            strong = sig.f_p < P_LEVEL and gain >= STRONG_REFIT_GAIN
+            # and it must matter at the scale of the output (practical significance)
+            big = ref.fit_percent - fp >= MIN_FIT_GAIN
+            f.significant = bool(((sig_ok and gain >= MIN_REFIT_GAIN) or strong) and big)
+            f.evidence["refit_seconds"] = ref.seconds
+            why_not = eff.implausible(ctx, np.asarray(ref.theta)[len(ctx.theta):])
+            if why_not is not None:
+                # it helps, but not as the physics its name says: unexplained, not named
+                f.evidence["implausible"] = why_not
+                f.significant = False
+        else:
+            f.evidence["refit"] = "not refitted: no signature in the residual"
+        findings.append(f)
+    findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
+    return findings, refits
+
+
+def offered(effects: list[str] | None, submodel: str, dom, structure, est: slice, n: int,
+             notes: list[str]) -> list[str]:
+    """The effects to screen: ``effects`` as asked, else the catalogue's screened ones for
+    ``submodel`` that the record's domain offers and the record's length affords; an effect
+    the base cannot carry is left out either way. Each omission is said in ``notes``."""
+    names = list(effects or [nm for nm, e in REGISTRY.items()
+                             if submodel in e.submodels and getattr(e, "screened", True)])
+    if not effects:  # effects this domain cannot carry are not offered (not named either)
+        kept = [nm for nm in names if D.offered(REGISTRY[nm], dom)]
+        if len(kept) < len(names):
+            notes.append(f"effects of mechanical structures or rotating parts are not tested "
+                         f"on a {dom.name} record")
+        names = kept
+        n_est = (est.stop or n) - (est.start or 0)
+        for nm in list(names):  # costly effects are screened on records they can afford
+            cap = getattr(REGISTRY[nm], "max_screened_samples", None)
+            if cap is not None and n_est > cap:
+                names.remove(nm)
+                notes.append(f"{nm} not screened: {n_est} estimation samples > {cap} (its "
+                             f"fits cost minutes there); ask for it with --effects {nm}")
+    for nm in list(names):  # an effect the base cannot carry is not offered, and says why
+        why_not = REGISTRY[nm].not_offered(structure)
+        if why_not is not None:
+            names.remove(nm)
+            notes.append(f"{nm} not offered: {why_not}")
+    return names
+
+
+def carried(ctx0: Context, names: list[str], dom) -> list[Finding]:
+    """Findings of the effects the base model already carries, worded for the domain."""
+    carried = [f for f in (REGISTRY[nm].carried_by_base(ctx0) for nm in names) if f is not None]
+    for f in carried:
+        f.explanation = W.explanation(f.effect, f.evidence["code"],
+                                      dict(f.evidence, share=0.0, fs=ctx0.fs), dom.name)
+    return carried
+
+
+class Selection:
+    """The forward selection of :func:`diagnose_data` from the base model's context: add
+    the top significant effect, refit, screen the rest again; ``steps`` and ``notes`` grow,
+    ``refits`` keeps each added effect's refit, ``round_refits`` the last round's."""
+
+    def __init__(self, ctx0: Context, context, refit: bool, data_est, max_nfev, method: str,
+                 max_steps: int, other_hold: str | None, steps: list, notes: list[str]):
+        self.ctx0, self.context, self.refit = ctx0, context, refit
+        self.data_est, self.max_nfev, self.method = data_est, max_nfev, method
+        self.max_steps, self.other_hold = max_steps, other_hold
+        self.steps, self.notes = steps, notes
+        self.refits: dict[str, Refit] = {}
+        self.round_refits: dict[str, Refit] = {}
+
+    def run(self, names: list[str], cannot: list[CannotReveal]
+            ) -> tuple[list[Finding], list[Finding], float]:
+        """(added, remaining findings on the final model, its validation error energy)."""
+        ctx, err_base = self.ctx0, val_err(self.ctx0, self.ctx0.yhat)
+        findings, self.round_refits = screen(ctx, names, self.refit, self.data_est,
+                                              self.max_nfev, cannot, self.method)
+        revealable = [f.effect for f in findings]
+        added: list[Finding] = []
+        while True:
+            err_cur = val_err(ctx, ctx.yhat)
+            top = findings[0] if findings and findings[0].significant else None
+            if top is None or not self.refit or len(added) >= self.max_steps:
+                break
+            step = self._add(ctx, top, added, err_cur, err_base)
+            ctx = self.context(step.structure, step.theta, step.yhat)
+            rest = [nm for nm in revealable if nm not in {f.effect for f in added}]
+            if not rest:
+                findings = []
+                break
+            findings, self.round_refits = screen(ctx, rest, self.refit, self.data_est,
+                                                  self.max_nfev, None, self.method)
+        return added, findings, err_cur
+
+    def _add(self, ctx: Context, top: Finding, added: list[Finding], err_cur: float,
+             err_base: float) -> Step:
+        """Add ``top`` (its refit of this round) as the next step; the other hold is tried
+        once (``other_hold``) and kept when it fits better."""
+        ref = self.round_refits[top.effect]
+        err_new = val_err(ctx, ref.yhat)
+        top.score = (err_cur - err_new) / err_base if err_base > 0 else 0.0
+        if added:
+            top.explanation = (f"with {', '.join(f.effect for f in added)} added: "
+                               f"{top.explanation}")
+            top.evidence["found_after"] = [f.effect for f in added]
+        top.evidence["step"] = len(added) + 1
+        added.append(top)
+        step = Step(top.effect, ref.fit_percent, ref.structure, ref.theta, ref.yhat)
+        hold = self.other_hold
+        alt = try_hold(step, self.ctx0, hold, self.data_est, self.method) if hold else None
+        if alt is not None:
+            self.notes.append(f"inputs between samples: with {top.effect} in the model, "
+                              f"{hold} fits {alt.fit_percent:.2f} % against "
+                              f"{step.fit_percent:.2f} % (the hold was chosen by the linear "
+                              f"base model): {hold} from this step on (rigd identify --hold "
+                              f"{hold})")
+            top.evidence["hold"] = hold
+            top.fit_percent_with = alt.fit_percent
+            top.score = ((err_cur - val_err(ctx, alt.yhat)) / err_base if err_base > 0
+                         else 0.0)
+            ref = Refit(alt.structure, alt.theta, alt.yhat, alt.fit_percent, ref.seconds)
+            step, self.other_hold = alt, None
+        self.refits[top.effect] = ref
+        self.steps.append(step)
+        return step
+
+
+def try_hold(step: Step, ctx0: Context, hold: str, data_est,
+              method: str = "oe") -> Step | None:
+    """``step``'s model refitted with the input hold ``hold``, if that fits the validation
+    part better by ≥ ``MIN_FIT_GAIN`` points, else None.
+
+    For records whose hold was chosen from the data by the *linear* base model: an
+    unmodelled nonlinearity can favour a half-sample lag (the Bouc–Wen benchmark's smooth
+    multisine: zoh by 1.7 points for the linear model, foh by ≈ 8 once the hysteresis is
+    in), so once an effect is in the model the question is asked again.
+    """
+    st = copy.deepcopy(step.structure)
+    obj, seen = st, 0
+    while obj is not None and seen < 20:  # the hold lives on the base and its wrappers
+        if isinstance(vars(obj).get("hold"), str):
+            obj.hold = hold
+        obj, seen = vars(obj).get("base"), seen + 1
+    eff = REGISTRY.get(step.added or "")
+    fixed = list(getattr(eff, "refit_fixed", lambda e: [])(st)) or None
+    try:
+        th = fit_model(st, data_est, theta0=step.theta, fixed=fixed, method=method).theta
+        yh = np.asarray(st.simulate(th, ctx0.data), float)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+        return None
+    if not np.all(np.isfinite(yh)):
+        return None
+    fp = float(np.mean(fit_percent(ctx0.y[ctx0.val], yh[ctx0.val])))
+    return Step(step.added, fp, st, th, yh) if fp >= step.fit_percent + MIN_FIT_GAIN else None
