@@ -15,7 +15,8 @@ import numpy as np
 from rigd_drivers.reynolds import kernel as k
 from rigd_drivers.reynolds import layout as L
 from rigd_drivers.reynolds import step as S
-from rigd_drivers.reynolds.film import G_AREA, G_C, G_N, NV, film_force, film_rates
+from rigd_drivers.reynolds.feed import NFW, add_sources, feed_flows
+from rigd_drivers.reynolds.film import G_AREA, G_C, G_CAP, G_N, NV, film_force, film_rates
 from rigd_drivers.reynolds.options import ReynoldsOptions
 from rigd_drivers.reynolds.params import Layout, build_layout, param_block, shaft_model
 from rigd_drivers.reynolds.shaft import ShaftModel
@@ -51,6 +52,11 @@ class PlantArrays:
         return self._st(L.T_P, self.n)
 
     @property
+    def pc(self) -> np.ndarray:
+        """Chamber pressures of the four feed paths (view), Pa abs."""
+        return self._st(L.T_PC, NV)
+
+    @property
     def geo(self) -> np.ndarray:
         return self._blk(L.O_GEO, G_N)
 
@@ -73,6 +79,10 @@ class PlantArrays:
     @property
     def afrac(self) -> np.ndarray:
         return self._st(L.W_AF, NV)
+
+    def params_block(self, slot: int, size: int) -> np.ndarray:
+        """A view of the active parameter block at ``slot`` (an ``O_*`` slot)."""
+        return self._blk(slot, size)
 
     def set_block(self, omega_rpm: float, p_inj_bar: float) -> None:
         """Write the active (and staged) parameter block for (Ω, P_I) directly."""
@@ -99,38 +109,46 @@ def make_arrays(opts: ReynoldsOptions | dict | None = None, fs: float = 5000.0,
     pa.set_block(opts.omega_rpm if omega_rpm is None else omega_rpm,
                  opts.p_inj_bar if p_inj_bar is None else p_inj_bar)
     pa.p[:] = pa.geo[7]
+    pa.pc[:] = pa.geo[7]
     return pa
 
 
 def steady(pa: PlantArrays, xb: float, yb: float, afrac, *, tol: float = 1e-12,
-           max_it: int = 60) -> tuple[np.ndarray, float, float]:
-    """Steady film at the journal position (xb, yb) m with orifice area fractions ``afrac``.
+           max_it: int = 60, frozen: bool = False) -> tuple[np.ndarray, float, float]:
+    """Steady film at the journal position (xb, yb) m with orifice area fractions ``afrac``
+    (and the chambers at their steady pressures, or held where they are with ``frozen``).
 
     Returns (p copy, F_x, F_y) (Pa, N). Raises RuntimeError if Newton does not converge.
     """
     pa.afrac[:] = afrac
-    upd = S.steady_film(pa.state, pa.params, float(xb), float(yb), max_it, tol)
+    upd = S.steady_film(pa.state, pa.params, float(xb), float(yb), max_it, tol, frozen)
     if not upd < 1e-9:
         raise RuntimeError(f"steady film did not converge (last update {upd:.2e} p_a)")
     fx, fy = film_force(pa.geo, pa.cs, pa.p)
     return pa.p.copy(), fx, fy
 
 
-def film_stiffness(pa: PlantArrays, afrac, x0=(0.0, 0.0), de: float = 0.05e-6) -> np.ndarray:
-    """Static film stiffness K = −∂F/∂x_b (N/m, 2 × 2) at x0 by central differences."""
+def film_stiffness(pa: PlantArrays, afrac, x0=(0.0, 0.0), de: float = 0.05e-6, *,
+                   frozen: bool = False) -> np.ndarray:
+    """Static film stiffness K = −∂F/∂x_b (N/m, 2 × 2) at x0 by central differences (with
+    ``frozen``: the chamber pressures held, the film's stiffness faster than the chambers)."""
     K = np.zeros((2, 2))
     p0 = pa.p.copy()
+    c0 = pa.pc.copy()
     for j in range(2):
         x = np.array(x0, float)
         x[j] += de
         pa.p[:] = p0
-        _, fxp, fyp = steady(pa, x[0], x[1], afrac)
+        pa.pc[:] = c0
+        _, fxp, fyp = steady(pa, x[0], x[1], afrac, frozen=frozen)
         x[j] -= 2 * de
         pa.p[:] = p0
-        _, fxm, fym = steady(pa, x[0], x[1], afrac)
+        pa.pc[:] = c0
+        _, fxm, fym = steady(pa, x[0], x[1], afrac, frozen=frozen)
         K[0, j] = -(fxp - fxm) / (2 * de)
         K[1, j] = -(fyp - fym) / (2 * de)
     pa.p[:] = p0
+    pa.pc[:] = c0
     return K
 
 
@@ -144,15 +162,49 @@ def valve_area_fractions(opts: ReynoldsOptions, drive_v: float) -> np.ndarray:
     return out
 
 
-def equilibrium(pa: PlantArrays, afrac, *, tol_n: float = 1e-9) -> np.ndarray:
-    """Journal position (m) where the film force vanishes (no static structural load)."""
+def static_load(pa: PlantArrays) -> tuple[np.ndarray, np.ndarray]:
+    """The film force (N) that holds the static load, and the elastic modal response to it.
+
+    The static modal force f (gravity, disc force: :meth:`ShaftModel.static_force`) must be
+    balanced on the rigid (pivoting) modes by the film alone, φ_b,r W + f_r = 0 per plane;
+    the elastic modes then deflect by q_e = K_e⁻¹ (f_e + φ_b,e W). Returns (W (2,), q_e-part of
+    q (2m,) with zeros on the rigid modes).
+    """
+    sh = pa.shaft
+    nm = sh.n_modes
+    f = pa.params_block(L.O_FST, 2 * nm)
+    rig = sh.rigid()
+    if rig.size != 1:
+        raise RuntimeError(f"expected one rigid (pivot) mode per plane, found {rig.size}")
+    r = int(rig[0])
+    W = np.array([-f[r] / sh.phi_journal[r], -f[nm + r] / sh.phi_journal[r]])
+    q = np.zeros(2 * nm)
+    for pl in range(2):
+        for j in range(nm):
+            if j != r:
+                q[pl * nm + j] = (f[pl * nm + j] + sh.phi_journal[j] * W[pl]) / sh.omega_r[j] ** 2
+    return W, q
+
+
+def equilibrium(pa: PlantArrays, afrac, *, tol_n: float = 1e-9,
+                load=(0.0, 0.0)) -> np.ndarray:
+    """Journal position (m) where the film force equals ``load`` (N; the film holds it)."""
     x = np.zeros(2)
-    for _ in range(20):
+    W = np.asarray(load, float)
+    for _ in range(30):
         _, fx, fy = steady(pa, x[0], x[1], afrac)
-        if math.hypot(fx, fy) < tol_n:
+        r = np.array([fx, fy]) - W
+        if math.hypot(*r) < tol_n * max(1.0, math.hypot(*W)):
             break
         K = film_stiffness(pa, afrac, x)
-        x = x + np.linalg.solve(K, np.array([fx, fy]))
+        step = np.linalg.solve(K, r)
+        lim = 0.1 * pa.geo[G_C]                      # at most 0.1 c per step (nonlinear film)
+        nrm = math.hypot(*step)
+        if nrm > lim:
+            step *= lim / nrm
+        x = x + step
+    else:
+        raise RuntimeError(f"no film equilibrium for the load {W.tolist()} N (last {x} m)")
     steady(pa, x[0], x[1], afrac)
     return x
 
@@ -163,8 +215,10 @@ def rest(pa: PlantArrays, drive_v: float) -> None:
 
     pa.state[:] = 0.0
     pa.p[:] = pa.geo[7]
+    pa.pc[:] = pa.geo[7]
     af = valve_area_fractions(pa.opts, drive_v)
-    xb = equilibrium(pa, af)
+    W, q = static_load(pa)
+    xb = equilibrium(pa, af, load=W)
     o = pa.lay.st
     for i, v in enumerate(phys.valve_params(pa.opts.valves.f_scale)):
         pa.state[o[L.T_XV] + 2 * i] = v.gain * drive_v
@@ -173,20 +227,34 @@ def rest(pa: PlantArrays, drive_v: float) -> None:
     pa.afrac[:] = af
     n = pa.n
     pa.state[o[L.T_P1]:o[L.T_P1] + n] = pa.p
+    pa.state[o[L.T_PC1]:o[L.T_PC1] + NV] = pa.pc
     psi = psi_of(pa, pa.p, xb)
     pa.state[o[L.T_PSI]:o[L.T_PSI] + n] = psi
     pa.state[o[L.T_PSI1]:o[L.T_PSI1] + n] = psi
-    # shaft: rigid pivoting (mode 0, zero frequency) carries the journal to x_b
+    # shaft: the elastic deflection under the load, and the rigid pivoting carries the journal
+    # the rest of the way to x_b
     m = pa.lay.m
     nm = m // 2
-    q = np.zeros(m)
-    phi0 = pa.shaft.phi_journal[0]
-    q[0] = xb[0] / phi0
-    q[nm] = xb[1] / phi0
+    r = int(pa.shaft.rigid()[0])
+    phib = pa.shaft.phi_journal
+    for pl in range(2):
+        q[pl * nm + r] = (xb[pl] - phib @ q[pl * nm:(pl + 1) * nm]) / phib[r]
     pa.state[o[L.T_Q]:o[L.T_Q] + m] = q
     pa.state[o[L.T_Q1]:o[L.T_Q1] + m] = q
     pa.stsc[L.ST_XB:L.ST_XB + 2] = xb
     pa.stsc[L.ST_APPLIED] = pa.params[L.H_STAGE_SEQ]
+
+
+def rest_position(pa: PlantArrays) -> dict:
+    """Noise-free disc (sensor) position (µm) and journal eccentricity (x_b, y_b)/c of the
+    current state (after :func:`rest`: the equilibrium)."""
+    m = pa.lay.m
+    o = pa.lay.st
+    _, Pd = pa.shaft.coupling()
+    disc = Pd @ pa.state[o[L.T_Q]:o[L.T_Q] + m] * 1e6
+    ecc = pa.stsc[L.ST_XB:L.ST_XB + 2] / pa.geo[G_C]
+    return {"disc_um": [round(float(v), 3) for v in disc],
+            "eccentricity": [round(float(v), 4) for v in ecc]}
 
 
 def psi_of(pa: PlantArrays, p: np.ndarray, xb) -> np.ndarray:
@@ -207,7 +275,9 @@ def bdf2_mass(pa: PlantArrays) -> float:
 
 
 # --- linearised coupled system --------------------------------------------------------------
-def _rates(pa: PlantArrays, p, xb, yb, afrac):
+def _rates(pa: PlantArrays, p, pc, xb, yb, afrac):
+    """Film rates with the injection at chamber pressures ``pc``, and the chamber rates
+    (kg/s into each chamber)."""
     n = pa.n
     nt, mz = pa.lay.nt, pa.lay.mz
     rate = np.zeros(n)
@@ -217,22 +287,28 @@ def _rates(pa: PlantArrays, p, xb, yb, afrac):
     zn = np.zeros(n)
     md = np.zeros(NV)
     dmd = np.zeros(NV)
+    pm = np.zeros(NV)
+    fw = np.zeros(NFW * NV)
     sc = pa.scalars
-    film_rates(pa.geo, pa.cs, pa.wts, p, xb, yb, sc[L.SC_OMEGA_RAD], sc[L.SC_PSUP],
-               np.asarray(afrac, float), rate, outf, z2, z3, z2, zn, zn, md, dmd, False)
-    return rate, outf[0], md
+    film_rates(pa.geo, pa.cs, pa.wts, p, xb, yb, sc[L.SC_OMEGA_RAD], rate, outf, z2, z3, z2,
+               zn, zn, pm, False)
+    feed_flows(pa.geo, pm, np.asarray(pc, float), xb, yb, sc[L.SC_PSUP],
+               np.asarray(afrac, float), md, dmd, fw)
+    add_sources(pa.geo, pa.wts, md, fw, rate, zn, zn, False)
+    return rate, fw[0::NFW] - md
 
 
 def ode_rhs(pa: PlantArrays, y: np.ndarray, afrac) -> np.ndarray:
-    """Semi-discrete ODE of film + shaft, y = [p (N), q (m), v (m)] (no external force)."""
+    """Semi-discrete ODE of film + feed chambers + shaft, y = [p (N), p_c (4), q (m), v (m)],
+    under the static load."""
     n, m = pa.n, pa.lay.m
     nt = pa.lay.nt
-    p, q, v = y[:n], y[n:n + m], y[n + m:]
+    p, pc, q, v = y[:n], y[n:n + NV], y[n + NV:n + NV + m], y[n + NV + m:]
     Pb, _ = pa.shaft.coupling()
     C, K = pa.shaft.matrices(pa.scalars[L.SC_OMEGA_RAD])
     xb = Pb @ q
     vb = Pb @ v
-    rate, _, _ = _rates(pa, p, xb[0], xb[1], afrac)
+    rate, chamber = _rates(pa, p, pc, xb[0], xb[1], afrac)
     cs = pa.cs
     A = pa.geo[G_AREA]
     h = pa.geo[G_C] - xb[0] * cs[:nt] - xb[1] * cs[nt:2 * nt]
@@ -241,18 +317,28 @@ def ode_rhs(pa: PlantArrays, y: np.ndarray, afrac) -> np.ndarray:
     H = np.repeat(h, mz)
     Hd = np.repeat(hdot, mz)
     pdot = (rate - p * A * Hd) / (H * A)
+    pcdot = chamber / pa.geo[G_CAP]
     fx, fy = film_force(pa.geo, pa.cs, np.ascontiguousarray(p))
-    vdot = -C @ v - K @ q + Pb.T @ np.array([fx, fy])
-    return np.concatenate([pdot, v, vdot])
+    vdot = -C @ v - K @ q + Pb.T @ np.array([fx, fy]) + pa.params_block(L.O_FST, m)
+    return np.concatenate([pdot, pcdot, v, vdot])
 
 
 @dataclass
 class LinearModes:
     """Lightly damped modes of the linearised plant at its equilibrium."""
 
+    def of_axis(self, axis: str) -> int:
+        """Index of the lowest mode whose disc motion is mostly along ``axis`` ("x"/"y")."""
+        i = 0 if axis == "x" else 1
+        for j in range(self.freq_hz.size):
+            if abs(self.disc[i, j]) > abs(self.disc[1 - i, j]):
+                return j
+        raise ValueError(f"no mode along {axis}")
+
     freq_hz: np.ndarray
     zeta: np.ndarray
     forward: np.ndarray          # True: forward whirl at the disc
+    disc: np.ndarray | None = None   # complex (x, y) amplitude at the disc, 2 × modes
 
 
 def linear_modes(pa: PlantArrays, afrac, *, f_max_hz: float = 1000.0) -> LinearModes:
@@ -263,14 +349,14 @@ def linear_modes(pa: PlantArrays, afrac, *, f_max_hz: float = 1000.0) -> LinearM
     """
     n, m = pa.n, pa.lay.m
     o = pa.lay.st
-    y0 = np.concatenate([pa.p.copy(), pa.state[o[L.T_Q]:o[L.T_Q] + m],
+    y0 = np.concatenate([pa.p.copy(), pa.pc.copy(), pa.state[o[L.T_Q]:o[L.T_Q] + m],
                          np.zeros(m)])
     N = y0.size
     J = np.zeros((N, N))
     for j in range(N):
-        if j < n:
+        if j < n + NV:
             d = 1e-6 * pa.geo[7]
-        elif j < n + m:
+        elif j < n + NV + m:
             d = 1e-10
         else:
             d = 1e-7
@@ -288,10 +374,10 @@ def linear_modes(pa: PlantArrays, afrac, *, f_max_hz: float = 1000.0) -> LinearM
     lam, V, z = lam[keep], V[:, keep], z[keep]
     order = np.argsort(lam.imag)
     lam, V, z = lam[order], V[:, order], z[order]
-    disc = Pd @ V[n:n + m]                      # complex (x, y) amplitude at the disc
+    disc = Pd @ V[n + NV:n + NV + m]                      # complex (x, y) amplitude at the disc
     # forward whirl: y lags x by +90° for e^{iωt}: y ≈ −i x  →  Im(conj(x)·y) < 0
     fwd = np.imag(np.conj(disc[0]) * disc[1]) < 0
-    return LinearModes(lam.imag / (2 * math.pi), z, fwd)
+    return LinearModes(lam.imag / (2 * math.pi), z, fwd, disc)
 
 
 # --- classical reference ---------------------------------------------------------------------

@@ -55,14 +55,16 @@ class ReynoldsPlantDriver(SimulatedPlantDriver):
 
     # --- plant control ------------------------------------------------------------------
     def reset(self, drive_v: float | None = None) -> None:
-        """Put the plant at rest under a constant drive (film at its steady state, journal at
-        the force equilibrium). Not thread-safe with a running loop."""
+        """Put the plant at rest under a constant drive (film and chambers at their steady
+        state, journal at the equilibrium under the static load). Not thread-safe with a
+        running loop."""
         v0 = self.opts.valves.initial_drive_v if drive_v is None else float(drive_v)
         seq = self.params[L.H_STAGE_SEQ]
         self._arr.set_block(self._omega, self._p_inj)
         self.params[L.H_STAGE_SEQ] = seq
         an.rest(self._arr, v0)
         k.plant_sense(self.state, self.params, self._out)
+        self._rest = an.rest_position(self._arr)
 
     def _param_block(self, omega_rpm: float, p_inj_bar: float) -> np.ndarray:
         """The parameter block of (Ω rpm, P_I bar) (shaft step matrices, allocations)."""
@@ -92,4 +94,8 @@ class ReynoldsPlantDriver(SimulatedPlantDriver):
             "pd_suggested": {"kp": phys.PD_KP, "kd": phys.PD_KD, "tau_d": phys.PD_TAU_D},
             "effects_enabled": [], "seed": self.opts.seed,
             "noise": self.opts.noise.model_dump(),
+            "feed": self.opts.feed.model_dump(), "load": self.opts.load.model_dump(),
+            # the last reset's rest state: disc (sensor) position, µm — the supervisor's
+            # centre — and the journal's eccentricity (x_b, y_b)/c
+            "rest_um": self._rest["disc_um"], "rest_eccentricity": self._rest["eccentricity"],
         }

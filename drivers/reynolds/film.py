@@ -40,8 +40,11 @@ G_PA = 7             # ambient pressure, Pa abs
 G_AREA = 8           # cell area R Δθ Δz, m²
 G_RT = 9             # R_g T, J/kg
 G_GAMMA = 10         # ratio of specific heats
-G_CDA = 11           # Cd·A of a fully open orifice, m²
-G_N = 12
+G_CDA = 11           # Cd·A of a fully open valve, m² (the feed path's first restriction)
+G_CDF = 12           # feed hole: C_d π d (inherent: × h = curtain) or C_d π d²/4 (orifice)
+G_COMP = 13          # 1.0 inherent compensation, 0.0 orifice compensation
+G_CAP = 14           # valve-to-hole chamber capacity V_c / (R_g T), kg/Pa
+G_N = 15
 
 
 @numba.njit(cache=True, nogil=True)
@@ -120,9 +123,10 @@ def film_mass(geo, cs, p, xb, yb):
 
 
 @numba.njit(cache=True, nogil=True)
-def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA, jB, jC,
-               dRx, dRy, mdot, dmdot, want_jac):
-    """Net mass rate (× R_g T, Pa m³/s) into each cell: inflow − outflow, at fixed geometry.
+def film_rates(geo, cs, wts, p, xb, yb, omega, rate, out_flow, jA, jB, jC, dRx, dRy, pm,
+               want_jac):
+    """Net film mass rate (× R_g T, Pa m³/s) into each cell, at fixed geometry, without the
+    injection (the feed path adds it: :mod:`rigd_drivers.reynolds.feed`).
 
     Parameters
     ----------
@@ -138,10 +142,6 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA,
         Journal displacement at the bearing, m.
     omega : float
         Shaft speed, rad/s.
-    p_sup : float
-        Absolute supply pressure P_I + P_atm, Pa.
-    afrac : float64[NV]
-        Orifice area fractions (0 closed … 1 open).
     rate : float64[N]
         Out: net rate into each cell.
     out_flow : float64[1]
@@ -151,9 +151,8 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA,
         (stored as their diagonals), the diagonal block tridiagonal (stored dense).
     dRx, dRy : float64[N]
         Out (if ``want_jac``): −∂rate/∂x_b, −∂rate/∂y_b.
-    mdot, dmdot : float64[NV]
-        Out: orifice mass flows (kg/s) and their derivatives with respect to the patch mean
-        pressure.
+    pm : float64[NV]
+        Out: mean pressure of each injector's feed patch, Pa.
     """
     nt = int(geo[G_NT])
     mz = int(geo[G_MZ])
@@ -163,7 +162,6 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA,
     c = geo[G_C]
     mu = geo[G_MU]
     pa = geo[G_PA]
-    rt = geo[G_RT]
     n = nt * mz
     for k in range(n):
         rate[k] = 0.0
@@ -249,16 +247,9 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, p_sup, afrac, rate, out_flow, jA,
             dfh = -0.5 * 2.0 * dkz * (pa * pa - p[a] * p[a])
             dRx[a] += dfh * (-ci)
             dRy[a] += dfh * (-si)
-    # orifices: mass flow from the supply into the feed patch at its mean pressure
+    # feed patches: mean pressure under each injector
     for v in range(NV):
-        pm = 0.0
+        s = 0.0
         for k in range(n):
-            pm += wts[v * n + k] * p[k]
-        m, dm = orifice_flow(p_sup, pm, afrac[v] * geo[G_CDA], rt, geo[G_GAMMA])
-        # the half domain receives half the orifice flow
-        mdot[v] = m
-        dmdot[v] = dm
-        for k in range(n):
-            w = wts[v * n + k]
-            if w != 0.0:
-                rate[k] += 0.5 * rt * m * w
+            s += wts[v * n + k] * p[k]
+        pm[v] = s

@@ -23,14 +23,17 @@ H_MZ = 10
 H_M = 11             # modal coordinates (both planes)
 _h = 12
 # block-relative offsets (stored in the header)
-O_GEO, O_CS, O_WTS, O_SINV, O_CR, O_PHIB, O_PHID, O_CB, O_VPHI, O_VGAM, O_VOFF, O_SC = \
-    range(_h, _h + 12)
-_h += 12
+(O_GEO, O_CS, O_WTS, O_SINV, O_CR, O_PHIB, O_PHID, O_CB, O_VPHI, O_VGAM, O_VOFF, O_SC,
+ O_FST) = range(_h, _h + 13)
+_h += 13
 # state offsets (stored in the header)
 (T_P, T_P1, T_PSI, T_PSI1, T_Q, T_V, T_Q1, T_V1, T_XV, T_VPREV, T_AF0, T_SC, T_FRAME,
  W_RATE, W_JA, W_JB, W_JC, W_DRX, W_DRY, W_D, W_DINV, W_E, W_T1, W_T2, W_FB, W_G, W_GV,
  W_MD, W_DMD, W_AF, W_OUT, W_CAP, W_CAPI, W_RK, W_HIST, W_VR, W_TMP) = range(_h, _h + 37)
-N_HEADER = _h + 37
+_h += 37
+# feed path (reynolds.feed): chamber pressures now and one sub-step ago (Pa), and work
+(T_PC, T_PC1, W_HC, W_FW, W_RC, W_GC, W_PM) = range(_h, _h + 7)
+N_HEADER = _h + 7
 
 # scalars in the parameter block (relative to O_SC)
 SC_OMEGA_RAD = 0

@@ -5,6 +5,8 @@ Defaults are documented with their sources in docs/plant.md ("Physics-grade plan
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import Field, model_validator
 
 from rigd.configio import StrictModel
@@ -42,6 +44,35 @@ class Bearing(StrictModel):
     ambient_pa: float = Field(101325.0, gt=5e4, le=2e5)
 
 
+class Feed(StrictModel):
+    """Feed path of each injector: valve → chamber → feed hole → film (docs/plant.md)."""
+
+    compensation: Literal["inherent", "orifice"] = Field(
+        "orifice", description="feed-hole restriction: the curtain π d h (inherent) or the "
+        "hole section π d²/4 (orifice)")
+    hole_diameter_mm: float = Field(0.40, gt=0.05, le=3.0, description="feed hole diameter d")
+    discharge_coefficient: float = Field(0.8, gt=0.1, le=1.0)
+    chamber_volume_mm3: float = Field(1.0, ge=0.1, le=1e5,
+                                      description="gas volume between valve seat and feed hole "
+                                      "(tuned: the rig is free of pneumatic hammer)")
+
+
+class Load(StrictModel):
+    """Static load on the rotor: gravity (y vertical, +y up: valve 1 on top) and a constant
+    force at the disc."""
+
+    gravity_m_s2: float = Field(9.81, ge=0.0, le=20.0,
+                                description="gravity along −y; 0: the weightless rig")
+    disc_n: tuple[float, float] = Field((0.0, 0.0), description="constant force at the disc "
+                                        "(x, y), N")
+
+    @model_validator(mode="after")
+    def _bounded(self):
+        if max(abs(self.disc_n[0]), abs(self.disc_n[1])) > 500.0:
+            raise ValueError(f"load.disc_n must be within ±500 N (got {list(self.disc_n)})")
+        return self
+
+
 class ReynoldsOptions(StrictModel):
     """Options of the ``sim_reynolds`` driver."""
 
@@ -52,6 +83,8 @@ class ReynoldsOptions(StrictModel):
     newton_iterations: int = Field(1, ge=1, le=50, description="Newton iterations per sub-step")
     grid: Grid = Field(default_factory=Grid)
     bearing: Bearing = Field(default_factory=Bearing)
+    feed: Feed = Field(default_factory=Feed)
+    load: Load = Field(default_factory=Load)
     modes: int = Field(4, ge=2, le=12, description="shaft modes kept per plane")
     unbalance_g_mm: float = Field(0.0, ge=0.0, le=1000.0, description="disc unbalance m·e")
     unbalance_phase_deg: float = 0.0

@@ -15,10 +15,14 @@ import numpy as np
 from rigd.lti import zoh
 from rigd_drivers.plant import physics as phys
 from rigd_drivers.reynolds import layout as L
+from rigd_drivers.reynolds.feed import NFW, VALVE_COS, VALVE_SIN
 from rigd_drivers.reynolds.film import (
     G_AREA,
     G_C,
+    G_CAP,
     G_CDA,
+    G_CDF,
+    G_COMP,
     G_DTH,
     G_DZ,
     G_GAMMA,
@@ -79,6 +83,7 @@ def build_layout(nt: int, mz: int, m: int) -> Layout:
     take(L.O_VGAM, 8)
     take(L.O_VOFF, 4)
     take(L.O_SC, L.N_SC)
+    take(L.O_FST, m)
     na = pos
     st = {}
     pos = 0
@@ -127,6 +132,13 @@ def build_layout(nt: int, mz: int, m: int) -> Layout:
     stake(L.W_HIST, n)
     stake(L.W_VR, 2 * NR)
     stake(L.W_TMP, 2 * m)
+    stake(L.T_PC, NV)
+    stake(L.T_PC1, NV)
+    stake(L.W_HC, NV)
+    stake(L.W_FW, NFW * NV)
+    stake(L.W_RC, NV)
+    stake(L.W_GC, NV)
+    stake(L.W_PM, NV)
     n_state = pos
     h = np.zeros(L.N_HEADER)
     act = L.N_HEADER
@@ -163,6 +175,11 @@ def geometry_vector(opts: ReynoldsOptions) -> np.ndarray:
     g[G_RT] = R_AIR * b.temperature_k
     g[G_GAMMA] = GAMMA_AIR
     g[G_CDA] = b.discharge_coefficient * math.pi * (b.orifice_diameter_mm * 1e-3) ** 2 / 4
+    f = opts.feed
+    d = f.hole_diameter_mm * 1e-3
+    g[G_COMP] = 1.0 if f.compensation == "inherent" else 0.0
+    g[G_CDF] = f.discharge_coefficient * math.pi * d * (1.0 if g[G_COMP] else d / 4)
+    g[G_CAP] = f.chamber_volume_mm3 * 1e-9 / g[G_RT]
     return g
 
 
@@ -186,6 +203,8 @@ def feed_weights(opts: ReynoldsOptions) -> np.ndarray:
     hl = min(b.feed_half_length_mm * 1e-3, 0.5 * b.length_mm * 1e-3)
     W = np.zeros((NV, nt * mz))
     for v, th in enumerate(VALVE_THETA_DEG):
+        assert abs(math.cos(math.radians(th)) - VALVE_COS[v]) < 1e-12
+        assert abs(math.sin(math.radians(th)) - VALVE_SIN[v]) < 1e-12
         t0 = math.radians(th)
         for i in range(nt):
             lo, hi = i * dth, (i + 1) * dth
@@ -231,6 +250,7 @@ def param_block(opts: ReynoldsOptions, lay: Layout, shaft: ShaftModel, omega_rpm
     b[o[L.O_PHIB]:o[L.O_PHIB] + 2 * m] = Pb.ravel()
     b[o[L.O_PHID]:o[L.O_PHID] + 2 * m] = Pd.ravel()
     b[o[L.O_CB]:o[L.O_CB] + 4] = (Pb @ Sinv @ Pb.T).ravel()
+    b[o[L.O_FST]:o[L.O_FST] + m] = shaft.static_force(opts.load.gravity_m_s2, opts.load.disc_n)
     for i, v in enumerate(phys.valve_params(opts.valves.f_scale)):
         wv = v.omega
         Av = np.array([[0.0, 1.0], [-wv * wv, -2 * v.zeta * wv]])

@@ -69,6 +69,7 @@ class ShaftModel:
     phi_disc: np.ndarray           # modal deflection at the disc
     phi_disc_slope: np.ndarray     # modal slope at the disc
     d_r: np.ndarray                # modal damping matrix of one plane (n_modes × n_modes)
+    weight_r: np.ndarray = field(repr=False, default=None)   # Φᵀ M 1: modal force per m/s²
     z_nodes: np.ndarray = field(repr=False, default=None)
     shapes: np.ndarray = field(repr=False, default=None)
 
@@ -87,6 +88,23 @@ class ShaftModel:
         C[n:, :n] = -omega_rad * g
         K = np.diag(np.tile(self.omega_r ** 2, 2))
         return C, K
+
+    def static_force(self, gravity_m_s2: float, disc_n=(0.0, 0.0)) -> np.ndarray:
+        """Constant modal force (both planes, 2n) of gravity along −y and a disc force (N).
+
+        Gravity: the consistent FE mass (shaft, disc, sleeve) under a uniform acceleration
+        −g e_y, projected on the kept modes; the disc force through the modal deflections at
+        the disc.
+        """
+        n = self.n_modes
+        f = np.zeros(2 * n)
+        f[:n] = self.phi_disc * disc_n[0]
+        f[n:] = self.phi_disc * disc_n[1] - gravity_m_s2 * self.weight_r
+        return f
+
+    def rigid(self) -> np.ndarray:
+        """Indices of the zero-frequency modes of one plane (pivoting about the ball bearing)."""
+        return np.flatnonzero(self.omega_r < 1.0)
 
     def coupling(self) -> tuple[np.ndarray, np.ndarray]:
         """(Φ_b, Φ_d): 2 × 2n maps from q to (x, y) at the journal and at the disc."""
@@ -148,5 +166,7 @@ def build_shaft(geo: ShaftGeometry | None = None) -> ShaftModel:
     Cb = np.zeros((ndof, ndof))
     Cb[2 * nb, 2 * nb] = g.c_ball
     D = V.T @ Cb @ V + np.diag(2 * g.modal_damping * om)
+    t = np.zeros(ndof)
+    t[0::2] = 1.0                             # a uniform translation of every node
     return ShaftModel(g, om, V[2 * nj].copy(), V[2 * nd].copy(), V[2 * nd + 1].copy(), D,
-                      z_nodes=z, shapes=V)
+                      weight_r=V.T @ M @ t, z_nodes=z, shapes=V)

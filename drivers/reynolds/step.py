@@ -11,6 +11,13 @@ from __future__ import annotations
 
 import numba
 
+from rigd_drivers.reynolds.feed import (
+    NFW,
+    add_sources,
+    chamber_eliminate,
+    chamber_update,
+    feed_flows,
+)
 from rigd_drivers.reynolds.film import (
     G_AREA,
     G_C,
@@ -29,6 +36,7 @@ from rigd_drivers.reynolds.layout import (
     O_CB,
     O_CR,
     O_CS,
+    O_FST,
     O_GEO,
     O_PHIB,
     O_PHID,
@@ -47,6 +55,8 @@ from rigd_drivers.reynolds.layout import (
     ST_XB,
     T_P,
     T_P1,
+    T_PC,
+    T_PC1,
     T_PSI,
     T_PSI1,
     T_Q,
@@ -64,15 +74,20 @@ from rigd_drivers.reynolds.layout import (
     W_DRY,
     W_E,
     W_FB,
+    W_FW,
     W_G,
+    W_GC,
     W_GV,
+    W_HC,
     W_HIST,
     W_JA,
     W_JB,
     W_JC,
     W_MD,
     W_OUT,
+    W_PM,
     W_RATE,
+    W_RC,
     W_RK,
     W_T1,
     W_T2,
@@ -83,12 +98,15 @@ from rigd_drivers.reynolds.solver import block_cyclic_solve, inv_small
 
 
 @numba.njit(cache=True, nogil=True)
-def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, tol):
+def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, tol, c0c):
     """Newton iterations for the film pressures (state's current p, in place).
 
     Residual R = c0·p h A − hist − rate(p, x_b(p)), x_b = Cb F(p) + xk (c0 = 3/(2dt), BDF2;
     c0 = 0 and Cb ignored with ``dt_on`` false: steady film at the fixed x_b = xk).
-    Returns the last relative update ‖δp‖∞ / p_a.
+    The chamber pressures of the feed path are unknowns too (eliminated per injector,
+    :mod:`rigd_drivers.reynolds.feed`; their time factor ``c0c`` — ``c0`` but for
+    :func:`steady_film`'s frozen chambers — and history in ``W_HC``).
+    Returns the last relative update max(‖δp‖∞, ‖δp_c‖∞) / p_a.
     """
     nt = int(params[H_NT])
     mz = int(params[H_MZ])
@@ -159,6 +177,18 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, tol):
     hist = state[o:o + n]
     o = int(params[W_VR])
     vr = state[o:o + 2 * NR]
+    o = int(params[T_PC])
+    pc = state[o:o + NV]
+    o = int(params[W_HC])
+    histc = state[o:o + NV]
+    o = int(params[W_FW])
+    fw = state[o:o + NFW * NV]
+    o = int(params[W_RC])
+    resc = state[o:o + NV]
+    o = int(params[W_GC])
+    gch = state[o:o + NV]
+    o = int(params[W_PM])
+    pm = state[o:o + NV]
     A = geo[G_AREA]
     c = geo[G_C]
     pa = geo[7]
@@ -168,8 +198,10 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, tol):
         fx, fy = film_force(geo, cs, p)
         xb = cb00 * fx + cb01 * fy + xk0
         yb = cb10 * fx + cb11 * fy + xk1
-        film_rates(geo, cs, wts, p, xb, yb, omega, psup, af, rate, outf, jA, jB, jC,
-                   dRx, dRy, mdot, dmdot, True)
+        film_rates(geo, cs, wts, p, xb, yb, omega, rate, outf, jA, jB, jC, dRx, dRy, pm, True)
+        feed_flows(geo, pm, pc, xb, yb, psup, af, mdot, dmdot, fw)
+        chamber_eliminate(geo, c0c, pc, histc, mdot, dmdot, fw, resc, gch)
+        add_sources(geo, wts, mdot, fw, rate, dRx, dRy, True)
         for i in range(nt):
             ci = cs[i]
             si = cs[nt + i]
@@ -213,7 +245,14 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, tol):
                         vr[2 + v] += w * d[i, j, 0]
         # y = cap⁻¹ (Vᵀ z)  (cap is overwritten)
         _solve_dense(cap, capi, vr, NR)
-        upd = 0.0
+        # chamber pressures from the film's update: Vᵀδp = (δF_x, δF_y, δp̄_1..4)
+        for v in range(NV):
+            pm[v] = vr[NR + 2 + v]
+        dfx = vr[NR]
+        dfy = vr[NR + 1]
+        updc = chamber_update(geo, pc, pm, cb00 * dfx + cb01 * dfy, cb10 * dfx + cb11 * dfy,
+                              fw, resc, gch, 0.2 * pa)
+        upd = updc
         for i in range(nt):
             for j in range(mz):
                 k = i * mz + j
@@ -272,7 +311,8 @@ def substep(state, params, fdx, fdy):
     ocr = blk + int(params[O_CR])
     ophib = blk + int(params[O_PHIB])
     ophid = blk + int(params[O_PHID])
-    # a_q (in tmp), rk = α a_q + a_v + C_r a_q + Φ_dᵀ f_d
+    ofst = blk + int(params[O_FST])
+    # a_q (in tmp), rk = α a_q + a_v + C_r a_q + Φ_dᵀ f_d + static load
     inv2 = 1.0 / (2.0 * dt)
     for r in range(m):
         state[otmp + r] = (4.0 * state[oq + r] - state[oq1 + r]) * inv2
@@ -281,7 +321,7 @@ def substep(state, params, fdx, fdy):
         acc = al * state[otmp + r] + av
         for s in range(m):
             acc += params[ocr + r * m + s] * state[otmp + s]
-        acc += params[ophid + r] * fdx + params[ophid + m + r] * fdy
+        acc += params[ophid + r] * fdx + params[ophid + m + r] * fdy + params[ofst + r]
         state[orr + r] = acc
     # x_known = Φ_b S⁻¹ rk
     xk0 = 0.0
@@ -306,7 +346,17 @@ def substep(state, params, fdx, fdy):
         state[op1 + k] = pn
         if pr > 0.5 * pn:
             state[op + k] = pr
-    res = newton_film(state, params, blk, al, True, xk0, xk1, nit, 1e-12)
+    opc = int(params[T_PC])
+    opc1 = int(params[T_PC1])
+    ohc = int(params[W_HC])
+    for v in range(NV):
+        pn = state[opc + v]
+        state[ohc + v] = (4.0 * pn - state[opc1 + v]) * inv2
+        pr = 2.0 * pn - state[opc1 + v]
+        state[opc1 + v] = pn
+        if pr > 0.5 * pn:
+            state[opc + v] = pr
+    res = newton_film(state, params, blk, al, True, xk0, xk1, nit, 1e-12, al)
     state[ssc + ST_RES] = res
     if res > 1e-6:
         state[ssc + ST_FAIL] += 1.0
@@ -351,12 +401,19 @@ def substep(state, params, fdx, fdy):
 
 
 @numba.njit(cache=True, nogil=True)
-def steady_film(state, params, xb, yb, nit, tol):
+def steady_film(state, params, xb, yb, nit, tol, frozen):
     """Steady film (no time term) at the fixed bearing displacement (xb, yb) m, in place on the
-    state's pressures; orifice areas from the work slot ``W_AF``. Returns the last update."""
+    state's pressures; orifice areas from the work slot ``W_AF``. The chambers are at their
+    steady state too, or held at their current pressures with ``frozen`` (the film's
+    response faster than the chambers'). Returns the last update."""
     blk = int(params[H_ACT])
     n = int(params[H_NT]) * int(params[H_MZ])
     oh = int(params[W_HIST])
     for k in range(n):
         state[oh + k] = 0.0
-    return newton_film(state, params, blk, 0.0, False, xb, yb, nit, tol)
+    oh = int(params[W_HC])
+    opc = int(params[T_PC])
+    c0c = 1e15 if frozen else 0.0           # × cap ≫ any flow derivative: p_c stays put
+    for v in range(NV):
+        state[oh + v] = c0c * state[opc + v]
+    return newton_film(state, params, blk, 0.0, False, xb, yb, nit, tol, c0c)

@@ -224,9 +224,10 @@ def _squeeze_numeric(grid, f_hz, amplitude=0.01 * C, periods=8):
     x_b = X sin ωt with the valves closed; Z from the force's last four periods."""
     from rigd_drivers.reynolds import layout as L
     from rigd_drivers.reynolds import step as S
-    from rigd_drivers.reynolds.film import film_force
+    from rigd_drivers.reynolds.film import G_CDF, film_force
 
     pa = an.make_arrays({"grid": {"n_theta": grid[0], "n_z": grid[1]}})
+    pa.geo[G_CDF] = 0.0                           # feed holes sealed: no chamber volume attached
     blk = int(pa.params[L.H_ACT])
     ocb = blk + pa.lay.block[L.O_CB]
     pa.params[ocb:ocb + 4] = 0.0                  # x_b prescribed: no shaft compliance
@@ -248,7 +249,7 @@ def _squeeze_numeric(grid, f_hz, amplitude=0.01 * C, periods=8):
         pred = 2 * p - p1
         p1[:] = p
         p[:] = pred
-        S.newton_film(st, pa.params, blk, al, True, x, 0.0, 4, 1e-13)
+        S.newton_film(st, pa.params, blk, al, True, x, 0.0, 4, 1e-13, al)
         psi1, psi = psi, an.psi_of(pa, p, (x, 0.0))
         F[i] = film_force(pa.geo, pa.cs, p)[0]
     keep = t > t[-1] - 4 / f_hz
