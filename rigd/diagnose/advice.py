@@ -105,10 +105,15 @@ def _slowest(ev: dict[str, Any]) -> float:
     return max(taus) if taus else 20.0 / ev["fs"]
 
 
+def _unseen(what: str, ev: dict[str, Any], where: str = "") -> str:
+    """Why: ``what`` (the effect at its nominal size) would not show on this record."""
+    return (f"{what.format(share=N.share(ev['nominal_share']))} would not show on this "
+            f"record{where} ({_detect(ev)})")
+
+
 def _static_curve(ev: dict[str, Any], domain: str) -> tuple[str, str]:
-    return (f"a static curve bending the input or the output by "
-            f"{N.share(ev['nominal_share'])} of its spread would not show on this record "
-            f"({_detect(ev)})",
+    return (_unseen("a static curve bending the input or the output by {share} of its "
+                    "spread", ev),
             f"re-run with an input that visits many levels over the whole operating range: "
             f"{_multilevel(ev, domain)}")
 
@@ -116,8 +121,7 @@ def _static_curve(ev: dict[str, Any], domain: str) -> tuple[str, str]:
 def _integrating(ev: dict[str, Any], domain: str) -> tuple[str, str]:
     lo, hi = holds(ev["fs"], ev.get("time_constants_s", []))
     length = max(10.0 * hi, 3.0 * ev["record_seconds"])
-    return (f"an integrating path adding {N.share(ev['nominal_share'])} of the output's "
-            f"spread would not show on this record ({_detect(ev)})",
+    return (_unseen("an integrating path adding {share} of the output's spread", ev),
             f"re-run for at least {N.duration(length)} (this record: "
             f"{N.duration(ev['record_seconds'])}) with slower input changes — levels held "
             f"{N.duration(lo)}–{N.duration(hi)} — or identify in closed loop")
@@ -125,9 +129,8 @@ def _integrating(ev: dict[str, Any], domain: str) -> tuple[str, str]:
 
 def _lag_path(ev: dict[str, Any], domain: str) -> tuple[str, str]:
     lo, hi = holds(ev["fs"], ev.get("time_constants_s", []))
-    return (f"a first-order lag path adding {N.share(ev['nominal_share'])} of the output's "
-            f"spread would not show on this record at any time constant tried "
-            f"(at best: {_detect(ev)})",
+    return (_unseen("a first-order lag path adding {share} of the output's spread", ev,
+                    " at any time constant tried, at best"),
             f"re-run with steps held {N.duration(lo)}–{N.duration(hi)}, longer than the "
             f"suspected lag, and a record of at least {N.duration(10 * hi)}")
 
