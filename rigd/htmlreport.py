@@ -55,6 +55,22 @@ class Report:
                        for r in rows)
         self._parts.append(f"<table><tr>{h}</tr>{body}</table>")
 
+    def image(self, src: str, caption: str = "", href: str | None = None) -> None:
+        """Show an image file that already exists, ``src`` relative to the page (a figure of
+        another report); with ``href`` the image links there (relative too)."""
+        self._flush()
+        img = f'<img src="{html.escape(src)}" alt="{html.escape(caption or src)}">'
+        if href:
+            img = f'<a href="{html.escape(href)}">{img}</a>'
+        self._parts.append(f"<figure>{img}<figcaption>{html.escape(caption)}</figcaption>"
+                           "</figure>")
+
+    def links(self, items: Sequence[tuple[str, str]], lead: str = "") -> None:
+        """A paragraph of links ``(href, text)``, hrefs relative to the page."""
+        self._flush()
+        a = ", ".join(f'<a href="{html.escape(h)}">{html.escape(t)}</a>' for h, t in items)
+        self._parts.append(f"<p>{html.escape(lead)}{a}</p>")
+
     def figure(self, name: str, caption: str = "", **subplots_kw):
         """Create a figure saved as ``name.png`` when the next element is added or on write."""
         self._flush()

@@ -35,9 +35,27 @@ def _row(s, kind, label, fmt):
     return f"| {label} | {cells[0]} | {cells[1]} | {paper} |"
 
 
+def _diagnosis(s: dict) -> list[str]:
+    """The modelling step's table: what diagnose named, held-out fit before -> after."""
+    d = s.get("diagnosis")
+    if not d:
+        return []
+    lines = ["The modelling step on the held-out record (a PRBS of another seed, in no fit; "
+             "`diagnosis` in `demo-out/summary.json`):", "",
+             "| sub-model | diagnose named | fit before | fit after | error (100 − fit) |",
+             "|---|---|---|---|---|"]
+    for sub, before in d["fit_before"].items():
+        after = d["fit_after"][sub]
+        named = ", ".join(f"`{n}`" for n in d["named_by_submodel"].get(sub, [])) or "nothing"
+        lines.append(f"| {sub} | {named} | {before:.2f} % | {after:.2f} % | "
+                     f"{100 - before:.2f} → {100 - after:.2f} |")
+    return lines + [""]
+
+
 def render(s: dict) -> str:
     """The README block (without markers) for a demo summary."""
-    lines = ["| | 4 bar, 0 rpm | 7 bar, 0 rpm | paper (4 / 7 bar) |", "|---|---|---|---|",
+    lines = _diagnosis(s)
+    lines += ["| | 4 bar, 0 rpm | 7 bar, 0 rpm | paper (4 / 7 bar) |", "|---|---|---|---|",
              _row(s, "open", "impact damping ratio, K∞ off (x / y)", "{:.4f}"),
              _row(s, "closed", "impact damping ratio, K∞ on (x / y)", "{:.4f}"),
              _row(s, "increase", "increase (x / y)", "{:.2f}×"), ""]

@@ -1,15 +1,24 @@
-"""run_demo: the whole story in lock-step on the simulated plant (``rigd demo``, ``make demo``).
+"""run_demo: the whole story in lock-step on the simulated rig (``rigd demo``, ``make demo``).
 
-1. records (:func:`rigd.api.run_experiment`): PRBS + run-out at the design point
-   (Ω = 4000 rpm, P_I = 7 bar) and a PRBS sweep over a small (Ω, P_I) grid;
-2. identification (``rigd.ident``): actuator + bearing model file G_p.yaml at the design point,
-   reassembled bearing model G_bear(Ω, P_I) from the sweep;
-3. design (:func:`rigd.api.design`): H∞, reduction, Tustin, robustness over 30 random operating
-   points of the reassembled model cascaded with the identified actuator;
+The default plant is the physics-grade one (``config/sim_reynolds.yaml``: Reynolds film,
+orifices, flexible shaft), whose structure is not the grey-box model class, so the
+modelling step has something to find:
+
+1. records (:func:`rigd.api.run_experiment`): PRBS, a held-out PRBS of another seed and a
+   run-out record at the design point (Ω = 4000 rpm, P_I = 7 bar), and a PRBS sweep over a
+   small (Ω, P_I) grid;
+2. models (:mod:`rigd.api.demo_model`): the plain actuator and bearing models, ``diagnose``
+   of the identification record, each sub-model refitted with the effects named for it, both
+   compared on the held-out record (the error falling); the reassembled bearing model
+   G_bear(Ω, P_I) from the sweep;
+3. design (:func:`rigd.api.design`) on the improved model: H∞, reduction, Tustin,
+   robustness over 30 random operating points of the reassembled model cascaded with the
+   identified actuator;
 4. deploy: the controller file is loaded by the loop (validated, closed loop re-checked);
 5. proof: impacts K∞ off/on at Ω = 0, P_I = 4 and 7 bar, both axes
    (:func:`rigd.api.analyze_impact`);
-6. ``DIR/summary.json`` and an HTML report with every figure.
+6. ``DIR/summary.json`` and ``DIR/index.html``, the story with every figure
+   (:mod:`rigd.api.demo_page`).
 """
 
 from __future__ import annotations
@@ -28,6 +37,8 @@ from rigd.errors import InputError
 DESIGN_POINT = (4000.0, 7.0)
 IMPACT_POINTS = (4.0, 7.0)
 GRID = {"omega_rpm": [0.0, 6000.0], "p_inj_bar": [3.0, 5.0, 7.0]}
+QUICK_GRID = {"omega_rpm": [0.0, 6000.0], "p_inj_bar": [3.0, 7.0]}
+DEFAULT_CONFIG = "config/sim_reynolds.yaml"
 
 
 def _say(msg: str) -> None:
@@ -41,51 +52,49 @@ def _experiment(spec: dict, config: str, run_dir: Path, controller=None) -> None
                          str(run_dir))
 
 
-def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
+def run_demo(out: str | Path, *, config: str = DEFAULT_CONFIG,
              weights: str = "config/design.yaml", quick: bool = False,
              jobs: int = 2, add: list[str] | None = None) -> dict[str, Any]:
-    """The whole story in lock-step on the simulated plant; returns ``summary.json``'s dict.
+    """The whole story in lock-step on the simulated rig; returns ``summary.json``'s dict.
 
     Parameters
     ----------
     out : path
         Output directory (records, model files, controller, reports, ``summary.json``).
     config : path
-        Simulated rig configuration.
+        Simulated rig configuration (default the physics-grade plant, ``sim_reynolds``).
     weights : path
         Design YAML (W_p, W_u, reduction, robustness).
     quick : bool
-        Shorter records and no sweep: robustness on the ``sim`` plant's truth (for tests; only
-        with a config whose fast driver is ``sim``).
+        For tests: the same steps with shorter records and one impact per state; the
+        operating range from a 2 × 2 sweep, or on the ``sim`` plant its truth (no sweep).
     jobs : int
         Processes for the sweep fits.
     add : list of str, optional
-        Catalogue effects (``rigd.effects``) added to the design-point models — the workflow's
-        "add effect" step after ``diagnose``, e.g. ``["actuator_dynamics"]`` on the
-        physics-grade plant (docs/plant.md).
+        Catalogue effects (``rigd.effects``) added to the design-point models beside the ones
+        ``diagnose`` names (to every sub-model they concern).
 
     Returns
     -------
     dict
         ``summary.json``: γ, controller order, sensitivity figures over the operating range,
         damping ratios ζ open/closed per impact (keys ``P<bar>bar_W<rpm>rpm_<axis>``),
-        identification fits (%), timings (s).
+        identification fits (%) of the design's models, ``diagnosis`` (what was named per
+        sub-model, held-out fits before and after adding it), timings (s).
     """
+    from rigd.api.demo_model import model_story
+    from rigd.api.demo_page import write_index
     from rigd.data import load_record
     from rigd.ident.workflow import identify_record
+    from rigd.rigconfig import load_config
 
     effects = None
     if add:
         from rigd.effects import resolve
 
         effects = resolve(add, "--add")   # one line naming the unknown ones, before any work
-    if quick:
-        from rigd.rigconfig import load_config
-
-        fast = load_config(config).config.drivers.fast.name
-        if fast != "sim":
-            raise InputError(f"judges robustness on the 'sim' plant's truth, not on the "
-                             f"{fast!r} plant of {config}: run without it", "--quick")
+    plant = load_config(config).config.drivers.fast.name
+    truth = quick and plant == "sim"     # the paper's plant: its operating range is known
     t_start = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -95,46 +104,60 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
 
     # 1. records at the design point
     t0 = time.perf_counter()
-    _say(f"[1/5] PRBS and run-out records at Ω = {om:g} rpm, P_I = {p:g} bar")
+    _say(f"[1/6] PRBS, held-out PRBS and run-out records at Ω = {om:g} rpm, P_I = {p:g} bar "
+         f"({plant} plant)")
     rec_dir = out / "records"
     op = {"omega_rpm": om, "p_inj_bar": p}
-    _experiment({"kind": "prbs", "name": "demo-prbs", "operating_point": op,
-                 "amplitude_v": 1.0, "seed": 1, "duration_s": dur, "lead_in_s": 0.4},
-                config, rec_dir / "prbs")
+    for name, seed in (("prbs", 1), ("heldout", 2)):
+        _experiment({"kind": "prbs", "name": f"demo-{name}", "operating_point": op,
+                     "amplitude_v": 1.0, "seed": seed, "duration_s": dur, "lead_in_s": 0.4},
+                    config, rec_dir / name)
     _experiment({"kind": "runout", "name": "demo-runout", "operating_point": op,
                  "revolutions": 40}, config, rec_dir / "runout")
-    prbs = load_record(next((rec_dir / "prbs").glob("*.h5")))
-    runout = load_record(next((rec_dir / "runout").glob("*.h5")))
+    recs = {name: load_record(next((rec_dir / name).glob("*.h5")))
+            for name in ("prbs", "heldout", "runout")}
+    prbs, runout = recs["prbs"], recs["runout"]
     timings["records_s"] = time.perf_counter() - t0
 
-    # 2. identification
+    # 2. models: plain, diagnosed, improved; the error on the held-out record
     t0 = time.perf_counter()
-    _say("[2/5] identify actuator and bearing models (PEM)")
-    model = identify_record(prbs, "both", runout=runout, effects=effects)
+    _say("[2/6] identify actuator and bearing models (PEM)")
+    base = identify_record(prbs, "both", runout=runout)
+    base.save(out / "G_p_plain.yaml")
+    _say("[3/6] diagnose them, add what is named, compare on the held-out record")
+    story = model_story(prbs, runout, recs["heldout"], base, out,
+                        extra=[e.name for e in effects or []], say=_say)
+    for n in story.fit_before:
+        _say(f"      {n}: held-out fit {story.fit_before[n]:.2f} % -> "
+             f"{story.fit_after[n]:.2f} %")
+    model = story.improved
     model_path = out / "G_p.yaml"
     model.save(model_path)
     fits = {name: sm.fit_percent for name, sm in model.submodels.items()}
+    timings["models_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     gbear_path = None
     rob_source = "simulated plant truth (rigd_drivers.sim.truth.plant_z): no sweep in --quick"
-    if not quick:
+    if not truth:
         from rigd.ident.oprange import identify_sweep
 
-        _say(f"      sweep {GRID} and reassembled bearing model")
-        _experiment({"kind": "sweep", "name": "demo-sweep", "grid": GRID,
+        grid = QUICK_GRID if quick else GRID
+        _say(f"      sweep {grid} and reassembled bearing model")
+        _experiment({"kind": "sweep", "name": "demo-sweep", "grid": grid,
                      "at_each": {"kind": "prbs", "amplitude_v": 1.0, "seed": 1,
-                                 "duration_s": 1.5, "lead_in_s": 0.4}},
+                                 "duration_s": 1.0 if quick else 1.5, "lead_in_s": 0.4}},
                     config, rec_dir / "sweep")
         sw = identify_sweep(rec_dir / "sweep", out / "g_bear.yaml", jobs=jobs)
         if sw.gbear is not None:
             gbear_path = out / "g_bear.yaml"
-            rob_source = (f"reassembled bearing model from a {len(GRID['omega_rpm'])}x"
-                          f"{len(GRID['p_inj_bar'])} identified grid (g_bear.yaml) x the "
+            rob_source = (f"reassembled bearing model from a {len(grid['omega_rpm'])}x"
+                          f"{len(grid['p_inj_bar'])} identified grid (g_bear.yaml) x the "
                           "identified actuator")
     timings["identify_s"] = time.perf_counter() - t0
 
     # 3. design
     t0 = time.perf_counter()
-    _say("[3/5] H∞ design, reduction, Tustin, robustness")
+    _say("[4/6] H∞ design on the improved model, reduction, Tustin, robustness")
     ctrl_path = out / "controller.yaml"
     plant_at = None
     if gbear_path is None:
@@ -151,7 +174,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
 
     # 4.+5. deploy and impacts
     t0 = time.perf_counter()
-    _say("[4/5] deploy K∞ and impact tests, K∞ off and on")
+    _say("[5/6] deploy K∞ and impact tests, K∞ off and on")
     imp_dirs = []
     for pi in IMPACT_POINTS:
         for ax in ("x", "y"):
@@ -165,7 +188,7 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
     timings["impacts_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    _say("[5/5] impact analysis and report")
+    _say("[6/6] impact analysis and the story page")
     open_, closed, per = {}, {}, []
     for d in imp_dirs:
         res = analyze_impact(d, report=str(out / "impact_report" / d.name))
@@ -205,43 +228,22 @@ def run_demo(out: str | Path, *, config: str = "config/sim.yaml",
         "controller_hankel_singular_values": design["hankel_singular_values"],
         "fits_percent": fits,
         "fit_percent": {name: f["validation_mean"] for name, f in fits.items()},
-        "model_effects": list(add) if add else [],
+        "model_effects": list(dict.fromkeys(e for sm in model.submodels.values()
+                                            for e in getattr(sm.structure, "effects", []))),
+        "diagnosis": story.summary(),
         "design_point": {"omega_rpm": om, "p_inj_bar": p},
+        "plant": plant,
+        "config": str(config),
+        "quick": bool(quick),
         "timings_s": timings,
     }
-    _write_index(out, summary)
+    write_index(out, summary, story, recs)
     timings["report_s"] = time.perf_counter() - t0
     summary["run_time_s"] = time.perf_counter() - t_start
     from rigd.fileio import atomic_write_text
 
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, default=float))
     return summary
-
-
-def _write_index(out: Path, s: dict) -> None:
-    from rigd.htmlreport import Report
-
-    rep = Report(out, "rigd demo: identify, design, deploy, impacts (simulated plant)")
-    rep.text("Design report (Figs. 3-5): design/index.html. Impact reports (Figs. 6-7): "
-             "impact_report/*/index.html. Numbers: summary.json.")
-    rep.table(["quantity", "value"],
-              [["gamma", f"{s['gamma']:.3f}"],
-               ["controller order (full)",
-                f"{s['controller_order']} ({s['controller_order_full']})"],
-               ["worst in-band S_o reduction (30 realizations)",
-                f"{s['sensitivity_reduction_min']:.2f}"],
-               ["worst S_o reduction at each realization's own resonances (max singular "
-                "value / mode direction)", f"{s['sensitivity_reduction_at_resonance_min']:.2f} / "
-                f"{s['sensitivity_reduction_at_resonance_mode_direction_min']:.2f}"],
-               ["peak |S_o|",
-                f"{s['sensitivity_peak_max']:.2f} at {s['sensitivity_peak_hz']:.0f} Hz"],
-               ["max |S_o| below 20 Hz", f"{s['sensitivity_lowfreq_max']:.3f}"],
-               ["|K(1 Hz)| / max |K| in band", f"{s['controller_gain_1hz_over_band_max']:.4f}"],
-               ["robustness model", s["robustness_model"]]])
-    rep.table(["impact", "zeta open", "zeta closed", "ratio"],
-              [[k, f"{s['damping_ratio_open'][k]:.4f}", f"{s['damping_ratio_closed'][k]:.4f}",
-                f"{s['damping_increase'][k]:.2f}"] for k in s["damping_ratio_open"]])
-    rep.write()
 
 
 __all__ = ["run_demo"]

@@ -1,0 +1,76 @@
+"""``demo-out/index.html`` in headless Chromium: the story page of a real ``rigd demo --quick``
+run (the default, physics-grade plant) opened from file:// loads with no console error, every
+figure on it renders (decoded, non-zero size on the page) and every link resolves to a file
+of the demo's output folder. The page's sections are the story's steps, in order."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from urllib.parse import unquote, urlparse
+
+import pytest
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import WebDriverWait
+
+from rigd.cli import main
+
+WAIT_S = 120
+
+
+@pytest.fixture(scope="module")
+def demo_out(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "demo-out"
+    assert main(["demo", "--quick", "--out", str(out)]) == 0
+    return out
+
+
+def test_demo_page_loads_every_figure_renders_every_link_resolves(browser, screenshot,
+                                                                  demo_out):
+    page = demo_out / "index.html"
+    browser.driver.set_page_load_timeout(WAIT_S)
+    browser.get(page.as_uri())
+    WebDriverWait(browser.driver, WAIT_S).until(
+        lambda d: d.execute_script("return document.readyState") == "complete")
+    headings = [h.text for h in browser.find_elements(By.TAG_NAME, "h2")]
+    assert [h.split(".")[0] for h in headings] == ["1", "2", "3", "4", "5", "6"], headings
+    for word, k in (("Records", 0), ("measurement", 1), ("Diagnosis", 2), ("error falls", 3),
+                    ("Figs. 3–5", 4), ("Figs. 6–7", 5)):
+        assert word in headings[k], (word, headings[k])
+    imgs = browser.execute_script(
+        "return Array.prototype.map.call(document.images, function (i) { var r = "
+        "i.getBoundingClientRect(); return [i.getAttribute('src'), i.complete, "
+        "i.naturalWidth, i.naturalHeight, r.width, r.height]; })")
+    srcs = [i[0] for i in imgs]
+    for need in ("records.png", "heldout.png", "design/weights.png", "design/sensitivity.png",
+                 "design/controller.png", "compare_before/bearing_time_zoom.png"):
+        assert need in srcs, (need, srcs)
+    assert any(s.startswith("diagnose/") for s in srcs)
+    assert sum(s.startswith("impact_report/") for s in srcs) == 4
+    for src, complete, nw, nh, w, h in imgs:
+        assert complete and nw > 0 and nh > 0 and w > 0 and h > 0, (src, nw, nh, w, h)
+    hrefs = browser.execute_script(
+        "return Array.prototype.map.call(document.links, function (a) { return a.href; })")
+    assert len(hrefs) > 10
+    for href in hrefs:
+        u = urlparse(href)
+        assert u.scheme == "file", href                       # relative: inside the folder
+        target = Path(unquote(u.path))
+        assert target.is_file(), href
+        assert demo_out in target.parents, href
+    browser.driver.set_window_size(1200, 1600)
+    screenshot("demo_page")
+    assert browser.console_errors() == []
+
+
+def test_demo_page_shows_what_the_summary_says(browser, demo_out):
+    """The diagnosis section names what summary.json names; the error table shows its
+    held-out fits."""
+    s = json.loads((demo_out / "summary.json").read_text())
+    browser.get((demo_out / "index.html").as_uri())
+    text = browser.find_element(By.TAG_NAME, "body").text
+    for name in s["diagnosis"]["named"]:
+        assert name in text
+    for sub, fit in s["diagnosis"]["fit_after"].items():
+        assert f"{fit:.2f}" in text, sub
+    assert browser.console_errors() == []
