@@ -313,7 +313,9 @@ class PointRunner:
         """Record up to ``timeout_s`` while the operator hits; keep the window around the
         first sample where |f_axis| >= trigger_n. Returns (frames kept, the wait's result);
         a fault that ended the wait keeps the whole wait recording."""
-        from rigd.data.h5io import read_h5, write_h5
+        from concurrent.futures.process import BrokenProcessPool
+
+        from rigd.spawn import run as spawned
 
         tmp = path.with_name(path.name + ".wait")
         n_wait = _n(spec.timeout_s, self.fs)
@@ -324,21 +326,17 @@ class PointRunner:
                 # lists it, then ends the experiment)
                 os.replace(tmp, path)
                 return self._n_frames(res, n_wait), res
-            rec = read_h5(tmp)
         finally:
             self.discard_partial()
         try:
-            f = rec.col(f"f_{spec.axis}")
-            above = np.flatnonzero(np.abs(f) >= spec.trigger_n)
-            if above.size == 0:
-                raise PointFailed(f"no hammer hit above {spec.trigger_n:g} N on f_{spec.axis} "
-                                  f"within {spec.timeout_s:g} s")
-            i = int(above[0])
-            if i < n_pre or i + n_post > rec.n:
-                raise PointFailed("hammer hit too close to the start or end of the wait window")
-            win = rec.slice(i - n_pre, i + n_post)
-            win.meta.update(meta)
-            write_h5(path, win)
-            return win.n, res
+            # read, cut and written in a helper process: no HDF5 in the loop's process
+            n = spawned("rigd.experiments.window", "cut_hit_window", str(tmp), str(path),
+                        spec.axis, float(spec.trigger_n), float(spec.timeout_s), n_pre,
+                        n_post, meta, timeout_s=600.0)
+            return int(n), res
+        except (BrokenProcessPool, TimeoutError) as exc:
+            how = "ended" if isinstance(exc, BrokenProcessPool) else "did not answer in 600 s"
+            raise PointFailed(f"the impact window could not be cut from {tmp.name}: its "
+                              f"helper process {how}") from None
         finally:
             tmp.unlink(missing_ok=True)

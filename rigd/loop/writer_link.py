@@ -18,25 +18,19 @@ writer).
 
 from __future__ import annotations
 
-import importlib
 import multiprocessing
 import signal
 import threading
 import time
-from typing import Any
 
 from rigd.loop.clock import boost_threads
 from rigd.loop.shared_ring import H_RD, N_SINK_SLOTS, SharedRing
 from rigd.loop.sinks import FileSink, file_failure
+from rigd.spawn import call
 
 #: bound on waiting for the writer's start and answers, s: only a hung writer reaches it (a
 #: spawned interpreter importing h5py took tens of seconds on the shared machine at load 25)
 WRITER_WAIT_S = 600.0
-
-
-def _call(module: str, name: str, *args: Any) -> Any:
-    """In the spawned process: import ``module`` and call ``name(*args)``."""
-    return getattr(importlib.import_module(module), name)(*args)
 
 
 class RecordingFailed(OSError):
@@ -95,7 +89,7 @@ class WriterLink:
         here, there = ctx.Pipe(duplex=True)
         # named by module: the loop's process never imports the writer nor h5py (import
         # contract, pyproject.toml)
-        self.proc = ctx.Process(target=_call, name="rigd-writer", daemon=True,
+        self.proc = ctx.Process(target=call, name="rigd-writer", daemon=True,
                                 args=("rigd.recording.writer", "main", handle, there,
                                       float(flush_interval_s)))
         self.proc.start()

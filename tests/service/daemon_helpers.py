@@ -70,16 +70,21 @@ class Daemon:
             stdout=subprocess.PIPE, stderr=self.stderr, text=True, env=env, cwd=str(self.tmp),
             preexec_fn=preexec or (_ignore_sigxfsz if fsize_limit else None))
 
-    def limit_fsize(self, nbytes):
+    def writer_pid(self):
+        """The daemon's HDF5 writer process (``status`` → ``recorder.writer_pid``), or None."""
+        return self.ctl_json("status")["recorder"]["writer_pid"]
+
+    def limit_fsize(self, nbytes, writer_pid=None):
         """From now on no file of the daemon may grow beyond ``nbytes`` (RLIMIT_FSIZE set on
-        the running daemon and on its HDF5 writer process: a full disk, as the writer sees it
-        — write() fails with EFBIG). Set after start-up, not in the child before exec: the
-        recorder's ring is a memfd of about 80 MB, whose ftruncate the limit would refuse.
-        Needs ``fsize_limit=True`` (the writer process ignores SIGXFSZ itself)."""
+        the running daemon and on its HDF5 writer process ``writer_pid``, from
+        :meth:`writer_pid` *before* the size is chosen: a `rigd ctl` call takes seconds on a
+        busy machine, while the file grows): a full disk, as the writer sees it — write()
+        fails with EFBIG. Set after start-up, not in the child before exec: the recorder's
+        ring is a memfd of about 80 MB, whose ftruncate the limit would refuse. Needs
+        ``fsize_limit=True`` (the writer process ignores SIGXFSZ itself)."""
         import resource
 
-        writer = self.ctl_json("status")["recorder"]["writer_pid"]
-        for pid in (self.proc.pid, writer):
+        for pid in (self.proc.pid, writer_pid):
             if pid is not None:
                 resource.prlimit(pid, resource.RLIMIT_FSIZE, (nbytes, nbytes))
 

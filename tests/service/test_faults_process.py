@@ -84,8 +84,9 @@ def disk_full(tmp_path_factory):
     seen = {}
     try:
         d.wait_notify("READY=1")
+        writer = d.writer_pid()
         seen["limit"] = (rec.stat().st_size if rec.exists() else 0) + 3 * 1024 * 1024
-        d.limit_fsize(seen["limit"])
+        d.limit_fsize(seen["limit"], writer)
         seen["faulted"] = wait_for(lambda: d.ctl_json("status")["fault"]["code"] != 0, PROCESS_S)
         seen["st"] = d.ctl_json("status")
         seq = seen["st"]["seq"]          # the loop keeps cycling: waited for, not slept
