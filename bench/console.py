@@ -1,24 +1,43 @@
 """The console page in a real browser (headless Chromium, bench/chromium.py) on a real daemon
-and ``rigd web``: what one tab costs, and how fast a SAFE click lands while it draws.
+and ``rigd web``: what one tab costs, where it spends it, and how fast a SAFE click lands while
+it draws.
 
 Figures (keys of :func:`run`, part of ``python -m bench web``):
 
 * ``console_tab_cpu_percent``: CPU of the tab's renderer process (utime + stime from
   ``/proc/<pid>/stat``) over ``seconds`` of the Live tab streaming (50 updates/s) and drawing,
-  as a percentage of one core (target <= 15). ``console_gpu_process_cpu_percent``: the same for
-  Chromium's GPU process, which rasterises the WebGL traces on the CPU here (no GPU: the
-  software rasterizer), reported beside it so that the renderer's figure does not hide it.
+  as a percentage of one core (target <= 15), with the page choosing its trace type as it does
+  for a user. Beside it, over the same window: ``console_gpu_process_cpu_percent`` (Chromium's
+  GPU process: it composites and rasterises the tab's pixels — on the CPU here, no GPU) and
+  ``console_browser_process_cpu_percent``; ``console_chromium_cpu_percent`` is the sum of the
+  three, all the CPU the open tab costs; ``console_trace_type`` the type the page chose.
+* ``console_tab_where``: where the renderer's main thread spends its time, in % of the
+  window's wall time — Chrome's own counters (CDP ``Performance.getMetrics``: ``task`` every
+  task, of which ``script``, ``layout``, ``style``) and the page's ``draw`` (its Plotly calls,
+  ``window.rigd.drawMs``) — with the stream ``updates_per_s`` and the redraws per second of
+  the time traces and the orbit.
+* ``console_by_trace_type``: the same renderer / GPU-process / sum figures for the page forced
+  to SVG (``?gl=0``, ``scatter``) and to WebGL (``?gl=1``, ``scattergl``): the measurement
+  behind the page's choice (docs/web.md "Cheap to draw").
 * ``safe_click_latency_ms`` {p50, p99, max, n}: per click on the page's SAFE button (a real
   pointer click through WebDriver) with the Live tab drawing, the cycle at which the daemon
   latched ``operator_safe`` (its fault ``seq``) minus the cycle the loop was at when the page
   took the click, over the loop rate. The click's cycle is the page's: the newest streamed
   update's ``seq`` advanced by the wall time from that update's ``wall_ns`` (published by the
-  loop) to the click's ``performance.timeOrigin + now()`` at 5 kHz (target p99 <= 100 ms).
+  loop) to the click's ``performance.timeOrigin + now()`` at the loop rate (target p99 <= 100).
+  Before each click the fault is reset and the page has drawn since; the clicks are
+  ``CLICK_GAP_S`` apart (the page sends one SAFE per 0.5 s at most).
+
+Bounded time: the whole section stops with an error naming the step once ``budget_s`` (default
+600 s) has passed; on an idle 2-core machine it takes about 3 × ``seconds`` + 2 s per click +
+3 page loads, ≈ 1 min with the defaults.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import socket
 import tempfile
 import time
 from pathlib import Path
@@ -26,9 +45,61 @@ from pathlib import Path
 import numpy as np
 
 from bench.chromium import make_driver
-from bench.socket_load import _call, start_daemon, stop_daemon
+from bench.socket_load import start_daemon, stop_daemon
 
 TICK = os.sysconf("SC_CLK_TCK")
+#: seconds between two SAFE clicks (the page ignores a second press within 0.5 s)
+CLICK_GAP_S = 0.7
+#: Chrome's main-thread counters reported in ``console_tab_where`` (seconds, cumulative)
+METRICS = {"task": "TaskDuration", "script": "ScriptDuration", "layout": "LayoutDuration",
+           "style": "RecalcStyleDuration"}
+
+
+class Budget:
+    """The section's time bound: ``wait`` raises once the deadline has passed."""
+
+    def __init__(self, seconds: float) -> None:
+        self.end = time.monotonic() + seconds
+        self.seconds = seconds
+
+    def wait(self, cond, what: str, timeout: float = 120.0):
+        from selenium.common.exceptions import TimeoutException
+
+        end = min(self.end, time.monotonic() + timeout)
+        while True:
+            try:
+                v = cond()
+            except TimeoutException:      # the renderer too busy to answer this time
+                v = None
+            if v:
+                return v
+            if time.monotonic() > end:
+                why = (f"the bench's budget of {self.seconds:g} s" if end == self.end
+                       else f"{timeout:g} s")
+                raise RuntimeError(f"bench console: timed out ({why}) waiting for {what}")
+            time.sleep(0.05)
+
+    def left(self) -> float:
+        return self.end - time.monotonic()
+
+
+def _call(sock_path: str, cmd: str, timeout: float = 60.0) -> dict:
+    """One control-socket request; generous ``timeout``: the daemon's socket process is niced,
+    so on a machine busy with other jobs its answers may take seconds."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.settimeout(timeout)
+        s.connect(sock_path)
+        s.sendall((json.dumps({"id": 1, "cmd": cmd}) + "\n").encode())
+        buf = b""
+        while not buf.endswith(b"\n"):
+            chunk = s.recv(65536)
+            if not chunk:
+                raise RuntimeError(f"bench console: the daemon closed the socket on {cmd!r}")
+            buf += chunk
+    reply = json.loads(buf)
+    if not reply.get("ok"):
+        raise RuntimeError(f"bench console: {cmd}: {reply.get('error')}")
+    return reply["result"]
 
 
 def _children(pid: int) -> list[int]:
@@ -51,101 +122,189 @@ def _children(pid: int) -> list[int]:
 
 
 def _cpu_s(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
     return (int(fields[11]) + int(fields[12])) / TICK
 
 
 def _chromium_procs(service) -> dict[str, list[int]]:
-    """Chromium's processes under the driver: ``{"renderer": [...], "gpu": [...]}``."""
-    out: dict[str, list[int]] = {"renderer": [], "gpu": []}
+    """Chromium's processes under the driver: renderers, the GPU process, the browser."""
+    out: dict[str, list[int]] = {"renderer": [], "gpu": [], "browser": []}
     for p in _children(service.process.pid):
         try:
-            cmd = Path(f"/proc/{p}/cmdline").read_bytes().split(b"\0")
+            # a zygote-forked child rewrites its title: one string with spaces, not NULs
+            cmd = Path(f"/proc/{p}/cmdline").read_bytes().replace(b"\0", b" ")
         except OSError:
             continue
         if b"--type=renderer" in cmd:
             out["renderer"].append(p)
         elif b"--type=gpu-process" in cmd:
             out["gpu"].append(p)
+        elif b"--type=" not in cmd and b"chrom" in cmd.split(b" ", 1)[0]:
+            out["browser"].append(p)
     return out
 
 
-def _cpu_percent(pids: list[int], seconds: float) -> tuple[float, list[float]]:
-    """(the busiest process's CPU %, every one's) over ``seconds`` of wall time."""
-    a = {p: _cpu_s(p) for p in pids}
+def _cdp(driver, cmd: str, params: dict | None = None) -> dict:
+    """One Chrome DevTools Protocol command through chromedriver."""
+    return driver.execute("executeCdpCommand", {"cmd": cmd, "params": params or {}})["value"]
+
+
+def _metrics(driver) -> dict[str, float]:
+    got = {m["name"]: m["value"] for m in _cdp(driver, "Performance.getMetrics")["metrics"]}
+    return {k: float(got.get(v, float("nan"))) for k, v in METRICS.items()}
+
+
+def _page_counters(driver) -> dict[str, float]:
+    return driver.execute_script(
+        "const r = window.rigd; return {draw_ms: r.drawMs, updates: r.updates, "
+        "traces: r.renders, orbit: r.orbitRenders, type: r.traceType};")
+
+
+def _get(driver, url: str) -> None:
+    """Navigate; a page slow to load (seconds to parse Plotly on a machine busy with other
+    jobs) is not an error: the waits that follow bound it."""
+    from selenium.common.exceptions import TimeoutException
+
+    try:
+        driver.get(url)
+    except TimeoutException:
+        pass
+
+
+def _open(driver, base: str, query: str, budget: Budget) -> None:
+    _get(driver, base + "/" + query)
+    budget.wait(lambda: driver.execute_script(
+        "return !!window.rigd && window.rigd.mode === 'stream' && window.rigd.renders > 2 "
+        "&& window.rigd.orbitRenders > 2"), "the page live and drawing")
+    _cdp(driver, "Performance.enable")
+
+
+def _window(driver, service, seconds: float) -> dict:
+    """CPU of Chromium's processes and the tab's main-thread counters over ``seconds``."""
+    procs = _chromium_procs(service)
+    pids = [p for ps in procs.values() for p in ps]
+    c0 = {p: _cpu_s(p) for p in pids}
+    m0, j0 = _metrics(driver), _page_counters(driver)
     t0 = time.monotonic()
     time.sleep(seconds)
     dt = time.monotonic() - t0
-    per = [100.0 * (_cpu_s(p) - a[p]) / dt for p in pids]
-    return (max(per) if per else float("nan")), per
+    c1 = {p: _cpu_s(p) for p in pids}
+    m1, j1 = _metrics(driver), _page_counters(driver)
+    pct = {p: 100.0 * (c1[p] - c0[p]) / dt for p in pids}
+
+    def busiest(kind: str) -> float | None:
+        vals = [pct[p] for p in procs[kind] if np.isfinite(pct[p])]
+        return round(max(vals), 1) if vals else None
+
+    out = {"renderer": busiest("renderer"), "gpu": busiest("gpu"),
+           "browser": busiest("browser"), "type": j1["type"]}
+    out["sum"] = round(sum(v for v in (out["renderer"], out["gpu"], out["browser"]) if v), 1)
+    where = {k: round(100.0 * (m1[k] - m0[k]) / dt, 1) for k in METRICS}
+    where["draw"] = round(100.0 * (j1["draw_ms"] - j0["draw_ms"]) / 1e3 / dt, 1)
+    where["updates_per_s"] = round((j1["updates"] - j0["updates"]) / dt, 1)
+    where["traces_redraws_per_s"] = round((j1["traces"] - j0["traces"]) / dt, 1)
+    where["orbit_redraws_per_s"] = round((j1["orbit"] - j0["orbit"]) / dt, 1)
+    out["where"] = where
+    return out
 
 
-def _wait(cond, timeout: float, what: str):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        v = cond()
-        if v:
-            return v
-        time.sleep(0.05)
-    raise RuntimeError(f"timed out waiting for {what}")
+def _clicks(driver, sock: str, clicks: int, budget: Budget) -> list[float]:
+    """SAFE clicks with the Live tab drawing: latency in ms per click (module docstring)."""
+    lat = []
+    safe = driver.find_element("id", "safe")
+    fs = driver.execute_script("return window.rigd.fs")
+    for k in range(clicks):
+        if _call(sock, "status")["fault"]["code"]:
+            _call(sock, "fault.reset")
+        budget.wait(lambda: driver.execute_script(
+            "const s = window.rigd.lastStatus; return !!s && !(s.fault && s.fault.code)"),
+            f"click {k + 1}: the fault cleared on the page", 30)
+        n0 = driver.execute_script("return window.rigd.renders")
+        budget.wait(lambda n0=n0: driver.execute_script("return window.rigd.renders") > n0,
+                    f"click {k + 1}: the page drawing", 30)
+        time.sleep(CLICK_GAP_S)          # apart from the previous press (the page's guard)
+        n_before = driver.execute_script("return window.rigd.safeClicks.length")
+        safe.click()
+        c = budget.wait(lambda n=n_before: driver.execute_script(
+            f"return window.rigd.safeClicks.length > {n} && window.rigd.safeClicks[{n}]"),
+            f"click {k + 1}: the page took it", 30)
+        st = budget.wait(lambda: (lambda s: s if s["fault"]["code"] else None)(
+            _call(sock, "status")), f"click {k + 1}: SAFE latched", 30)
+        seq_click = c["seq"] + (c["wall_ms"] * 1e6 - c["wall_ns"]) * fs / 1e9
+        lat.append((st["fault"]["seq"] - seq_click) / fs * 1e3)
+    _call(sock, "fault.reset")
+    return lat
 
 
-def run(base: str, token: str, sock: str, seconds: float = 20.0, clicks: int = 10) -> dict:
+def run(base: str, token: str, sock: str, seconds: float = 10.0, clicks: int = 10,
+        budget_s: float = 600.0) -> dict:
     """The console figures against ``rigd web`` at ``base`` (module docstring)."""
+    t_start = time.monotonic()
+    budget = Budget(budget_s)
+    errors: dict[str, str] = {}
     driver, service = make_driver()
     try:
-        driver.get(base + "/")
+        _get(driver, base + "/")
+        budget.wait(lambda: driver.execute_script("return document.readyState") != "loading",
+                    "the page")
         driver.execute_script("sessionStorage.setItem('rigd-token', arguments[0])", token)
-        driver.get(base + "/")
-        _wait(lambda: driver.execute_script("return window.rigd.mode === 'stream' && "
-                                            "window.rigd.renders > 2"), 300, "page live")
-        procs = _chromium_procs(service)
-        tab, per_renderer = _cpu_percent(procs["renderer"], seconds)
-        gpu = _cpu_percent(procs["gpu"], seconds)[0] if procs["gpu"] else None
-        lat = []
-        safe = driver.find_element("id", "safe")
-        for k in range(clicks):
-            _call(sock, "fault.reset")
-            _wait(lambda: not driver.execute_script(
-                "const s = window.rigd.lastStatus; return s && s.fault && s.fault.code"), 60,
-                "fault cleared on the page")
-            n0 = driver.execute_script("return window.rigd.renders")
-            _wait(lambda n0=n0: driver.execute_script("return window.rigd.renders") > n0, 60,
-                  "the page drawing")
-            safe.click()
-            st = _wait(lambda: (lambda s: s if s["fault"]["code"] else None)(
-                _call(sock, "status")), 60, "SAFE latched")
-            c = driver.execute_script(f"return window.rigd.safeClicks[{k}]")
-            fs = driver.execute_script("return window.rigd.fs")
-            seq_click = c["seq"] + (c["wall_ms"] * 1e6 - c["wall_ns"]) * fs / 1e9
-            lat.append((st["fault"]["seq"] - seq_click) / fs * 1e3)
-        _call(sock, "fault.reset")
+        _open(driver, base, "", budget)
+        page = _window(driver, service, seconds)
+        try:
+            lat = _clicks(driver, sock, clicks, budget)
+        except (RuntimeError, OSError) as exc:      # reported; the other figures still count
+            lat, errors["safe_click"] = [], f"{type(exc).__name__}: {exc}"
+        by_type = {}
+        for q, name in (("?gl=0", "scatter"), ("?gl=1", "scattergl")):
+            if budget.left() < seconds + 60:
+                by_type[name] = "not run: the bench's time budget is spent"
+                continue
+            try:
+                _open(driver, base, q, budget)
+                w = _window(driver, service, seconds)
+            except (RuntimeError, OSError) as exc:
+                by_type[name] = f"not measured: {type(exc).__name__}: {exc}"
+                continue
+            by_type[name] = {"renderer": w["renderer"], "gpu": w["gpu"], "sum": w["sum"],
+                             "draw": w["where"]["draw"]}
     finally:
-        driver.quit()
-        service.stop()
+        try:
+            driver.quit()
+        finally:
+            service.stop()
     la = np.asarray(lat)
     return {
-        "console_tab_cpu_percent": round(tab, 1),
-        "console_renderer_cpu_percent_each": [round(x, 1) for x in per_renderer],
-        "console_gpu_process_cpu_percent": None if gpu is None else round(gpu, 1),
+        "console_tab_cpu_percent": page["renderer"],
+        "console_gpu_process_cpu_percent": page["gpu"],
+        "console_browser_process_cpu_percent": page["browser"],
+        "console_chromium_cpu_percent": page["sum"],
+        "console_trace_type": page["type"],
+        "console_tab_where": page["where"],
+        "console_by_trace_type": by_type,
         "console_cpu_seconds": seconds,
         "safe_click_latency_ms": {"p50": round(float(np.percentile(la, 50)), 1),
                                   "p99": round(float(np.percentile(la, 99)), 1),
-                                  "max": round(float(la.max()), 1), "n": len(lat)},
+                                  "max": round(float(la.max()), 1), "n": len(lat)}
+        if lat else None,
+        "console_errors": errors,
+        "console_bench_s": round(time.monotonic() - t_start, 1),
         "load_average": [round(x, 2) for x in os.getloadavg()],
     }
 
 
-def main(seconds: float = 20.0, clicks: int = 10) -> dict:
+def main(seconds: float = 10.0, clicks: int = 10) -> dict:
     """A daemon and ``rigd web`` of their own, then :func:`run`."""
     from bench.web import _start_web
 
     with tempfile.TemporaryDirectory(prefix="rigd-console-bench-") as d:
         tmp = Path(d)
-        daemon, sock = start_daemon(tmp)
+        daemon, sock = start_daemon(tmp, wait_s=300.0)   # a busy machine: minutes to start
         web = None
         try:
-            web, base = _start_web(tmp, sock)
+            web, base = _start_web(tmp, sock, wait_s=300.0)
             token = (tmp / "token").read_text().strip()
             return run(base, token, sock, seconds, clicks)
         finally:
@@ -157,7 +316,5 @@ def main(seconds: float = 20.0, clicks: int = 10) -> dict:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    import json
-
     print(json.dumps(main(), indent=2))
     os._exit(0)

@@ -27,11 +27,14 @@ output k_x/k_y, valve positions y_p1..4 and references r_p1..4, k_on — with ``
 ``rate_hz`` 50.
 
 Then the console page itself in headless Chromium on the same daemon (bench/console.py):
-``console_tab_cpu_percent`` (the tab's renderer process, /proc; target <= 15) and
-``safe_click_latency_ms`` {p50, p99, max, n} (page click -> latched, on the daemon's cycle
+``console_tab_cpu_percent`` (the tab's renderer process, /proc; target <= 15) with the GPU and
+browser processes beside it and where the tab spends it (``console_tab_where``, Chrome's
+``Performance.getMetrics``), the same for SVG and WebGL traces (``console_by_trace_type``),
+and ``safe_click_latency_ms`` {p50, p99, max, n} (page click -> latched, on the daemon's cycle
 counter, the Live tab drawing; target p99 <= 100), with the load average they were taken at.
+That part is bounded by its own budget (10 min; about 1 min idle).
 
-    python -m bench web            # about 2 min (more on a busy machine)
+    python -m bench web            # about 2-3 min idle (more on a busy machine)
 """
 
 from __future__ import annotations
@@ -138,11 +141,11 @@ def run(seconds: float = 8.0, clients: int = 5, rate_hz: float = 50.0) -> dict:
     ctx = multiprocessing.get_context("spawn")
     with tempfile.TemporaryDirectory(prefix="rigd-web-bench-") as d:
         tmp = Path(d)
-        daemon, sock = start_daemon(tmp)
+        daemon, sock = start_daemon(tmp, wait_s=300.0)   # minutes on a busy machine
         web = None
         procs = []
         try:
-            web, base = _start_web(tmp, sock)
+            web, base = _start_web(tmp, sock, wait_s=300.0)
             token = (tmp / "token").read_text().strip()
             url = (f"{base}/api/stream?rate_hz={rate_hz:g}&points={points}"
                    f"&channels={','.join(channels)}")

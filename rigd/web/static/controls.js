@@ -18,8 +18,10 @@ export async function command(name, body, okText) {
   } else {
     const e = String(r.body.error || "failed");
     // a refusal because of a latched fault goes once the fault is reset; "not reachable"
-    // once the daemon answers again
-    const cause = r.status === 409 && /fault/i.test(e) ? "fault" : (r.status === 503 || r.status === 0) ? "conn" : null;
+    // once the daemon answers again — but a SAFE that failed stays until the next message:
+    // the rig did not go safe, and the daemon coming back does not change that
+    const cause = name === "safe" ? null : r.status === 409 && /fault/i.test(e) ? "fault"
+      : (r.status === 503 || r.status === 0) ? "conn" : null;
     say((e.startsWith(name + ":") ? e : name + ": " + e) + " (HTTP " + r.status + ")", "error", cause);
   }
   refreshStatus();

@@ -34,8 +34,9 @@ export function showStatus(s) {
 
 function showFault(f) {
   const latched = !!f.code;
-  const text = latched ? (f.name + ": " + f.text + " (cycle " + f.seq + ")") : "none";
-  setText("fault", text);
+  // the header names it (the banner below says it whole)
+  setText("fault", latched ? f.name + " (cycle " + f.seq + ")" : "none");
+  $("fault").title = latched ? f.text : "";
   $("fault").className = latched ? "faulted" : "";
   const b = $("fault-banner");
   if (latched) {

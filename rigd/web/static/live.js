@@ -260,7 +260,10 @@ let poller = null, es = null, retryMs = 1000;
 function startPolling(reason) {
   rigd.mode = "polling";
   rigd.lastError = reason;
-  $("stream-state").textContent = "live stream unavailable (" + reason + "): polling status, traces stopped";
+  // short in the header (it must not wrap the SAFE button away); the reason in its tooltip
+  // and, once the status is stale too, in the stale banner
+  $("stream-state").textContent = "no live stream: polling status, traces stopped";
+  $("stream-state").title = "live stream unavailable: " + reason;
   if (poller) return;
   poller = setInterval(refreshStatus, 500);
 }
@@ -272,6 +275,7 @@ export function connectStream() {
     rigd.subscription = JSON.parse(e.data);
     if (rigd.subscription.fs_hz) rigd.fs = rigd.subscription.fs_hz;
     $("stream-state").textContent = "live " + rigd.subscription.rate_hz + " Hz";
+    $("stream-state").title = "";
     retryMs = 1000;
     if (poller) { clearInterval(poller); poller = null; }
     fetchIdentity();

@@ -199,7 +199,7 @@ function drawTrends() {
     svg(trend.wall, trend.pinj, "P_I", "#ff7f0e", {yaxis: "y2"}),
     svg(trend.wall, trend.missRate, "misses/s", "#7f7f7f", {yaxis: "y3", mode: "lines+markers", marker: {size: 3}}),
     {x: fx, y: fy, yaxis: "y3", name: "fault", type: "scatter", mode: "markers+text",
-      text: trend.faults.map((f) => f.name), textposition: "top right", textfont: {size: 9, color: "#c62828"},
+      text: trend.faults.map((f) => f.name), textposition: "top left", textfont: {size: 9, color: "#c62828"},
       marker: {symbol: "x", size: 10, color: "#c62828"}, hovertext: trend.faults.map((f) => f.name + ": " + f.text)},
   ];
   const now = Date.now();
@@ -219,7 +219,8 @@ function drawTiming() {
   const bars = [];
   for (const [name, d, col] of [["compute", t.compute_us, "#1f77b4"], ["lateness", t.lateness_us, "#ff7f0e"]]) {
     if (!d) continue;
-    bars.push({x: keys, y: keys.map((k) => d[k]), type: "bar", name: name + " µs", marker: {color: col}});
+    bars.push({x: ["p50", "p99", "p99.9", "max"], y: keys.map((k) => d[k]), type: "bar",
+      name: name + " µs", marker: {color: col}});
   }
   const misses = rigd.lastStatus && rigd.lastStatus.misses;
   Plotly.react("timing", bars, layoutBase("cycle time percentiles (misses: " +

@@ -59,6 +59,11 @@ export async function loadRuns(onlyIfChanged = false) {
 const SHOWN = /^(e_|u_|r_x|r_y|omega_rpm|p_inj_bar)/;
 let currentRecord = null;
 
+/** A unit as an engineer writes it (records may say "um" for µm). */
+function unitText(u) {
+  return u === "um" ? "µm" : u === "us" ? "µs" : u === "uV" ? "µV" : u;
+}
+
 export async function openRecord(run, file, t0, t1) {
   currentRecord = {run, file};
   let q = "?points=2000";
@@ -68,26 +73,32 @@ export async function openRecord(run, file, t0, t1) {
   if (!r.ok) { say("record: " + (r.body.error || r.status), "error"); return; }
   const v = r.body;
   const names = Object.keys(v.channels).filter((c) => c !== "seq");
-  const unit = (c) => (v.units && v.units[c]) || unitOf(c) || "1";
+  const unit = (c) => unitText((v.units && v.units[c]) || unitOf(c) || "1");
   const units = [...new Set(names.map(unit))];
-  const st = stackedAxes(units.map((u) => ({label: u})), 0.03);
+  const el = $("record-plot");
+  // a zoom keeps what the operator chose to show
+  const before = el.data && el.dataset.file === run + "/" + file
+    ? Object.fromEntries(el.data.map((t) => [t.meta, t.visible])) : null;
   const col = colours(names), traces = [];
   for (const c of names) {
-    const d = v.channels[c], {x, y} = band(v.t_s, d.min, d.max);
-    traces.push({x, y, name: c + " [" + unit(c) + "]", type: rigd.traceType || "scatter", mode: "lines",
-      line: {width: 1, color: col[c]}, yaxis: st.ref[units.indexOf(unit(c))],
-      visible: SHOWN.test(c) ? true : "legendonly", legendgroup: unit(c)});
+    const d = v.channels[c], {x, y} = band(v.t_s, d.min, d.max), i = units.indexOf(unit(c));
+    traces.push({x, y, name: c + " [" + unit(c) + "]", meta: c, type: rigd.traceType || "scatter",
+      mode: "lines", line: {width: 1, color: col[c]}, yaxis: i === 0 ? "y" : "y" + (i + 1),
+      visible: before && c in before ? before[c] : (SHOWN.test(c) ? true : "legendonly"),
+      legendgroup: unit(c)});
   }
   $("record-title").textContent = run + "/" + file + ": " + v.n + " samples at " + v.fs_hz +
     " Hz" + (v.decimated ? ", min/max decimated to " + v.t_s.length + " buckets (zoom for detail)" : "");
+  const st = stackedAxes(units.map((u) => ({label: u})), 0.03);
   const layout = layoutBase(run + "/" + file, Object.assign({
     xaxis: {title: {text: "t, s"}, anchor: st.ref[st.ref.length - 1]}, uirevision: file,
-    margin: {l: 70, r: 10, t: 30, b: 40}, legend: {orientation: "v", x: 1.01, y: 1, font: {size: 10}},
+    margin: {l: 70, r: 10, t: 30, b: 40}, legend: {orientation: "v", x: 1.01, y: 1, font: {size: 10},
+      groupclick: "toggleitem"},
   }, st.axes));
-  $("record-plot").style.height = Math.max(420, 150 * units.length) + "px";
+  el.style.height = Math.max(420, 150 * units.length) + "px";
   if (t0 !== undefined) layout.xaxis.range = [t0, t1];
+  el.dataset.file = run + "/" + file;
   await Plotly.react("record-plot", traces, layout, RECORD_CONFIG);
-  const el = $("record-plot");
   if (!el.dataset.wired) {
     el.dataset.wired = "1";
     el.on("plotly_relayout", (ev) => {
