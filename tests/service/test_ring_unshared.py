@@ -57,3 +57,19 @@ def test_daemon_under_a_small_file_size_limit_runs_and_refuses_only_the_stream(t
     assert "Traceback" not in log
     warn = [json.loads(x) for x in log.splitlines() if "live stream unavailable" in x]
     assert len(warn) == 1 and "File too large" in warn[0]["reason"]
+
+
+def test_recording_without_a_shared_ring_is_refused_in_one_line(tmp_path):
+    """The HDF5 writer is a process of its own and maps the ring: no shared ring, no
+    recording — refused before the loop starts, one line naming why, exit 2."""
+    rec = tmp_path / "rec.h5"
+    p = subprocess.run([sys.executable, "-c",
+                        "import sys; from rigd.cli import main; sys.exit(main())",
+                        "run", "--config", "config/sim.yaml", "--lockstep", "--duration", "1",
+                        "--record", str(rec)], capture_output=True, text=True,
+                       timeout=PROCESS_S, preexec_fn=_limit_fsize, cwd=ROOT)
+    assert p.returncode == 2, p.stderr
+    last = p.stderr.strip().splitlines()[-1]
+    assert last.startswith("rigd run: recording refused: cannot create the shared ring"), last
+    assert "RLIMIT_FSIZE" in last and "Traceback" not in p.stderr
+    assert not rec.exists()
