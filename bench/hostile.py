@@ -17,6 +17,9 @@ The 64 idle clients with the web's one subscription take every one of the daemon
 and one of the 4 connections it keeps for control commands: the loads still get in on those
 (``safe``, reset, enable, load, op, start, stop are taken there; queries are not). The
 cycle and overrun counts are read on one connection this process opens before the attack.
+On a busy machine a window outlasts the daemon's 60 s idle rule: the held connections are
+kept active (one space every 5 s, never a whole request), and each window starts once the
+daemon has seen the last one's connections close.
 
 Figures: ``hostile_load_miss_fraction`` / ``idle_miss_fraction`` (real-time overruns per cycle
 over all hostile / idle windows, from the daemon's ``timing``), ``safe_latency_ms`` {p50,
@@ -76,21 +79,62 @@ class _Timing:
         self.s.settimeout(timeout)
         self.s.connect(sock_path)
         self.buf = b""
+        self.lock = threading.Lock()
 
-    def counts(self) -> tuple[int, int]:
-        """(cycles run, overruns) so far."""
-        self.s.sendall(b'{"id": 1, "cmd": "timing"}\n')
+    def ask(self, cmd: str) -> dict:
+        """The result of one query on the held connection."""
+        with self.lock:
+            self.s.sendall((json.dumps({"id": 1, "cmd": cmd}) + "\n").encode())
         while b"\n" not in self.buf:
             chunk = self.s.recv(65536)
             if not chunk:
                 raise RuntimeError("the daemon closed the timing connection")
             self.buf += chunk
         line, _, self.buf = self.buf.partition(b"\n")
-        t = json.loads(line)["result"]
+        return json.loads(line)["result"]
+
+    def counts(self) -> tuple[int, int]:
+        """(cycles run, overruns) so far."""
+        t = self.ask("timing")
         return int(t["cycles"]), int(t["overruns"])
+
+    def settle(self, clients: int, timeout: float = 120.0) -> None:
+        """Wait until the daemon serves ``clients`` connections again: the niced socket
+        process sees the last window's closes late, and meanwhile they would hold the
+        connections kept for control that the next window's loads need."""
+        end = time.monotonic() + timeout
+        while self.ask("ping")["clients"] > clients and time.monotonic() < end:
+            time.sleep(0.05)
 
     def close(self) -> None:
         self.s.close()
+
+
+class _Keeper(threading.Thread):
+    """Keeps the held connections active while a window lasts (the daemon closes a client
+    silent for 60 s, and on a busy machine the loads alone take longer): one space every
+    ``every_s`` on each idle client and on the timing connection — bytes of a line, never a
+    whole request, so nothing is answered."""
+
+    def __init__(self, idles: list[socket.socket], timing: _Timing, every_s: float = 5.0):
+        super().__init__(daemon=True)
+        self.idles, self.timing, self.every_s = idles, timing, every_s
+        self._halt = threading.Event()
+        self.start()
+
+    def run(self):
+        while not self._halt.wait(self.every_s):
+            for c in self.idles:
+                try:
+                    c.send(b" ")
+                except OSError:
+                    pass
+            with self.timing.lock:
+                self.timing.s.send(b" ")
+
+    def close(self):
+        self._halt.set()
+        self.join(5)
 
 
 def big_controller(path: Path, order: int = 64, pad: int = 20000) -> Path:
@@ -172,9 +216,11 @@ def run(pairs: int = 6, window_s: float = 1.0, streams: int = 100,
         lat_ms, hostile, idle = [], [0, 0], [0, 0]
         loads = {"ok": 0, "failed": 0, "errors": []}
         timing = _Timing(sock)
+        base = timing.ask("ping")["clients"]     # the web's subscription and this one
         try:
             word = SafeWordClient(sock)
             for _ in range(pairs):
+                timing.settle(base)
                 c0, o0 = timing.counts()
                 end = time.monotonic() + window_s
                 st = _Streams(url, token, streams)
@@ -182,7 +228,9 @@ def run(pairs: int = 6, window_s: float = 1.0, streams: int = 100,
                 for _ in range(idle_clients):
                     c = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
                     c.connect(sock)
+                    c.setblocking(False)
                     idles.append(c)
+                keeper = _Keeper(idles, timing)
                 cli = subprocess.Popen([RIGD, "ctl", "--socket", sock, "--timeout", "60",
                                         "load", str(ctrl)], stdout=subprocess.DEVNULL,
                                        stderr=subprocess.PIPE, text=True)
@@ -208,6 +256,7 @@ def run(pairs: int = 6, window_s: float = 1.0, streams: int = 100,
                 c1, o1 = timing.counts()
                 hostile[0] += c1 - c0
                 hostile[1] += o1 - o0
+                keeper.close()
                 st.close()
                 for c in idles:
                     c.close()
