@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import tempfile
 import time
 from pathlib import Path
@@ -45,11 +44,14 @@ from pathlib import Path
 import numpy as np
 
 from bench.chromium import make_driver
-from bench.socket_load import start_daemon, stop_daemon
+from bench.socket_load import _call, start_daemon, stop_daemon
 
 TICK = os.sysconf("SC_CLK_TCK")
 #: seconds between two SAFE clicks (the page ignores a second press within 0.5 s)
 CLICK_GAP_S = 0.7
+#: bound on one control-socket request, s: the daemon's socket process is niced, so on a
+#: machine busy with other jobs its answers may take seconds
+SOCKET_S = 60.0
 #: Chrome's main-thread counters reported in ``console_tab_where`` (seconds, cumulative)
 METRICS = {"task": "TaskDuration", "script": "ScriptDuration", "layout": "LayoutDuration",
            "style": "RecalcStyleDuration"}
@@ -81,25 +83,6 @@ class Budget:
 
     def left(self) -> float:
         return self.end - time.monotonic()
-
-
-def _call(sock_path: str, cmd: str, timeout: float = 60.0) -> dict:
-    """One control-socket request; generous ``timeout``: the daemon's socket process is niced,
-    so on a machine busy with other jobs its answers may take seconds."""
-    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
-        s.settimeout(timeout)
-        s.connect(sock_path)
-        s.sendall((json.dumps({"id": 1, "cmd": cmd}) + "\n").encode())
-        buf = b""
-        while not buf.endswith(b"\n"):
-            chunk = s.recv(65536)
-            if not chunk:
-                raise RuntimeError(f"bench console: the daemon closed the socket on {cmd!r}")
-            buf += chunk
-    reply = json.loads(buf)
-    if not reply.get("ok"):
-        raise RuntimeError(f"bench console: {cmd}: {reply.get('error')}")
-    return reply["result"]
 
 
 def _children(pid: int) -> list[int]:
@@ -217,8 +200,8 @@ def _clicks(driver, sock: str, clicks: int, budget: Budget) -> list[float]:
     safe = driver.find_element("id", "safe")
     fs = driver.execute_script("return window.rigd.fs")
     for k in range(clicks):
-        if _call(sock, "status")["fault"]["code"]:
-            _call(sock, "fault.reset")
+        if _call(sock, "status", SOCKET_S)["fault"]["code"]:
+            _call(sock, "fault.reset", SOCKET_S)
         budget.wait(lambda: driver.execute_script(
             "const s = window.rigd.lastStatus; return !!s && !(s.fault && s.fault.code)"),
             f"click {k + 1}: the fault cleared on the page", 30)
@@ -232,10 +215,10 @@ def _clicks(driver, sock: str, clicks: int, budget: Budget) -> list[float]:
             f"return window.rigd.safeClicks.length > {n} && window.rigd.safeClicks[{n}]"),
             f"click {k + 1}: the page took it", 30)
         st = budget.wait(lambda: (lambda s: s if s["fault"]["code"] else None)(
-            _call(sock, "status")), f"click {k + 1}: SAFE latched", 30)
+            _call(sock, "status", SOCKET_S)), f"click {k + 1}: SAFE latched", 30)
         seq_click = c["seq"] + (c["wall_ms"] * 1e6 - c["wall_ns"]) * fs / 1e9
         lat.append((st["fault"]["seq"] - seq_click) / fs * 1e3)
-    _call(sock, "fault.reset")
+    _call(sock, "fault.reset", SOCKET_S)
     return lat
 
 

@@ -46,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench import socket_load
 from bench.socket_load import RIGD, start_daemon, stop_daemon
 from bench.web import _start_web
 from rigd.controller import save_controller
@@ -55,18 +56,7 @@ from rigd.service.safe_request import SafeWordClient
 def _call(sock_path: str, cmd: str, timeout: float = 120.0) -> dict:
     """One request on a connection of its own (a long bound: the socket process is niced and
     the machine may be busy)."""
-    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    s.settimeout(timeout)
-    s.connect(sock_path)
-    s.sendall((json.dumps({"id": 1, "cmd": cmd}) + "\n").encode())
-    buf = b""
-    while not buf.endswith(b"\n"):
-        chunk = s.recv(65536)
-        if not chunk:
-            break
-        buf += chunk
-    s.close()
-    return json.loads(buf)["result"]
+    return socket_load._call(sock_path, cmd, timeout)
 
 
 class _Timing:

@@ -72,16 +72,23 @@ def _config(tmp: Path) -> Path:
     return p
 
 
-def _call(sock_path: str, cmd: str) -> dict:
-    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    s.settimeout(10)
-    s.connect(sock_path)
-    s.sendall((json.dumps({"id": 1, "cmd": cmd}) + "\n").encode())
-    buf = b""
-    while not buf.endswith(b"\n"):
-        buf += s.recv(65536)
-    s.close()
-    return json.loads(buf)["result"]
+def _call(sock_path: str, cmd: str, timeout: float = 10.0) -> dict:
+    """One request on a connection of its own; its ``result`` (an error reply or a closed
+    connection raises RuntimeError naming the command)."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.settimeout(timeout)
+        s.connect(sock_path)
+        s.sendall((json.dumps({"id": 1, "cmd": cmd}) + "\n").encode())
+        buf = b""
+        while not buf.endswith(b"\n"):
+            chunk = s.recv(65536)
+            if not chunk:
+                raise RuntimeError(f"{cmd}: the daemon closed the connection")
+            buf += chunk
+    reply = json.loads(buf)
+    if not reply.get("ok"):
+        raise RuntimeError(f"{cmd}: {reply.get('error')}")
+    return reply["result"]
 
 
 def _counts(sock_path: str) -> tuple[int, int]:
