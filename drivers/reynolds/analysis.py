@@ -242,6 +242,7 @@ def rest(pa: PlantArrays, drive_v: float) -> None:
     pa.state[o[L.T_Q]:o[L.T_Q] + m] = q
     pa.state[o[L.T_Q1]:o[L.T_Q1] + m] = q
     pa.stsc[L.ST_XB:L.ST_XB + 2] = xb
+    pa.stsc[L.ST_PSUP] = pa.scalars[L.SC_PSUP]
     pa.stsc[L.ST_APPLIED] = pa.params[L.H_STAGE_SEQ]
 
 

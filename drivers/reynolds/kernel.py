@@ -56,8 +56,11 @@ from rigd_drivers.reynolds.layout import (
     SC_OMEGA_RAD,
     SC_OMEGA_RPM,
     SC_PINJ,
+    SC_PSUP,
+    SC_PSUP_T,
     SC_SEED,
     SC_SENS,
+    SC_SLEW,
     SC_T,
     SC_UNB,
     SC_UNB_PH,
@@ -70,6 +73,7 @@ from rigd_drivers.reynolds.layout import (
     ST_IMP_SEEN,
     ST_IMP_T,
     ST_PHI,
+    ST_PSUP,
     ST_RNG,
     ST_SEQ,
     ST_T,
@@ -176,6 +180,18 @@ def plant_step(state, params, drive, frame_in):
     sc = blk + int(params[O_SC])
     ssc = int(params[T_SC])
     T = params[sc + SC_T]
+    # the supply follows its set point at the regulator's slew rate
+    tgt = params[sc + SC_PSUP_T]
+    cur = state[ssc + ST_PSUP]
+    rate = params[sc + SC_SLEW]
+    if rate <= 0.0 or cur <= 0.0 or abs(tgt - cur) <= rate:
+        cur = tgt
+    elif tgt > cur:
+        cur += rate
+    else:
+        cur -= rate
+    state[ssc + ST_PSUP] = cur
+    params[sc + SC_PSUP] = cur
     if params[H_IMP_SEQ] != state[ssc + ST_IMP_SEEN]:
         state[ssc + ST_IMP_SEEN] = params[H_IMP_SEQ]
         state[ssc + ST_IMP_ON] = 1.0

@@ -51,7 +51,9 @@ SC_UNB = 11          # unbalance force amplitude at Ω, N
 SC_UNB_PH = 12       # rad
 SC_ALPHA = 13        # 3/(2 dt)
 SC_SENS = 14         # sensor scale, µm per m (1e6)
-N_SC = 16
+SC_PSUP_T = 15       # supply set point P_I + P_atm, Pa (SC_PSUP follows it at the slew rate)
+SC_SLEW = 16         # supply slew, Pa per loop period (0: the supply jumps)
+N_SC = 18
 
 # scalars in the state (relative to T_SC)
 ST_T = 0
@@ -71,4 +73,5 @@ ST_MOUT = 14         # cumulative end outflow, Pa m³
 ST_RES = 15          # last Newton residual (relative)
 ST_FAIL = 16         # sub-steps whose last Newton update was not small
 ST_XB = 17           # 2: bearing displacement, m
+ST_PSUP = 19         # the supply pressure now (on its way to the set point), Pa
 N_STSC = 20

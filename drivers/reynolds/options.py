@@ -79,6 +79,9 @@ class ReynoldsOptions(StrictModel):
     seed: int = Field(1, ge=0, le=2**53 - 1, description="noise seed")
     omega_rpm: float = Field(0.0, ge=0.0, le=6000.0, description="shaft speed Ω, rpm")
     p_inj_bar: float = Field(4.0, ge=3.0, le=7.0, description="injection pressure P_I, bar")
+    supply_slew_bar_per_s: float = Field(
+        10.0, ge=0.0, le=1e4, description="rate at which the supply pressure follows a new "
+        "P_I (the regulator; 0: at once)")
     substeps: int = Field(4, ge=1, le=64, description="BDF2 sub-steps per loop period")
     newton_iterations: int = Field(1, ge=1, le=50, description="Newton iterations per sub-step")
     grid: Grid = Field(default_factory=Grid)

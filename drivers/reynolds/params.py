@@ -264,6 +264,8 @@ def param_block(opts: ReynoldsOptions, lay: Layout, shaft: ShaftModel, omega_rpm
     b[s + L.SC_OMEGA_RPM] = omega_rpm
     b[s + L.SC_PINJ] = p_inj_bar
     b[s + L.SC_PSUP] = p_inj_bar * 1e5 + P_ATM
+    b[s + L.SC_PSUP_T] = p_inj_bar * 1e5 + P_ATM
+    b[s + L.SC_SLEW] = opts.supply_slew_bar_per_s * 1e5 / fs
     b[s + L.SC_DT] = dt
     b[s + L.SC_NSUB] = opts.substeps
     b[s + L.SC_NEWTON] = opts.newton_iterations

@@ -140,3 +140,19 @@ def test_inherent_compensation_feeds_through_the_curtain():
         spread[comp] = (pa.pc[2] - pa.pc[0]) / (4e5 + P_ATM)        # valve 3 (−y) − valve 1
         assert spread[comp] > 0
     assert spread["inherent"] > spread["orifice"]
+
+
+def test_supply_follows_a_new_pressure_at_the_regulator_slew():
+    """set_operating_point(P_I): the supply ramps at `supply_slew_bar_per_s` (10 bar/s), so a
+    jump from 7 to 3 bar at 6 krpm keeps the journal on its upper equilibrium; 0 jumps."""
+    d = ReynoldsPlantDriver({**QUIET, "p_inj_bar": 4.0})
+    sc = d._arr.stsc
+    d.set_operating_point(0.0, 7.0)
+    d.run(np.full((500, 4), 5.0))                               # 0.1 s
+    assert (sc[L.ST_PSUP] - P_ATM) / 1e5 == pytest.approx(5.0, abs=0.01)
+    d.run(np.full((1000, 4), 5.0))
+    assert (sc[L.ST_PSUP] - P_ATM) / 1e5 == pytest.approx(7.0, abs=1e-9)
+    d = ReynoldsPlantDriver({**QUIET, "p_inj_bar": 4.0, "supply_slew_bar_per_s": 0.0})
+    d.set_operating_point(0.0, 7.0)
+    d.run(np.full((2, 4), 5.0))
+    assert (d._arr.stsc[L.ST_PSUP] - P_ATM) / 1e5 == pytest.approx(7.0, abs=1e-9)
