@@ -69,9 +69,6 @@ class Runout(Effect):
                             "re-run at Ω > 0 (e.g. 3000 rpm) or add a run-out record "
                             "(--runout)", ctx.submodel)
 
-    def _signature(self, ctx: Context):
-        return super().signature(ctx)
-
     def regressors(self, ctx: Context) -> list[np.ndarray]:
         regs = []
         for h in harmonics(ctx.phi):
