@@ -91,3 +91,14 @@ def test_a_model_file_rebuilds_the_chosen_family(tmp_path):
     path = ModelFile(d.fs, {"generic": sm}).save(tmp_path / "m.yaml")
     back = load_model(path).submodels["generic"]
     assert np.allclose(back.structure.simulate(back.theta, d), c.structure.simulate(c.theta, d))
+
+
+def test_scan_scores_a_validation_part_before_the_estimation_part():
+    """Silverbox's split (validation first): the scan's held-out fit is a free run from rest
+    on the validation samples, not −inf (no LTI candidate was left before)."""
+    from rigd.ident.lti.scan import scan_orders
+
+    g = structure_2in_3modes(seed=2, n=3000)
+    d = IdData(g.u, g.y, g.fs, list(g.inputs), list(g.outputs))
+    pts = scan_orders(d, slice(1000, 3000), slice(0, 1000), (0, 0), 8, orders=[6])
+    assert len(pts) == 1 and pts[0].fit_val > 80.0

@@ -127,9 +127,16 @@ def _score_orders(data, u, y, est, val, delays, todo, patience, best=np.inf, sin
         else:
             b = _bic(ye[skip:] - yh[skip:k], ye[skip:], parameters(nx, nu, ny))
             fe = float(np.mean(fit_percent(ye[skip:], yh[skip:k])))
-            fv = (float(np.mean(fit_percent(y[val], yh[val.start - est.start:
+            if val.stop <= val.start:
+                fv = -np.inf
+            elif val.start >= est.start:
+                fv = float(np.mean(fit_percent(y[val], yh[val.start - est.start:
                                                           val.stop - est.start])))
-                  if val.start >= est.start and val.stop > val.start else -np.inf)
+            else:   # validation before the estimation part: a free run from rest
+                with np.errstate(all="ignore"):
+                    yv = m.simulate(u[val], np.zeros(nx))
+                fv = float(np.mean(fit_percent(y[val], yv)))
+                fv = fv if np.isfinite(fv) else -np.inf
             point = ScanPoint(delays, nx, b, fe, fv, m.A)
         out.append(point)
         if point.bic < best:
