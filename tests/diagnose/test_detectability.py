@@ -146,7 +146,7 @@ def test_runout_standstill_cannot_tell_spinning_can(rpm):
 def test_detectability_holds_the_findings_rules():
     """The effects layer and the diagnosis use the same thresholds: one home
     (rigd.ident.thresholds), imported by both, no copy."""
-    from rigd.diagnose import engine
+    from rigd.diagnose import selection as engine  # the forward selection's rules
     from rigd.effects import detectability as DT
     from rigd.ident import thresholds as T
 
