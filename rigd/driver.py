@@ -124,6 +124,11 @@ class Driver(ABC):  # noqa: B024 - abstract by intent: only FastDriver/SlowDrive
         """Error/health counters for status reports (CRC errors, timeouts, reconnects...)."""
         return {}
 
+    def status_text(self, bits: int) -> str:
+        """One line saying what this driver's ``drv_status`` bits mean, "" if it has no words
+        for them (the fault then names the bits only). Runs in: any thread."""
+        return ""
+
 
 class FastDriver(Driver):
     """Per-cycle I/O: sensors in, valve drive voltages out."""

@@ -244,6 +244,7 @@ def rest(pa: PlantArrays, drive_v: float) -> None:
     pa.stsc[L.ST_XB:L.ST_XB + 2] = xb
     pa.stsc[L.ST_PSUP] = pa.scalars[L.SC_PSUP]
     pa.stsc[L.ST_APPLIED] = pa.params[L.H_STAGE_SEQ]
+    pa.stsc[L.ST_IMP_SEEN] = pa.params[L.H_IMP_SEQ]      # a hammer blow before is not replayed
 
 
 def rest_position(pa: PlantArrays) -> dict:

@@ -71,9 +71,40 @@ class ReynoldsPlantDriver(SimulatedPlantDriver):
         return param_block(self.opts, self._arr.lay, self._arr.shaft, omega_rpm, p_inj_bar,
                            self.fs)
 
-    def counters(self) -> dict[str, int]:
-        """Sub-steps whose Newton update did not reach 1e-6 p_a (health of the solver)."""
-        return {"newton_not_converged": int(self._arr.stsc[L.ST_FAIL])}
+    def counters(self) -> dict[str, Any]:
+        """Health of the solver since the last :meth:`reset` (``rigd ctl status`` shows it).
+
+        ``substeps`` integrated; ``newton_iterations`` over them; ``newton_not_converged``:
+        sub-steps whose residual after the last update stayed above ``newton_tolerance``
+        after ``newton_max_iterations``; ``non_finite``: sub-steps whose solution was not
+        finite; ``h_floor``: sub-steps ending with the film thickness floored (0.02 c, ε >
+        0.98); ``p_floor``: sub-steps with a pressure clipped at 0.2 p_a; ``eps_max``: the
+        largest journal eccentricity ratio; ``stopped``: "" or why the plant stopped
+        (contact / not finite) and ``stopped_at_seq`` the sample.
+        """
+        sc = self._arr.stsc
+        bits = int(sc[L.ST_STOP])
+        return {"substeps": int(sc[L.ST_NSUB]), "newton_iterations": int(sc[L.ST_NEWTON_IT]),
+                "newton_not_converged": int(sc[L.ST_FAIL]), "non_finite": int(sc[L.ST_NAN]),
+                "h_floor": int(sc[L.ST_HFLOOR]), "p_floor": int(sc[L.ST_PFLOOR]),
+                "eps_max": round(float(sc[L.ST_EPS_MAX]), 4),
+                "stopped": self.status_text(bits),
+                "stopped_at_seq": int(sc[L.ST_STOP_SEQ]) if bits else None}
+
+    def status_text(self, bits: int) -> str:
+        """What this plant's ``drv_status`` bits mean (one line, "" for 0)."""
+        out = []
+        if bits & L.STATUS_CONTACT:
+            out.append("contact: the journal reached the bearing wall (eccentricity ratio ≥ 1); "
+                       "the simulated plant stopped at the last state before it and stays "
+                       "there until the driver is reset (restart the loop)")
+        if bits & L.STATUS_DIVERGED:
+            out.append("the simulated plant's film + shaft solution was not finite; it stopped "
+                       "at the last finite state until the driver is reset (restart the loop)")
+        rest = bits & ~(L.STATUS_CONTACT | L.STATUS_DIVERGED)
+        if rest:
+            out.append(f"status bits {rest:#x}")
+        return "; ".join(out)
 
     def linear_modes(self, drive_v: float | None = None) -> an.LinearModes:
         """Modes of the linearised plant at rest at the current operating point (≈ 1 s)."""

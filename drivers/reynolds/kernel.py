@@ -76,6 +76,7 @@ from rigd_drivers.reynolds.layout import (
     ST_PSUP,
     ST_RNG,
     ST_SEQ,
+    ST_STOP,
     ST_T,
     T_AF0,
     T_FRAME,
@@ -144,7 +145,7 @@ def _sense(state, params, frame_in):
     frame_in[IN_OMEGA] = params[sc + SC_OMEGA_RPM]
     frame_in[IN_P_INJ] = params[sc + SC_PINJ]
     frame_in[IN_SEQ] = state[ssc + ST_SEQ]
-    frame_in[IN_STATUS] = 0.0
+    frame_in[IN_STATUS] = state[ssc + ST_STOP]
     of = int(params[T_FRAME])
     for i in range(N_IN):
         state[of + i] = frame_in[i]
@@ -173,7 +174,9 @@ def plant_step(state, params, drive, frame_in):
         Valve drive voltages v_1..v_4, V (clamped to [0, 10] V by the amplifiers).
     frame_in : float64[N_IN]
         Receives e_x, e_y (µm, at the disc), y_p1..4 (V), phi (rad), f_x, f_y (N),
-        omega_rpm, p_inj_bar, drv_seq and drv_status of the next sample.
+        omega_rpm, p_inj_bar, drv_seq and drv_status of the next sample (``STATUS_*`` bits of
+        :mod:`rigd_drivers.reynolds.layout` once the plant stopped at contact or on a
+        non-finite solution; it then stays frozen until :meth:`reset`).
     """
     _apply_staged(state, params)
     blk = int(params[H_ACT])
@@ -248,7 +251,8 @@ def plant_step(state, params, drive, frame_in):
             a = omega * ts + fph
             fx += fu * math.cos(a)
             fy += fu * math.sin(a)
-        substep(state, params, fx, fy)
+        if state[ssc + ST_STOP] == 0.0:     # stopped (contact, divergence): frozen
+            substep(state, params, fx, fy)
     for i in range(NV):
         state[oaf0 + i] = state[oaf + i]
     if state[ssc + ST_IMP_ON] != 0.0:

@@ -53,7 +53,9 @@ SC_ALPHA = 13        # 3/(2 dt)
 SC_SENS = 14         # sensor scale, µm per m (1e6)
 SC_PSUP_T = 15       # supply set point P_I + P_atm, Pa (SC_PSUP follows it at the slew rate)
 SC_SLEW = 16         # supply slew, Pa per loop period (0: the supply jumps)
-N_SC = 18
+SC_NEWTON_MAX = 17   # at most this many Newton iterations per sub-step
+SC_RES_TOL = 18      # converged: residual after the update below this (pressure change / p_a)
+N_SC = 20
 
 # scalars in the state (relative to T_SC)
 ST_T = 0
@@ -70,8 +72,20 @@ ST_IMP_DUR = 10
 ST_FH = 11           # 2: hammer force at the current sample, N
 ST_MIN = 13          # cumulative orifice inflow mass × R_g T over the run, Pa m³
 ST_MOUT = 14         # cumulative end outflow, Pa m³
-ST_RES = 15          # last Newton residual (relative)
-ST_FAIL = 16         # sub-steps whose last Newton update was not small
+ST_RES = 15          # residual after the last Newton update of the last sub-step (/ p_a)
+ST_FAIL = 16         # sub-steps whose residual stayed above SC_RES_TOL after SC_NEWTON_MAX
 ST_XB = 17           # 2: bearing displacement, m
 ST_PSUP = 19         # the supply pressure now (on its way to the set point), Pa
-N_STSC = 20
+ST_STOP = 20         # drv_status bits (STATUS_*): non-zero once the plant stopped
+ST_STOP_SEQ = 21     # drv_seq of the sample at which it stopped
+ST_NAN = 22          # sub-steps whose solution was not finite
+ST_HFLOOR = 23       # sub-steps that ended with the film thickness floored somewhere (H_MIN c)
+ST_PFLOOR = 24       # sub-steps in which a Newton update was clipped at 0.2 p_a
+ST_NEWTON_IT = 25    # Newton iterations, all sub-steps
+ST_NSUB = 26         # sub-steps integrated
+ST_EPS_MAX = 27      # largest journal eccentricity ratio ε seen at the end of a sub-step
+N_STSC = 32
+
+# --- drv_status bits of this plant (bits 0 and 1 keep the loop's meaning: encoder, sensor) ----
+STATUS_CONTACT = 1 << 4     # the journal reached the bearing wall (ε ≥ 1): the plant stopped
+STATUS_DIVERGED = 1 << 5    # the film + shaft solution was not finite: the plant stopped

@@ -83,7 +83,15 @@ class ReynoldsOptions(StrictModel):
         10.0, ge=0.0, le=1e4, description="rate at which the supply pressure follows a new "
         "P_I (the regulator; 0: at once)")
     substeps: int = Field(4, ge=1, le=64, description="BDF2 sub-steps per loop period")
-    newton_iterations: int = Field(1, ge=1, le=50, description="Newton iterations per sub-step")
+    newton_iterations: int = Field(1, ge=1, le=50,
+                                   description="Newton iterations per sub-step, at least")
+    newton_max_iterations: int = Field(8, ge=1, le=50,
+                                       description="… at most, while the residual after the "
+                                                   "update is above newton_tolerance")
+    newton_tolerance: float = Field(1e-6, gt=0.0, le=1e-2,
+                                    description="converged: the residual after the update asks "
+                                                "for a pressure change below this fraction of "
+                                                "p_a over the sub-step")
     grid: Grid = Field(default_factory=Grid)
     bearing: Bearing = Field(default_factory=Bearing)
     feed: Feed = Field(default_factory=Feed)
@@ -93,3 +101,10 @@ class ReynoldsOptions(StrictModel):
     unbalance_phase_deg: float = 0.0
     noise: Noise = Field(default_factory=Noise)
     valves: Valves = Field(default_factory=Valves)
+
+    @model_validator(mode="after")
+    def _newton(self):
+        if self.newton_max_iterations < self.newton_iterations:
+            raise ValueError(f"newton_max_iterations ({self.newton_max_iterations}) must be at "
+                             f"least newton_iterations ({self.newton_iterations})")
+        return self

@@ -269,6 +269,8 @@ def param_block(opts: ReynoldsOptions, lay: Layout, shaft: ShaftModel, omega_rpm
     b[s + L.SC_DT] = dt
     b[s + L.SC_NSUB] = opts.substeps
     b[s + L.SC_NEWTON] = opts.newton_iterations
+    b[s + L.SC_NEWTON_MAX] = opts.newton_max_iterations
+    b[s + L.SC_RES_TOL] = opts.newton_tolerance
     b[s + L.SC_T] = T
     b[s + L.SC_NOISE_E] = opts.noise.e_um
     b[s + L.SC_NOISE_Y] = opts.noise.y_p_v

@@ -206,6 +206,18 @@ def take_requests(st):
 
 
 @njit(cache=True)
+def status_fault(st):
+    """The fast driver's status bits (``drv_status``) as (fault code, bits), or (0, -1)."""
+    status = st[S_Y + IN_STATUS]
+    if math.isfinite(status) and status != 0.0:
+        bits = int(status)
+        if bits & FC.STATUS_ENCODER:
+            return FC.ENCODER_LOST, -1
+        return FC.DRIVER_STATUS, bits
+    return 0, -1
+
+
+@njit(cache=True)
 def supervise(prm, st):
     """Supervisor checks on the calibrated frame ``st[S_Y:S_Y + N_IN]``; returns (fault code,
     detail) or (0, -1).
@@ -225,7 +237,7 @@ def supervise(prm, st):
         if not math.isfinite(st[S_Y + ch]):
             return FC.SENSOR_NAN, ch
     if prm[P_SUP_ON] == 0.0:
-        return 0, -1
+        return status_fault(st)     # the driver's own report, like NaN, is always checked
     for ch in (IN_E_X, IN_E_Y):
         if st[S_Y + ch] < prm[P_E_MIN] or st[S_Y + ch] > prm[P_E_MAX]:
             return FC.SENSOR_RANGE, ch
@@ -233,13 +245,9 @@ def supervise(prm, st):
         ch = IN_YP1 + i
         if st[S_Y + ch] < prm[P_Y_MIN] or st[S_Y + ch] > prm[P_Y_MAX]:
             return FC.SENSOR_RANGE, ch
-    # driver status bits
-    status = st[S_Y + IN_STATUS]
-    if math.isfinite(status) and status != 0.0:
-        bits = int(status)
-        if bits & FC.STATUS_ENCODER:
-            return FC.ENCODER_LOST, -1
-        return FC.DRIVER_STATUS, bits
+    code, detail = status_fault(st)
+    if code != 0:
+        return code, detail
     # stale frame: the driver's own counter did not advance
     dseq = st[S_Y + IN_SEQ]
     if prm[P_STALE_N] > 0.0 and math.isfinite(dseq):

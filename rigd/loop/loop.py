@@ -110,6 +110,7 @@ class ControlLoop:
                                         self.log,
                                         first_poll_s=cfg.supervisor.slow_first_poll_s)
         self.supervisor.slow = self.slow_pollers
+        self.supervisor.fast = self.fast
         self.rt = RealTimeClock(cfg, self)
         self.lockstep = LockstepClock(cfg, self)
         #: what ``set_operating_point`` last applied (``status()["set_point"]``); a simulated
@@ -365,7 +366,8 @@ class ControlLoop:
             "t_s": st[L.S_SEQ] / self.fs,
             "loop_error": repr(err) if err is not None else None,
             "fault": {"code": code, "name": FC.fault_name(code),
-                      "text": FC.describe(code, int(st[L.S_FAULT_DETAIL])) if code else "",
+                      "text": self.supervisor.fault_text(code, int(st[L.S_FAULT_DETAIL]))
+                      if code else "",
                       "seq": int(st[L.S_FAULT_SEQ]) if code else None},
             "controller": {"loaded": self.controller is not None,
                            "source": getattr(self.controller, "source", None),
@@ -386,6 +388,7 @@ class ControlLoop:
                          "writer_pid": self.recorder.writer_pid},
             "overruns": self.rt.overruns,
             "drivers": {"fast": {"name": getattr(self.fast, "name", "?"),
+                                 "drv_status": _bits(st[L.S_Y + F.IN_STATUS]),
                                  **self.fast.counters()},
                         "slow": [{"name": d.name, **d.counters()} for d in self.slow]},
         }
@@ -579,3 +582,8 @@ class ControlLoop:
         return make_sink(record, n_expected, fs=self.fs, config=self.config,
                          config_text=self.loaded.text, last_frame=last,
                          controller=self.controller)
+
+
+def _bits(v: float) -> int | None:
+    """A status word from the frame as an int (None if the driver delivered a non-finite one)."""
+    return int(v) if np.isfinite(v) else None

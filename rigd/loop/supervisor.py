@@ -48,6 +48,7 @@ class Supervisor:
         #: what killed the loop (None while it lives)
         self.loop_error: BaseException | None = None
         self.slow = None            # rigd.loop.slow.SlowPollers, set by the loop
+        self.fast = None            # the fast driver (its words for drv_status), set by the loop
 
     # --- requests from Python ------------------------------------------------------------
     def driver_failed(self, exc: BaseException) -> None:
@@ -85,6 +86,16 @@ class Supervisor:
         self._log.error("loop died: outputs set safe, loop stopped", error=repr(exc))
         self.poll()
 
+    def fault_text(self, code: int, detail: int) -> str:
+        """:func:`rigd.loop.faults.describe`, plus the fast driver's own words for its status
+        bits on ``driver_status`` (e.g. the simulated plant's contact)."""
+        text = FC.describe(code, detail)
+        if int(code) == FC.DRIVER_STATUS and self.fast is not None and detail > 0:
+            words = self.fast.status_text(int(detail))
+            if words:
+                text += f": {words}"
+        return text
+
     # --- fault events ---------------------------------------------------------------------
     def subscribe(self) -> queue.Queue:
         """A queue receiving one dict per latched fault: seq, code, name, text, time."""
@@ -107,7 +118,7 @@ class Supervisor:
                 seq, code, detail = st[L.S_FLOG + 3 * k:L.S_FLOG + 3 * k + 3]
                 self._seen += 1
                 ev = {"seq": int(seq), "code": int(code), "name": FC.fault_name(code),
-                      "text": FC.describe(code, int(detail)), "time": time.time()}
+                      "text": self.fault_text(code, int(detail)), "time": time.time()}
                 if code == FC.DRIVER_EXCEPTION and self.driver_error is not None:
                     ev["text"] += f": {self.driver_error!r}"
                 if code == FC.LOOP_DIED and self.loop_error is not None:

@@ -223,7 +223,7 @@ def _squeeze_numeric(grid, f_hz, amplitude=0.01 * C, periods=8):
     """The plant's film (BDF2 sub-steps, Newton) driven by a prescribed journal motion
     x_b = X sin ωt with the valves closed; Z from the force's last four periods."""
     from rigd_drivers.reynolds import layout as L
-    from rigd_drivers.reynolds import step as S
+    from rigd_drivers.reynolds import newton as S
     from rigd_drivers.reynolds.film import G_CDF, film_force
 
     pa = an.make_arrays({"grid": {"n_theta": grid[0], "n_z": grid[1]}})
@@ -249,7 +249,8 @@ def _squeeze_numeric(grid, f_hz, amplitude=0.01 * C, periods=8):
         pred = 2 * p - p1
         p1[:] = p
         p[:] = pred
-        S.newton_film(st, pa.params, blk, al, True, x, 0.0, 4, 1e-13, al)
+        st[o[L.W_HC]:o[L.W_HC] + 4] = al * st[o[L.T_PC]:o[L.T_PC] + 4]   # chambers held
+        S.newton_film(st, pa.params, blk, al, True, x, 0.0, 1, 8, 1e-10, al)
         psi1, psi = psi, an.psi_of(pa, p, (x, 0.0))
         F[i] = film_force(pa.geo, pa.cs, p)[0]
     keep = t > t[-1] - 4 / f_hz
