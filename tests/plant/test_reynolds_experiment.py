@@ -25,12 +25,15 @@ def _impact_run(tmp_path, p_inj):
     return imp
 
 
-def test_impacts_at_4_and_7_bar_ring_at_the_linearised_first_mode(tmp_path):
+def test_impacts_at_4_and_7_bar_ring_at_the_linearised_mode_of_the_hammered_axis(tmp_path):
+    """x hammers through ``rigd experiment`` and ``analyze-impact``: the linearised mode whose
+    disc motion is along x (``of_axis``), within 2 % on frequency and 10 % on ζ."""
     got = {p: _impact_run(tmp_path, p) for p in (4.0, 7.0)}
     for p, imp in got.items():
         lm = ReynoldsPlantDriver({"p_inj_bar": p}).linear_modes()
-        assert imp["f_hz"] == pytest.approx(lm.freq_hz[0], rel=0.03)
-        assert imp["zeta"] == pytest.approx(lm.zeta[0], rel=0.2)
+        j = lm.of_axis("x")
+        assert imp["f_hz"] == pytest.approx(lm.freq_hz[j], rel=0.02)
+        assert imp["zeta"] == pytest.approx(lm.zeta[j], rel=0.10)
     assert got[7.0]["f_hz"] > got[4.0]["f_hz"]
     assert got[7.0]["zeta"] < 0.8 * got[4.0]["zeta"]
 

@@ -140,24 +140,41 @@ def test_film_mass_is_conserved(newton, tol):
     assert abs((an.bdf2_mass(pa) - b0) - net) < tol * through
 
 
-def test_time_stepping_matches_linearised_modes():
-    """Impact ring-down of the stepped plant: frequency and damping of the linearised system."""
-    pa = _arrays(p_inj=4.0)
+def _ring_down(y, fs, f0):
+    """Frequency (Hz) and damping ratio of a single damped sinusoid fitted to ``y`` (least
+    squares on e^{−ζωt}(a cos ω_d t + b sin ω_d t) + c, started at ``f0``)."""
+    from scipy.optimize import least_squares
+
+    t = np.arange(y.size) / fs
+
+    def resid(th):
+        f, z, a, b, c = th
+        w = 2 * math.pi * f
+        wd = w * math.sqrt(1 - z * z)
+        return np.exp(-z * w * t) * (a * np.cos(wd * t) + b * np.sin(wd * t)) + c - y
+
+    sol = least_squares(resid, [f0, 0.05, y[0], 0.0, 0.0], x_scale=[10, 0.01, 1, 1, 1])
+    return sol.x[0], sol.x[1]
+
+
+@pytest.mark.parametrize("p_inj, axis", [(4.0, "x"), (4.0, "y"), (7.0, "x"), (7.0, "y")])
+def test_time_stepping_rings_at_the_linearised_mode_of_the_hammered_axis(p_inj, axis):
+    """A 20 N hammer along x or y at rest (Ω = 0): the ring-down of that axis, fitted from
+    2 ms after the blow, has the frequency and damping of the linearised mode whose disc motion
+    is along that axis (``LinearModes.of_axis``; under gravity the x and y modes are 8 % apart
+    at 4 bar): within 2 % and 10 % (measured 0.07 % and 0.5 %)."""
+    pa = _arrays(p_inj=p_inj)
     an.rest(pa, 5.0)
     lm = an.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
+    j = lm.of_axis(axis)
+    assert lm.freq_hz[lm.of_axis("y" if axis == "x" else "x")] != lm.freq_hz[j]
     e0 = np.zeros(N_IN)
     k.plant_sense(pa.state, pa.params, e0)
-    fr = _run(pa, np.full((1200, 4), 5.0), impact=("x", 20.0))
-    x = fr[25:, IN_E_X] - e0[IN_E_X]
-    # zero crossings → frequency; log decrement of the positive peaks → damping
-    from scipy.signal import find_peaks
-    pk, _ = find_peaks(x)
-    pk = pk[:10]
-    f = 5000.0 / np.mean(np.diff(pk))
-    d = math.log(x[pk[0]] / x[pk[-1]]) / (len(pk) - 1)
-    z = d / math.sqrt(4 * math.pi ** 2 + d * d)
-    assert abs(f - lm.freq_hz[0]) / lm.freq_hz[0] < 0.03
-    assert abs(z - lm.zeta[0]) < 0.25 * lm.zeta[0]
+    ch = IN_E_X if axis == "x" else IN_E_Y
+    fr = _run(pa, np.full((1000, 4), 5.0), impact=(axis, 20.0))
+    f, z = _ring_down(fr[10:, ch] - e0[ch], 5000.0, lm.freq_hz[j])
+    assert f == pytest.approx(lm.freq_hz[j], rel=0.02)
+    assert z == pytest.approx(lm.zeta[j], rel=0.10)
 
 
 def test_valve_numbering_and_sign_follow_fig_1():
