@@ -34,8 +34,13 @@ def test_actuator_model_fits_and_plain_bearing_model_does_not_quite(prbs_record)
     ident = identify(prbs_record, "both")
     act, bear = _val(ident, "actuator"), _val(ident, "bearing")
     assert np.all(act >= 90.0)                       # the valves are the sim plant's
-    assert np.all(bear < 90.0)                       # the plant is not of Eq. 4's structure
-    assert np.all(bear > 50.0)                       # … but Eq. 4 is its leading behaviour
+    # the documented figure (docs/plant.md, "The workflow on it": 85.8 / 62.7 with gravity and
+    # the feed path), ± 3 points: Eq. 4 is the plant's leading behaviour but not its structure
+    assert bear == pytest.approx(BEARING_FIT_4BAR, abs=3.0)
+
+
+#: validation fit (%) of the plain Eq. 4 bearing model, e_x / e_y, Ω = 0, 4 bar (docs/plant.md)
+BEARING_FIT_4BAR = [85.8, 62.7]
 
 
 @pytest.mark.slow
