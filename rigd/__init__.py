@@ -6,3 +6,7 @@ are used in code and explained where they are defined.
 """
 
 __version__ = "0.1.0"
+
+from rigd import jitcache as _jitcache  # noqa: E402  (before any kernel compiles)
+
+_jitcache.configure()
