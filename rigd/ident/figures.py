@@ -22,13 +22,18 @@ def fit_percent(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray (ny,)
-        Fit of each output, %.
+        Fit of each output, %; −inf for an output whose simulation diverged (a non-finite
+        sample, or an error too large for its norm: an unstable candidate's free run), so a
+        diverged model ranks last and raises no overflow warning.
     """
     y = np.atleast_2d(np.asarray(y, float).T).T
     yhat = np.atleast_2d(np.asarray(yhat, float).T).T
-    num = np.linalg.norm(y - yhat, axis=0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        num = np.linalg.norm(y - yhat, axis=0)
     den = np.linalg.norm(y - y.mean(axis=0), axis=0)
-    return 100.0 * (1.0 - num / np.maximum(den, 1e-300))
+    fit = 100.0 * (1.0 - num / np.maximum(den, 1e-300))
+    fit[~np.isfinite(num)] = -np.inf
+    return fit
 
 
 def mean_fit(y: np.ndarray, yhat: np.ndarray) -> float:
