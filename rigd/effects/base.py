@@ -188,8 +188,7 @@ class Effect:
     # --- diagnosis ----------------------------------------------------------------------
     def not_offered(self, structure: Any) -> str | None:
         """Why the base ``structure`` cannot carry this effect (None: it can)."""
-        if ("mechanical" in self.requires or self.level == "state") and \
-                not is_mechanical(structure):
+        if "mechanical" in self.requires and not is_mechanical(structure):
             return (f"{self.name} acts on the velocities of a mechanical model; the base "
                     f"model ({type(structure).__name__}) is not one")
         return None
