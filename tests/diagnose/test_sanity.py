@@ -340,7 +340,8 @@ def test_a_diverged_fit_is_flagged_not_just_printed_as_nan(tmp_path, capsys, mon
     """Data no oscillator explains (a response that is a short moving average of white noise),
     fitted from an unstable start (the frequency-response estimate with a negative stiffness,
     left unstable as ``stabilise`` once did): the OE fit diverges; identify says so in a
-    WARNING and in the model file, besides the 'nan %' fit."""
+    WARNING and in the model file, besides the '-inf %' fit (rigd.ident.figures.fit_percent:
+    a diverged simulation fits -inf, so it ranks last; it printed 'nan %' before 7cee711)."""
     import yaml
 
     from rigd.ident import initial
@@ -348,7 +349,7 @@ def test_a_diverged_fit_is_flagged_not_just_printed_as_nan(tmp_path, capsys, mon
     monkeypatch.setattr(initial, "stabilise", lambda K, D: (K, D))
     assert main(_ma_noise_csv(tmp_path)) == 0
     out = capsys.readouterr().out
-    assert "y nan %" in out and "WARNING: the model's simulated response is not finite" in out
+    assert "y -inf %" in out and "WARNING: the model's simulated response is not finite" in out
     stored = yaml.safe_load((tmp_path / "m.yaml").read_text())["submodels"]["generic"]
     assert any("not finite" in w for w in stored["readouts"]["warnings"])
 
