@@ -24,7 +24,7 @@ $(STAMP): pyproject.toml constraints.txt
 
 demo: $(STAMP)
 	rm -rf demo-out   # the demo's own output is replaced on every run (run dirs never are)
-	$(BIN)/rigd demo --out demo-out
+	$(ONE_BLAS_THREAD) $(BIN)/rigd demo --out demo-out   # one BLAS thread, as make test: the figures the README states and test_readme_figures checks
 
 # style/correctness rules and the layering contracts (pyproject.toml: tool.ruff, tool.importlinter)
 lint: $(STAMP)
