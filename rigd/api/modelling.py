@@ -348,12 +348,13 @@ def compare(model: Any, data: Record | str | Path, *,
     Returns
     -------
     ComparisonResult
-        ``.warnings``: the model's sanity warnings (unstable mode, parameter at a bound),
+        ``.warnings``: the model's sanity warnings (unstable mode, parameter at a bound)
+        and a fit below 0 % or diverged (:func:`rigd.ident.compare.fit_warnings`),
         printed by ``rigd compare`` and in its JSON: such a model is compared, never
         silently (``rigd design`` refuses it).
     """
     from rigd.diagnose.compare_page import write_compare_page
-    from rigd.ident.compare import compare_model
+    from rigd.ident.compare import compare_model, fit_warnings
     from rigd.ident.sanity import file_warnings
 
     if report:
@@ -365,6 +366,7 @@ def compare(model: Any, data: Record | str | Path, *,
     ro = as_record(runout) if runout is not None else None
     comps = compare_model(mf, record, ro, part, x0)
     warnings = [w for w in file_warnings(mf) if w.split(":", 1)[0] in comps]
+    warnings += fit_warnings(comps)  # a fit below 0 % or diverged: flagged, never read as one
     ys = {}
     if yardstick and part == "validation" and x0 == "estimation":
         from rigd.ident.compare import yardsticks

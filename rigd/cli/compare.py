@@ -18,7 +18,7 @@ HELP = "compare an identified model with a measured record (fit, residuals, repo
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("model", help="model file written by rigd identify")
-    p.add_argument("data", help="record (HDF5 or interchange CSV)")
+    p.add_argument("data", help="record (HDF5 recording, CSV or MATLAB .mat)")
     p.add_argument("--runout", metavar="RUNOUT", help="run-out record for the run-out filter")
     p.add_argument("--part", choices=["all", "validation", "estimation"], default="all",
                    help="which part of the record (the model file's split) to compare")

@@ -70,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
 
 def summary(out: dict) -> str:
     """Human-readable summary of the JSON result."""
+    from rigd.ident.figures import REFIT_FLAGS
+
     lines = [source_text(out.get("source") or {}), f"base model fit: {out['fit_percent']} %"]
     for sub, b in (out.get("base") or {}).items():
         lines.append(f"base model [{sub}]: {b['method_used']} fit, samples "
@@ -89,9 +91,14 @@ def summary(out: dict) -> str:
     for f in out["findings"]:
         mark = "*" if f["significant"] else " "
         site = f" ({f['site']})" if f.get("site") else ""
+        fw = f["fit_percent_with"]
+        flag = f.get("refit_flag")
+        with_it = ("not refitted" if fw is None and flag is None else
+                   f"fit with it {'-' if fw is None else fw} %")
+        if flag is not None:  # rigd.ident.figures.refit_flag: listed, never ranked
+            with_it += f" (refit {REFIT_FLAGS.get(flag, flag)}: not ranked)"
         lines.append(f" {mark} {f['effect'] + site:<18} [{f.get('submodel', '')}] score "
-                     f"{f['score']:.2f}"
-                     f"  fit with it {f['fit_percent_with']} %")
+                     f"{f['score']:.2f}  {with_it}")
         if f["significant"]:
             lines.append(f"     {f['explanation']}")
     for c in out["cannot_reveal"]:

@@ -20,6 +20,7 @@ from scipy.optimize import least_squares
 from scipy.signal import hilbert
 
 from rigd.errors import InputError
+from rigd.ident.figures import fit_percent
 
 
 @dataclass
@@ -111,8 +112,7 @@ def fit_damped_sinusoid(t: np.ndarray, y: np.ndarray, *, f_range_hz=(20.0, 1000.
     A, zeta, wn, phi, c = th
     if A < 0:
         A = -A
-    denom = np.linalg.norm(y - np.mean(y))
-    fit = 100.0 * (1.0 - np.linalg.norm(res) / denom) if denom > 0 else float("nan")
+    fit = float(fit_percent(y, y + res)[0])  # res = model − y
     return ImpactFit(f_hz=float(wn / (2 * np.pi)), zeta=float(zeta),
                      f_std=float(std[2] / (2 * np.pi)), zeta_std=float(std[1]),
                      amplitude=float(A), t0=0.0, window_s=float(t[-1]), fit_percent=float(fit))

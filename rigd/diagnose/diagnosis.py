@@ -32,10 +32,13 @@ class Diagnosis:
             fp = round(self.parts[0].fit_percent, 3)
         findings = [f for p in self.parts for f in p.findings]
         # significant (added) ones first in each part's order of addition, then by score
-        findings.sort(key=lambda f: (not f.significant, 0.0 if f.significant else -f.score,
+        # (a flagged refit — worse than its model, below 0 % or diverged — last, unranked)
+        findings.sort(key=lambda f: (not f.significant, "refit_flag" in f.evidence,
+                                     0.0 if f.significant else -f.score,
                                      f.evidence.get("step", 0) if f.significant else 0))
         if multi:  # added effects of several parts: the larger step first
-            findings.sort(key=lambda f: (not f.significant, -f.score if f.significant else 0))
+            findings.sort(key=lambda f: (not f.significant, "refit_flag" in f.evidence,
+                                         -f.score if f.significant else 0))
         return {
             "fit_percent": fp,
             "findings": [f.to_json(True) for f in findings],

@@ -23,7 +23,7 @@ from rigd.diagnose import domain as D
 from rigd.diagnose import wording as W
 from rigd.effects import REGISTRY
 from rigd.effects.context import CannotReveal, Context, Finding
-from rigd.ident.figures import fit_percent
+from rigd.ident.figures import fit_percent, refit_flag
 from rigd.ident.thresholds import MIN_FIT_GAIN, MIN_REFIT_GAIN, P_LEVEL, STRONG_REFIT_GAIN
 
 
@@ -159,6 +159,10 @@ def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             big = ref.fit_percent - fp >= MIN_FIT_GAIN
             f.significant = bool(((sig_ok and gain >= MIN_REFIT_GAIN) or strong) and big)
             f.evidence["refit_seconds"] = ref.seconds
+            flag = refit_flag(ref.fit_percent, fp)
+            if flag is not None:  # a refit that lost fit or is below 0 %: never ranked
+                f.evidence["refit_flag"] = flag
+                f.significant = False
             why_not = eff.implausible(ctx, np.asarray(ref.theta)[len(ctx.theta):])
             if why_not is not None:
                 # it helps, but not as the physics its name says: unexplained, not named
@@ -167,7 +171,8 @@ def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
         else:
             f.evidence["refit"] = "not refitted: no signature in the residual"
         findings.append(f)
-    findings.sort(key=lambda f: (not f.significant, -f.score, -f.signature_score))
+    findings.sort(key=lambda f: (not f.significant, "refit_flag" in f.evidence, -f.score,
+                                 -f.signature_score))
     return findings, refits
 
 

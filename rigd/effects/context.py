@@ -8,6 +8,7 @@ sub-model). The data helpers it uses (:func:`rigd.ident.iddata.replace_inputs`,
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -40,7 +41,10 @@ class Finding:
     signature_score : float
         Out-of-sample share of residual energy explained by the linearised signature.
     fit_percent_with : float or None
-        Validation fit (%) after adding the effect and refitting.
+        Validation fit (%) after adding the effect and refitting (None in the JSON when not
+        refitted or not finite). A refit worse than the model it extends, below 0 % or
+        diverged carries ``evidence["refit_flag"]`` (:func:`rigd.ident.figures.refit_flag`;
+        ``refit_flag`` in the JSON): never significant, listed last, not ranked.
     evidence : dict
         Numbers behind the explanation (frequencies, amplitudes, lags...).
     """
@@ -64,11 +68,14 @@ class Finding:
             "score": round(float(self.score), 4),
             "explanation": self.explanation,
             "fit_percent_with": (None if self.fit_percent_with is None
+                                 or not math.isfinite(self.fit_percent_with)
                                  else round(float(self.fit_percent_with), 3)),
             "signature_score": round(float(self.signature_score), 4),
         }
         if "site" in self.evidence:
             d["site"] = self.evidence["site"]
+        if "refit_flag" in self.evidence:  # rigd.ident.figures.refit_flag: not ranked
+            d["refit_flag"] = self.evidence["refit_flag"]
         if reported:
             d["add"] = self.effect
         if with_submodel:

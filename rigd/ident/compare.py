@@ -23,10 +23,10 @@ import numpy as np
 
 from rigd.data.record import Record
 from rigd.errors import InputError
+from rigd.ident.figures import REFIT_FLAGS, fit_percent, refit_flag
 from rigd.ident.iddata import IdData
 from rigd.ident.initial import frf
 from rigd.ident.modelfile import ModelFile
-from rigd.ident.pem import fit_percent
 from rigd.ident.prefilter import PrefilterOptions
 from rigd.ident.workflow import estimate_x0, prepare, residual_stats, samples_needed
 
@@ -133,6 +133,19 @@ def compare_model(model: ModelFile, record: Record, runout: Record | None = None
     if not out:
         raise InputError("record has the columns of none of the model's sub-models ("
                          + ", ".join(model.submodels) + ")", record.source)
+    return out
+
+
+def fit_warnings(comps: dict[str, Comparison]) -> list[str]:
+    """A warning for each output whose fit is below 0 % (worse than the output's mean) or
+    not finite (a diverged simulation): such a figure is flagged, never read as a fit
+    (:func:`rigd.ident.figures.refit_flag`'s ``below_zero`` and ``diverged``)."""
+    out = []
+    for name, c in comps.items():
+        for o, f in zip(c.data.output_names, c.fit):
+            flag = refit_flag(f, -np.inf)
+            if flag is not None:
+                out.append(f"{name}: {o}: fit {f:.2f} % — {REFIT_FLAGS[flag]}")
     return out
 
 

@@ -4,6 +4,11 @@
 input-hold choice and the yardstick print: per output, 100·(1 − ‖y − ŷ‖/‖y − ȳ‖) (%), as
 MATLAB's ``compare`` (1 − NRMSE). 100 % is a perfect simulation, 0 % is no better than the
 output's mean, below 0 % is worse than the mean.
+
+:func:`refit_flag` says why a refit's figure cannot be ranked: a model extended by an effect
+that fits worse than the model it extends, or worse than the output's mean (below 0 %), or
+whose simulation diverged, is flagged (``diagnose``'s findings, ``identify --add``) and never
+ranked among the candidates.
 """
 
 from __future__ import annotations
@@ -39,3 +44,38 @@ def fit_percent(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
 def mean_fit(y: np.ndarray, yhat: np.ndarray) -> float:
     """Mean over outputs of :func:`fit_percent` (%)."""
     return float(np.mean(fit_percent(y, yhat)))
+
+
+#: the codes of :func:`refit_flag` (stable: they are in the JSON) and their words
+REFIT_FLAGS = {
+    "diverged": "its simulation diverged",
+    "below_zero": "below 0 %: worse than the output's mean",
+    "worse_than_base": "worse than the model it extends",
+}
+
+
+def refit_flag(fit_with: float, fit_base: float) -> str | None:
+    """Why a refit's validation fit cannot be ranked, or None when it can.
+
+    Parameters
+    ----------
+    fit_with : float
+        Validation fit (%) of the model extended by an effect and refitted.
+    fit_base : float
+        Validation fit (%) of the model it extends, on the same samples.
+
+    Returns
+    -------
+    str or None
+        ``diverged`` (not a finite fit), ``below_zero`` (worse than the output's mean) or
+        ``worse_than_base`` (a refit that lost fit: the extension made the fit worse);
+        :data:`REFIT_FLAGS` words each.
+    """
+    fit_with = float(fit_with)
+    if not np.isfinite(fit_with):
+        return "diverged"
+    if fit_with < 0.0:
+        return "below_zero"
+    if np.isfinite(fit_base) and fit_with < float(fit_base):
+        return "worse_than_base"
+    return None

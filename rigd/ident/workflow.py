@@ -229,6 +229,7 @@ def _submodel(sm: str, bf, structure, res) -> Submodel:
     if not np.all(np.isfinite(ysim)):
         warn.append("the model's simulated response is not finite on this record (the "
                     "fit diverged; its fit is not a number): do not use this model")
+    warn += _refit_warnings(bf, structure, fv)
     if warn:
         readouts = dict(readouts, warnings=warn)
     order_info = bf.order.to_json() if bf.order is not None else None
@@ -240,3 +241,22 @@ def _submodel(sm: str, bf, structure, res) -> Submodel:
                    readouts, residual_stats(data.y[vs], ysim[vs], data.output_names))
     sub.residual["iterations"] = {"nfev": res.nfev, "status": res.status}
     return sub
+
+
+def _refit_warnings(bf, structure, fv: np.ndarray) -> list[str]:
+    """``identify --add``: a warning when the model with the effects fits the validation part
+    worse than the base model it extends (or below 0 %): the refit is flagged, not an
+    improvement (:func:`rigd.ident.figures.refit_flag`); none for the base itself."""
+    from rigd.ident.figures import REFIT_FLAGS, refit_flag
+
+    if structure is bf.structure:
+        return []
+    vs = bf.val
+    yb = np.asarray(bf.structure.simulate(bf.theta, bf.data))
+    fb = float(np.mean(fit_percent(bf.data.y[vs], yb[vs])))
+    fw = float(np.mean(fv))
+    flag = refit_flag(fw, fb)
+    if flag is None or flag == "diverged":  # a diverged model has its own warning
+        return []
+    return [f"with the effects added the validation fit is {fw:.2f} % against the base "
+            f"model's {fb:.2f} %: the refit is {REFIT_FLAGS[flag]} (not an improvement)"]

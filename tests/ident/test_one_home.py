@@ -57,3 +57,15 @@ def test_fit_percent_definition():
     assert np.allclose(fit_percent(y, np.tile(y.mean(axis=0), (200, 1))), 0.0)
     assert np.all(fit_percent(y, -y) < 0)
     assert fit_percent(y[:, 0], y[:, 0] + 0.1).shape == (1,)
+
+
+def test_no_inline_fit_formula_outside_its_home():
+    """The fit's formula 100·(1 − ‖e‖/‖y − ȳ‖) is written once (design's impact fit used to
+    keep its own copy); every other figure calls fit_percent."""
+    import re
+
+    pat = re.compile(r"100(\.0)?\s*\*\s*\(\s*1(\.0)?\s*-\s*(np\.linalg\.norm|num\b)")
+    found = [str(p.relative_to(ROOT)) for p in sorted(ROOT.rglob("*.py"))
+             if p.name != "figures.py" and pat.search(p.read_text())]
+    assert found == [], found
+    assert pat.search((ROOT / "ident" / "figures.py").read_text())

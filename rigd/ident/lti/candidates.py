@@ -8,8 +8,11 @@ from typing import Any
 
 import numpy as np
 
-#: validation fit (points) within which a candidate counts as good as the best
-MIN_GAIN = 0.5
+from rigd.ident.thresholds import MIN_FIT_GAIN
+
+#: validation fit (points) within which a candidate counts as good as the best: the
+#: practical significance of every fit gain (its one home: rigd.ident.thresholds)
+MIN_GAIN = MIN_FIT_GAIN
 
 
 @dataclass(eq=False)
