@@ -8,6 +8,8 @@ and the generated records of ``tests/gen`` (estimation the first 2/3, validation
 
 * ``rigd``: ``rigd.api.identify`` (identify's base model, its validation fit) and
   ``rigd.api.diagnose`` (the first significant effect it names and its refitted fit);
+* ``lti``: the general LTI base alone, :func:`rigd.ident.lti.order.choose_base` (its
+  validation fit is the free run on from the estimation part's initial state, as rigd's);
 * ``arx``: :func:`rigd.ident.lti.select_arx` (na = nb = n chosen on the estimation part);
 * ``subspace``: :func:`rigd.ident.lti.select_subspace` (order chosen on the estimation part);
 * ``narx``: SysIdentPy's FROLS polynomial NARX, one MISO model per output, degree and lags
@@ -18,8 +20,9 @@ and the generated records of ``tests/gen`` (estimation the first 2/3, validation
 Validation outputs are never used: the peers' validation run starts from the state at the end
 of the estimation part when the validation part follows it (:func:`rigd.ident.lti.heldout`),
 else (Silverbox) from rest. ``RIGD_PEERS`` (comma-separated record names) restricts the
-records; ``RIGD_PEERS_DIAGNOSE=0`` skips rigd's diagnosis. Each record's row is also printed on
-stderr as it completes (``bench peers: row {...}``).
+records; ``RIGD_PEERS_DIAGNOSE=0`` skips rigd's diagnosis, ``RIGD_PEERS_IDENTIFY=0`` rigd's
+identify and diagnosis (the general LTI base column, :func:`_lti_base`, always runs). Each
+record's row is also printed on stderr as it completes (``bench peers: row {...}``).
 """
 
 from __future__ import annotations
@@ -40,6 +43,9 @@ NARX_ROWS = 6000
 #: NARX (degree, lag) candidates; combinations over NARX_MAX_TERMS candidate terms skipped
 NARX_GRID = [(1, 2), (1, 4), (2, 2), (2, 4), (3, 2)]
 NARX_MAX_TERMS = 400
+
+#: input hold of the general LTI base column (:func:`_lti_base`)
+LTI_HOLD = "foh"
 
 #: DaISy records: (time column or None, inputs, outputs, fs Hz when no usable time column)
 DAISY = {"pHdata": (None, "2:3", "4", 0.1), "cstr": (None, "2", "3:4", 1 / 6.0),
@@ -218,10 +224,31 @@ def _rigd(rec, est, val, diagnose: bool):
     return out
 
 
+def _lti_base(rec, u, y, est, val):
+    """The general LTI base alone (:func:`rigd.ident.lti.order.choose_base`, hold
+    :data:`LTI_HOLD`, no mechanical model competing): its held-out fit, family, states and
+    delays, and the CPU seconds it took (the machine is shared: wall time says little)."""
+    from rigd.ident.figures import fit_percent
+    from rigd.ident.iddata import IdData
+    from rigd.ident.lti.order import choose_base
+
+    d = IdData(u, y, float(rec.fs), list(rec.meta["inputs"]), list(rec.meta["outputs"]))
+    t0 = time.process_time()
+    c = choose_base(d, est, val, hold=LTI_HOLD)
+    cpu = time.process_time() - t0
+    with np.errstate(all="ignore"):
+        fit = float(np.mean(fit_percent(y[val], c.structure.simulate(c.theta, d)[val])))
+    ok = np.isfinite(fit) and fit > -1e3
+    return {"fit_percent": round(fit, 2) if ok else None, "status": "ok" if ok else "diverged",
+            "family": c.family, "states": int(c.states), "delays": list(c.delays),
+            "cpu_s": round(cpu, 1)}
+
+
 def run() -> dict:
     """The peers table (module docstring): ``{"peers": {record: {tool: {...}}}}``."""
     wanted = [s for s in os.environ.get("RIGD_PEERS", "").split(",") if s]
     diagnose = os.environ.get("RIGD_PEERS_DIAGNOSE", "1") != "0"
+    identify = os.environ.get("RIGD_PEERS_IDENTIFY", "1") != "0"
     try:
         import sysidentpy  # noqa: F401
         have_narx = True
@@ -235,7 +262,9 @@ def run() -> dict:
         u, y = _uy(rec)
         row = {"n": int(rec.n), "inputs": u.shape[1], "outputs": y.shape[1],
                "est": [est.start, est.stop], "val": [val.start, val.stop]}
-        row["rigd"] = _timed(_rigd, rec, est, val, diagnose)
+        row["rigd"] = (_timed(_rigd, rec, est, val, diagnose) if identify else
+                       {"status": "not run"})
+        row["lti"] = _timed(_lti_base, rec, u, y, est, val)
         row["arx"] = _timed(_linear_peer, _arx, u, y, est, val)
         row["subspace"] = _timed(_linear_peer, _subspace, u, y, est, val)
         row["narx"] = (_timed(_narx, u, y, est, val) if have_narx else
@@ -252,14 +281,23 @@ def markdown(table: dict) -> str:
             return r.get("status", "–").split(":")[0]
         return f"{r[key]:.2f} ({r['seconds']:.0f} s)"
 
-    lines = ["| record (n, in×out) | rigd base | rigd + effect | ARX (n) | subspace (order) | "
-             "NARX FROLS |", "|---|---|---|---|---|---|"]
+    def lti(r):
+        if r is None:
+            return "not run"
+        if r.get("fit_percent") is None:
+            return r.get("status", "–").split(":")[0]
+        return (f"{r['fit_percent']:.2f} ({r['cpu_s']:.0f} s CPU) {r['family']} "
+                f"{r['states']} st., delays {r['delays']}")
+
+    lines = ["| record (n, in×out) | rigd base | rigd + effect | LTI base (choose_base) | "
+             "ARX (n) | subspace (order) | NARX FROLS |", "|---|---|---|---|---|---|---|"]
     for name, row in table.items():
         r = row["rigd"]
         eff = (f"{r['fit_percent_with_effect']:.2f} ({r['effect']})" if r.get("effect")
                else "none named" if "diagnose_base" in r else "not run")
         lines.append(
             f"| {name} ({row['n']}, {row['inputs']}×{row['outputs']}) | {cell(r)} | {eff} | "
+            f"{lti(row.get('lti'))} | "
             f"{cell(row['arx'])} n={row['arx'].get('order', '–')} | {cell(row['subspace'])} "
             f"n={row['subspace'].get('order', '–')} | {cell(row['narx'])} |")
     return "\n".join(lines)

@@ -37,9 +37,11 @@ def test_markdown_table():
     row = {"n": 10, "inputs": 1, "outputs": 1,
            "rigd": {"fit_percent": 90.0, "seconds": 3.0, "effect": "delay",
                     "fit_percent_with_effect": 95.0},
+           "lti": {"fit_percent": 91.0, "seconds": 2.0, "cpu_s": 1.6, "family": "lti",
+                   "states": 2, "delays": [1]},
            "arx": {"fit_percent": 91.5, "seconds": 1.0, "order": 3},
            "subspace": {"fit_percent": None, "status": "diverged", "seconds": 1.0},
            "narx": {"status": "failed: ValueError: x", "seconds": 0.5}}
     md = peers.markdown({"r": row}).splitlines()
-    assert md[2] == ("| r (10, 1×1) | 90.00 (3 s) | 95.00 (delay) | 91.50 (1 s) n=3 | diverged "
-                     "n=– | failed |")
+    assert md[2] == ("| r (10, 1×1) | 90.00 (3 s) | 95.00 (delay) | 91.00 (2 s CPU) lti 2 st., "
+                     "delays [1] | 91.50 (1 s) n=3 | diverged n=– | failed |")

@@ -19,6 +19,10 @@ not a rotor's (``generic``):
    modal family: subspace poles, gains, initial state and offsets by least squares
    (:mod:`rigd.ident.lti.modal`; a slow real pole also as an explicit integrator), refined
    by output error (:func:`rigd.ident.pem.fit`);
+   The yardstick's references join them (:mod:`rigd.ident.lti.references`): the ARX and
+   subspace models selected on the estimation part alone give their poles (and the ARX its
+   delays) to modal models of their order, refined likewise when their held-out fit before
+   the refit is within :data:`REF_MARGIN` of the scan's best;
 4. **family** — they compete with the grey-box mechanical n-DOF model (one DOF per output,
    when given) and the low-order process models (:mod:`rigd.ident.lti.process`) by the same
    criterion: among the *admissible* candidates (held-out fit within :data:`MIN_GAIN` of
@@ -48,6 +52,9 @@ from rigd.ident.lti.statespace import StateSpaceModel
 MAX_STATES = 30
 #: LTI candidates (the subspace scan's best) turned into the modal family and refined
 REFINED = 3
+#: a reference's model (:mod:`rigd.ident.lti.references`) is refined by output error when its
+#: held-out fit before the refit is within this many points of the scan's best candidate's
+REF_MARGIN = 2.0
 
 
 class OrderRefused(ValueError):
@@ -142,6 +149,22 @@ def lti_candidates(data, d_est, est, val, states: int, delays, hold,
     return out
 
 
+def reference_candidates(data, d_est, est: slice, val: slice, models, hold: str, skip: int,
+                         limit: int) -> list[Candidate]:
+    """General LTI candidates (:func:`lti_candidates`) from the poles of the reference
+    ``models`` (:func:`rigd.ident.lti.references.reference_models`) of at most ``limit``
+    states; ``skip``: samples left out of every criterion (the same for all candidates)."""
+    from rigd.ident.lti.modal import poles_from_discrete
+
+    out = []
+    for _name, A, delays in models:
+        nx = A.shape[0]
+        if 1 <= nx <= limit:
+            poles = {nx: poles_from_discrete(A, float(data.fs))}
+            out += lti_candidates(data, d_est, est, val, nx, delays, hold, poles, skip)
+    return out
+
+
 def _clip(model, theta):
     lo, hi = model.bounds()
     return np.clip(theta, np.where(np.isfinite(lo), lo + 1e-9, lo),
@@ -174,7 +197,8 @@ def admissible(cands: list[Candidate]) -> list[Candidate]:
 
 def choose_base(data, est: slice, val: slice, order: str | int = "auto", hold: str = "foh",
                 mechanical=None, mechanical_theta=None, process: bool = True,
-                max_states: int = MAX_STATES, max_nfev: int | None = None) -> BaseChoice:
+                max_states: int = MAX_STATES, max_nfev: int | None = None,
+                references: bool = True) -> BaseChoice:
     """Family, order and delays of the base model of a generic record (module docstring).
 
     Parameters
@@ -190,8 +214,12 @@ def choose_base(data, est: slice, val: slice, order: str | int = "auto", hold: s
         fitted on the estimation part).
     process : bool
         Let the process family compete (SISO pairs, :mod:`rigd.ident.lti.process`).
+    references : bool
+        Let general LTI models from the poles of the ARX and subspace references compete
+        (:mod:`rigd.ident.lti.references`).
     """
     from rigd.ident.lti.modal import poles_from_discrete
+    from rigd.ident.lti.references import reference_models
     from rigd.ident.lti.scan import ranked, scan_delays
 
     d_est = data.slice(est.start, est.stop)
@@ -201,10 +229,13 @@ def choose_base(data, est: slice, val: slice, order: str | int = "auto", hold: s
         return _exact(data, d_est, est, val, want, delays, hold, max_states, max_nfev)
     limit = min(max_states, _most_states(d_est))
     points = scan_delays(data, est, val, delays, limit, MIN_GAIN, hold)
-    cands: list[Candidate] = []
     best = ranked(points, MIN_GAIN, REFINED)
+    refs = reference_models(d_est, hold) if references else []
     # one criterion for every candidate: the same samples left out (the longest delay)
-    skip = max([settle(p.delays) for p in best] + [settle(delays)])
+    skip = max([settle(p.delays) for p in best] + [settle(delays)]
+               + [settle(r[2]) for r in refs])
+    from_refs = reference_candidates(data, d_est, est, val, refs, hold, skip, limit)
+    cands: list[Candidate] = list(from_refs)
     for p in best:
         poles = {p.states: poles_from_discrete(p.A, float(data.fs))}
         cands += lti_candidates(data, d_est, est, val, p.states, list(p.delays), hold, poles,
@@ -223,12 +254,12 @@ def choose_base(data, est: slice, val: slice, order: str | int = "auto", hold: s
         b, fe, fv = score(mechanical, th, data, est, val, skip)
         cands.append(Candidate("mechanical", 2 * mechanical.ny, mechanical, np.asarray(th),
                                b, fe, fv, len(mechanical.names), skip))
-    choice = _pick(cands, data, d_est, est, val, max_nfev)
+    choice = _pick(cands, data, d_est, est, val, max_nfev, from_refs)
     choice.scan = points
     return choice
 
 
-def _pick(cands, data, d_est, est, val, max_nfev) -> BaseChoice:
+def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
     ok = admissible(cands)
     if not ok:
         raise OrderRefused("no candidate model could be simulated on this record")
@@ -240,12 +271,21 @@ def _pick(cands, data, d_est, est, val, max_nfev) -> BaseChoice:
             best_by_family.setdefault(c.family, c)
     # per model tried by the scan (delays, states) its best variant (with or without an
     # integrator), admissible or not: the scores before the refit are not the final ones
-    per_point: dict[tuple, Candidate] = {}
-    for c in sorted((c for c in cands if c.family == "lti" and np.isfinite(c.bic)),
-                    key=lambda c: c.bic):
-        per_point.setdefault((tuple(c.structure.delays), c.states), c)
-    lti_ok = list(per_point.values())[:REFINED + 1]
-    refined = [_refine(c, data, d_est, est, val, max_nfev) for c in lti_ok]
+    per_point = _best_per_point([c for c in cands if c.family == "lti" and np.isfinite(c.bic)])
+    lti_ok = per_point[:REFINED + 1]
+    # the references' models (best variant each) are refined too when their held-out fit
+    # before the refit is near the scan's best and no scan candidate of as many states or
+    # fewer fits as well (an output-error refit of up to 30 states is the costly step); the
+    # others compete as they are
+    top = max((c.fit_val for c in lti_ok), default=-np.inf)
+    as_is = []
+    for ref in _best_per_point([c for c in always if np.isfinite(c.bic)]):
+        if any(ref is c for c in lti_ok):
+            continue
+        covered = any(c.states <= ref.states and c.fit_val >= ref.fit_val - MIN_GAIN
+                      for c in lti_ok)
+        (lti_ok if ref.fit_val >= top - REF_MARGIN and not covered else as_is).append(ref)
+    refined = [_refine(c, data, d_est, est, val, max_nfev) for c in lti_ok] + as_is
     best_by_family.pop("lti", None)
     if "process" in best_by_family:
         best_by_family["process"] = _refine(best_by_family["process"], data, d_est, est, val,
@@ -269,6 +309,15 @@ def _pick(cands, data, d_est, est, val, max_nfev) -> BaseChoice:
     delays = list(getattr(pick.structure, "delays", [0] * len(d_est.input_names)))
     return BaseChoice(pick.structure, pick.theta, pick.family, pick.states, delays,
                       cands + [c for c in final if all(c is not x for x in cands)], why)
+
+
+def _best_per_point(cands: list[Candidate]) -> list[Candidate]:
+    """Per (delays, states) the candidate of lowest BIC (with or without an integrator),
+    lowest BIC first."""
+    per_point: dict[tuple, Candidate] = {}
+    for c in sorted(cands, key=lambda c: c.bic):
+        per_point.setdefault((tuple(c.structure.delays), c.states), c)
+    return list(per_point.values())
 
 
 def _most_states(d_est) -> int:
