@@ -37,3 +37,24 @@ def test_reference_candidates_reach_the_arx_held_out_fit():
     assert {c.states for c in cands} <= {m[1].shape[0] for m in models}
     arx = _linear_peer(_arx, d.u, d.y, est, val)["fit_percent"]
     assert max(c.fit_val for c in cands) >= arx - 1.0
+
+
+def test_choose_base_is_not_below_the_references():
+    """The base chosen with the references competing fits the held-out part within a point of
+    the plain ARX's and the subspace model's own held-out fits (bench peers' protocol) and of
+    the best reference-derived candidate."""
+    from bench.peers import _arx, _linear_peer, _subspace
+    from rigd.ident.figures import fit_percent
+    from rigd.ident.lti.order import choose_base
+
+    g = structure_2in_3modes(seed=6, n=2400)
+    d = IdData(g.u, g.y, g.fs, list(g.inputs), list(g.outputs))
+    est, val = slice(0, 1600), slice(1600, 2400)
+    c = choose_base(d, est, val, hold="zoh")
+    got = float(np.mean(fit_percent(d.y[val], c.structure.simulate(c.theta, d)[val])))
+    for peer in (_arx, _subspace):
+        assert got >= _linear_peer(peer, d.u, d.y, est, val)["fit_percent"] - 1.0
+    d_est = d.slice(0, 1600)
+    refs = reference_candidates(d, d_est, est, val, reference_models(d_est, "zoh"), "zoh",
+                                0, 30)
+    assert got >= max(r.fit_val for r in refs) - 1.0
