@@ -188,3 +188,80 @@ def test_export_mat_to_csv(written, tmp_path, capsys):
     rec = load(out)
     assert rec.meta["inputs"] == ["col2", "col3"]
     assert np.array_equal(rec.col("col4"), g.y[:, 0])
+
+
+def _cli_json(capsys, args):
+    assert main([*args, "--json"]) == 0, capsys.readouterr().err
+    return json.loads(capsys.readouterr().out)
+
+
+def _numbers(js, keys=("fit", "score")):
+    """Every number under a key naming a fit or a score, walked in a fixed order."""
+    out = []
+
+    def walk(v):
+        if isinstance(v, dict):
+            for k in sorted(v):
+                if any(w in k for w in keys) and isinstance(v[k], (int, float)):
+                    out.append(float(v[k]))
+                walk(v[k])
+        elif isinstance(v, list):
+            for x in v:
+                walk(x)
+    walk(js)
+    return out
+
+
+def test_compare_and_diagnose_mat_equal_csv(written, tmp_path, capsys):
+    """compare --part validation and diagnose read the v5 and v7.3 files as the CSV: every
+    fit and score the same to 1e-9 (each source's own model file: the channel names differ)."""
+    g, csv, m5, m73 = written
+    fit = ["--order", "1", "--method", "oe"]
+    sources = {"csv": [str(csv), "--fs", str(g.fs), "--inputs", "force1,force2", "--outputs",
+                       "disp1"]}
+    for tag, path in (("v5", m5), ("v73", m73)):
+        sources[tag] = [str(path), "--var", "data", "--time-column", "1", "--inputs", "2:3",
+                        "--outputs", "4"]
+    got = {}
+    for tag, src in sources.items():
+        mpath = tmp_path / f"{tag}.yaml"
+        assert main(["identify", *src, *fit, "-o", str(mpath)]) == 0
+        capsys.readouterr()
+        cmp = _cli_json(capsys, ["compare", str(mpath), *src, "--part", "validation"])
+        assert cmp["initial_state"] == {"generic": "estimation"}
+        dia = _cli_json(capsys, ["diagnose", *src, *fit, "--effects",
+                                 "static_nonlinearity,delay"])
+        got[tag] = (_numbers(cmp), _numbers({k: dia[k] for k in ("fit_percent", "findings",
+                                                                  "steps")}))
+    ref = got.pop("csv")
+    assert ref[0] and ref[1]
+    for tag, (c, d) in got.items():
+        assert np.allclose(c, ref[0], rtol=0, atol=1e-9), tag
+        assert len(d) == len(ref[1]) and np.allclose(d, ref[1], rtol=0, atol=1e-9), tag
+
+
+def test_non_numeric_and_non_finite_refused_as_in_csv(tmp_path, capsys):
+    """A text matrix, a cell array and a NaN in a used column: one line naming the file (and
+    the variable, or the column and sample of the NaN), exit 2, as the CSV's bad cells."""
+    rng = np.random.default_rng(3)
+    d = np.column_stack([np.arange(600) / 10.0, rng.standard_normal((600, 2))])
+    bad = d.copy()
+    bad[250, 2] = np.nan
+    scipy.io.savemat(tmp_path / "x.mat", {"txt": np.array(["abc", "def"]), "d": d,
+                                          "c": np.array([[1.0, "a"]], dtype=object),
+                                          "bad": bad})
+    for var in ("txt", "c"):
+        err = _refused(capsys, ["identify", str(tmp_path / "x.mat"), "--var", var,
+                                "--inputs", "1", "--outputs", "2", "--fs", "1"])
+        assert "x.mat" in err and f"'{var}'" in err and "not a numeric matrix" in err
+    np.savetxt(tmp_path / "bad.csv", bad, delimiter=",", header="t,u,y", comments="",
+               fmt="%.17g")
+    csv_err = _refused(capsys, ["identify", str(tmp_path / "bad.csv"), "--fs", "10",
+                                "--inputs", "u", "--outputs", "y"])
+    err = _refused(capsys, ["identify", str(tmp_path / "x.mat"), "--var", "bad",
+                            "--time-column", "1", "--inputs", "2", "--outputs", "3"])
+    # the same words as the CSV's: what, which column, which sample (0-based), who uses it
+    assert "x.mat" in err and "NaN in column 'col3' at sample 250" in err, err
+    assert "NaN in column 'y' at sample 250" in csv_err, csv_err
+    tail = err.split("x.mat: ", 1)[1].replace("'col3'", "'y'")
+    assert csv_err.endswith(tail), (err, csv_err)
