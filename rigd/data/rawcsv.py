@@ -62,68 +62,83 @@ def read_raw_csv(path: str | Path, *, fs: float, inputs: list[str] | None = None
         raise InputError(f"cannot read: {exc.strerror or exc}", spath) from None
     with fh:
         lines = iter(csvio._Lines(fh))
-        header = None
-        try:
-            for lineno, text in lines:
-                if not text.lstrip().startswith("#"):
-                    header = (lineno, text)
-                    break
-        except UnicodeDecodeError:
-            raise InputError("not a text file (cannot decode as UTF-8)", spath) from None
-        if header is None:
-            raise InputError("empty file", spath)
-        hline, htext = header
-        names = [c.strip() for c in next(csv.reader([htext]))]
-        trailing = bool(names) and names[-1] == ""
-        if trailing:
-            names = names[:-1]
-        for i, n in enumerate(names):
-            if not n:
-                raise InputError(f"empty column name in column {i + 1}", f"{spath}:{hline}")
-            try:
-                float(n)
-            except ValueError:
-                pass
-            else:
-                raise InputError(f"no header row (first line holds numbers, {n!r}): add a "
-                                 "header line with column names", f"{spath}:{hline}")
-        if len(set(names)) != len(names):
-            dup = next(n for n in names if names.count(n) > 1)
-            raise InputError(f"duplicate column {dup!r}", f"{spath}:{hline}")
+        hline, names, trailing = _header(lines, spath)
         where = {k: None for k in meta}
         fs_, meta = csvio.check_meta(meta, where, names, spath, hline)
-        blocks, line_blocks, block = [], [], []
         bad: dict[str, dict[int, str]] = {}
-
-        def flush():
-            if trailing:
-                fixed = []
-                for ln, tx in block:
-                    if not tx.rstrip().endswith(","):
-                        raise InputError(f"ragged row: {tx.count(',') + 1} cells, header has "
-                                         f"{len(names)} and a trailing comma",
-                                         f"{spath}:{ln}")
-                    fixed.append((ln, tx.rstrip()[:-1]))
-            else:
-                fixed = block
-            blocks.append(csvio._parse_block(fixed, names, spath, bad))
-            line_blocks.append(np.fromiter((ln for ln, _ in block), dtype=np.int64))
-
-        for item in lines:
-            block.append(item)
-            if len(block) >= csvio.BLOCK_ROWS:
-                flush()
-                block = []
-        if block:
-            flush()
-    if not blocks:
-        raise InputError("header only: no data rows", f"{spath}:{hline}")
-    data = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
+        data, lines = _rows(lines, names, trailing, spath, hline, bad)
     columns = {n: np.ascontiguousarray(data[:, i]) for i, n in enumerate(names)}
-    lines = np.concatenate(line_blocks)
     if "t" in columns:
         csvio.check_t_column(columns, lines, bad, spath)
         csvio.check_time(columns["t"], fs_, lines, spath)
     meta.pop("fs", None)
     meta.setdefault("source_file", Path(spath).name)
     return Record(columns, fs_, meta, spath, lines, 0, bad)
+
+
+def _header(lines, spath: str) -> tuple[int, list[str], bool]:
+    """(line number, column names, whether every line ends in a trailing comma) of the
+    header: the first line not starting with ``#``; names must be non-empty, not numbers,
+    and unique."""
+    header = None
+    try:
+        for lineno, text in lines:
+            if not text.lstrip().startswith("#"):
+                header = (lineno, text)
+                break
+    except UnicodeDecodeError:
+        raise InputError("not a text file (cannot decode as UTF-8)", spath) from None
+    if header is None:
+        raise InputError("empty file", spath)
+    hline, htext = header
+    names = [c.strip() for c in next(csv.reader([htext]))]
+    trailing = bool(names) and names[-1] == ""
+    if trailing:
+        names = names[:-1]
+    for i, n in enumerate(names):
+        if not n:
+            raise InputError(f"empty column name in column {i + 1}", f"{spath}:{hline}")
+        try:
+            float(n)
+        except ValueError:
+            pass
+        else:
+            raise InputError(f"no header row (first line holds numbers, {n!r}): add a "
+                             "header line with column names", f"{spath}:{hline}")
+    if len(set(names)) != len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        raise InputError(f"duplicate column {dup!r}", f"{spath}:{hline}")
+    return hline, names, trailing
+
+
+def _rows(lines, names: list[str], trailing: bool, spath: str, hline: int,
+          bad: dict[str, dict[int, str]]) -> tuple[np.ndarray, np.ndarray]:
+    """(samples (n, len(names)), file line of each row) of the data rows, parsed in blocks
+    (bad cells recorded in ``bad``); a trailing comma, when the header has one, is required
+    on every row."""
+    blocks, line_blocks, block = [], [], []
+
+    def flush():
+        if trailing:
+            fixed = []
+            for ln, tx in block:
+                if not tx.rstrip().endswith(","):
+                    raise InputError(f"ragged row: {tx.count(',') + 1} cells, header has "
+                                     f"{len(names)} and a trailing comma", f"{spath}:{ln}")
+                fixed.append((ln, tx.rstrip()[:-1]))
+        else:
+            fixed = block
+        blocks.append(csvio._parse_block(fixed, names, spath, bad))
+        line_blocks.append(np.fromiter((ln for ln, _ in block), dtype=np.int64))
+
+    for item in lines:
+        block.append(item)
+        if len(block) >= csvio.BLOCK_ROWS:
+            flush()
+            block = []
+    if block:
+        flush()
+    if not blocks:
+        raise InputError("header only: no data rows", f"{spath}:{hline}")
+    data = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
+    return data, np.concatenate(line_blocks)

@@ -101,7 +101,7 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
     structure left unexplained (:mod:`rigd.diagnose.unexplained`).
     """
     from rigd.errors import InputError
-    from rigd.ident.pipeline import FitSettings, fit_base
+    from rigd.ident.pipeline import FitSettings
 
     subs = submodels or submodels_of(record)
     if not subs:
@@ -113,45 +113,54 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                            max_samples=max_samples)
     settings.check()
     notes: list[str] = []
-    parts = []
-    for sub in subs:
-        bf = fit_base(record, sub, settings)
-        for nt in bf.notes:
-            if nt not in notes:
-                notes.append(nt)
-        offsets = (bf.prefilter.get("offsets") or {}).get("values", {})
-        notes.append(f"{sub}: inputs between samples: {bf.hold.describe()}")
-        notes.append(f"{sub}: base model: {_describe_base(bf)}")
-        if bf.order is not None:
-            notes += [f"{sub}: {n}" for n in _order_notes(bf)]
-        # the yardstick: what a plain linear model reaches on the same split (also the
-        # measure of what is reachable for the unexplained structure)
-        ys = (measure(bf.data.u, bf.data.y, bf.est, bf.val, float("nan"), bf.data.fs)
-              if yardstick else None)
-        sd = diagnose_data(bf.data, sub, structure=bf.structure, est=bf.est, val=bf.val,
-                           effects=effects, refit=refit, max_steps=max_steps,
-                           base_theta=bf.theta, method=bf.settings.method,
-                           offsets=offsets, start=bf.window[0], yardstick=ys,
-                           record_meta=record.meta,
-                           # a hold chosen by the linear base is asked again with the effects
-                           other_hold=({"zoh": "foh", "foh": "zoh"}[bf.hold.hold]
-                                       if bf.hold.source == "fit" else None))
-        if bf.order is not None:
-            sd.order = bf.order.to_json()
-        sd.base = bf.to_json()
-        notes += [f"{sub}: {n}" for n in sd.notes]
-        from rigd.ident.sanity import model_warnings
-
-        for st, what in ((sd.steps[0], "base model"), (sd.final, "final model")):
-            if what == "final model" and len(sd.steps) == 1:
-                break
-            notes += [f"{sub}: {what}: WARNING: {w}" for w in model_warnings(st.structure,
-                                                                            st.theta)]
-        if ys is not None and ys.warning():
-            notes.append(f"{sub}: base model: WARNING: {ys.warning()}")
-        sd.window = bf.window
-        parts.append(sd)
+    parts = [_diagnose_part(record, sub, settings, notes, effects=effects, refit=refit,
+                            max_steps=max_steps, yardstick=yardstick) for sub in subs]
     return Diagnosis(parts, record.source, notes)
+
+
+def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, refit: bool,
+                   max_steps: int, yardstick: bool) -> SubDiagnosis:
+    """Diagnose one sub-model of ``record``: its base model (:func:`rigd.ident.pipeline.
+    fit_base` with ``settings``), the yardstick, the forward selection
+    (:func:`rigd.diagnose.engine.diagnose_data`) and the sanity warnings of the base and the
+    final model; the notes of the part are appended to ``notes``."""
+    from rigd.ident.pipeline import fit_base
+    from rigd.ident.sanity import model_warnings
+
+    bf = fit_base(record, sub, settings)
+    for nt in bf.notes:
+        if nt not in notes:
+            notes.append(nt)
+    offsets = (bf.prefilter.get("offsets") or {}).get("values", {})
+    notes.append(f"{sub}: inputs between samples: {bf.hold.describe()}")
+    notes.append(f"{sub}: base model: {_describe_base(bf)}")
+    if bf.order is not None:
+        notes += [f"{sub}: {n}" for n in _order_notes(bf)]
+    # the yardstick: what a plain linear model reaches on the same split (also the
+    # measure of what is reachable for the unexplained structure)
+    ys = (measure(bf.data.u, bf.data.y, bf.est, bf.val, float("nan"), bf.data.fs)
+          if yardstick else None)
+    sd = diagnose_data(bf.data, sub, structure=bf.structure, est=bf.est, val=bf.val,
+                       effects=effects, refit=refit, max_steps=max_steps,
+                       base_theta=bf.theta, method=bf.settings.method,
+                       offsets=offsets, start=bf.window[0], yardstick=ys,
+                       record_meta=record.meta,
+                       # a hold chosen by the linear base is asked again with the effects
+                       other_hold=({"zoh": "foh", "foh": "zoh"}[bf.hold.hold]
+                                   if bf.hold.source == "fit" else None))
+    if bf.order is not None:
+        sd.order = bf.order.to_json()
+    sd.base = bf.to_json()
+    notes += [f"{sub}: {n}" for n in sd.notes]
+    for st, what in ((sd.steps[0], "base model"), (sd.final, "final model")):
+        if what == "final model" and len(sd.steps) == 1:
+            break
+        notes += [f"{sub}: {what}: WARNING: {w}" for w in model_warnings(st.structure,
+                                                                        st.theta)]
+    if ys is not None and ys.warning():
+        notes.append(f"{sub}: base model: WARNING: {ys.warning()}")
+    sd.window = bf.window
+    return sd
 
 
 def _describe_base(bf) -> str:

@@ -122,6 +122,48 @@ def _residual_fn(structure: Structure, data: IdData, method: str, scale: np.ndar
     return res
 
 
+def _free(structure: Structure, fixed: list[str] | None, method: str) -> np.ndarray:
+    """Mask of the parameters the fit moves: not ``fixed``, and for output error neither
+    the disturbance (``bd_*``) nor the noise parameters, which play no role in a simulation."""
+    fixed_set = set(fixed or [])
+    unknown = fixed_set - set(structure.names)
+    if unknown:
+        raise InputError(f"cannot fix unknown parameter(s) {sorted(unknown)}")
+    free = np.array([n not in fixed_set for n in structure.names])
+    if method == "oe":
+        free &= np.array([not n.startswith("bd_") for n in structure.names])
+        free[list(getattr(structure, "noise_index", []))] = False
+    return free
+
+
+def _fit_scale(structure: Structure, th0: np.ndarray, data: IdData) -> np.ndarray:
+    """Scale of each parameter (:func:`_scale`), output offsets (generic structures) at the
+    outputs' own scale, whatever their start value."""
+    scale = _scale(structure, th0)
+    off = list(getattr(structure, "offset_index", []))
+    if off:
+        ys = np.maximum(data.y.std(axis=0), np.abs(data.y.mean(axis=0)))
+        for k, i in enumerate(off):
+            scale[i] = max(scale[i], float(ys[k]) or 1e-300)
+    return scale
+
+
+def _std(sol, free: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Standard deviation of each parameter from the Jacobian of the solution (weighted
+    units -> parameter units); 0 for the fixed ones, NaN when the covariance cannot be had."""
+    J = sol.jac
+    nfree = int(free.sum())
+    dof = max(J.shape[0] - nfree, 1)
+    s2 = 2.0 * sol.cost / dof
+    std = np.zeros(len(free))
+    try:
+        cov = s2 * np.linalg.pinv(J.T @ J)
+        std[free] = np.sqrt(np.clip(np.diag(cov), 0, None)) * scale[free]
+    except np.linalg.LinAlgError:
+        std[free] = np.nan
+    return std
+
+
 def fit(structure: Structure, data: IdData, *, method: str = "pem",
         theta0: np.ndarray | None = None, ftol: float = 1e-4, max_nfev: int | None = None,
         fixed: list[str] | None = None, skip: int = 0) -> FitResult:
@@ -161,20 +203,8 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
             method = "oe"
     if th0.shape != (npar,):
         raise InputError(f"start values have {th0.size} entries, the structure needs {npar}")
-    fixed = set(fixed or [])
-    unknown = fixed - set(structure.names)
-    if unknown:
-        raise InputError(f"cannot fix unknown parameter(s) {sorted(unknown)}")
-    free = np.array([n not in fixed for n in structure.names])
-    if method == "oe":  # the disturbance / innovation gain plays no role in a simulation
-        free &= np.array([not n.startswith("bd_") for n in structure.names])
-        free[list(getattr(structure, "noise_index", []))] = False
-    scale = _scale(structure, th0)
-    off = list(getattr(structure, "offset_index", []))
-    if off:   # output offsets (generic): at the outputs' own scale, whatever the start value
-        ys = np.maximum(data.y.std(axis=0), np.abs(data.y.mean(axis=0)))
-        for k, i in enumerate(off):
-            scale[i] = max(scale[i], float(ys[k]) or 1e-300)
+    free = _free(structure, fixed, method)
+    scale = _fit_scale(structure, th0, data)
     lo, hi = _bounds(structure, npar)
     wy = 1.0 / np.maximum(data.y[skip:].std(axis=0), 1e-300)
     fun = _residual_fn(structure, data, method, scale, free, th0, wy, skip)
@@ -193,16 +223,7 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
                         max_nfev=max_nfev or 100 * nfree)
     theta = th0.copy()
     theta[free] = sol.x * scale[free]
-    # standard deviations from the Jacobian (weighted units -> parameter units)
-    J = sol.jac
-    dof = max(J.shape[0] - nfree, 1)
-    s2 = 2.0 * sol.cost / dof
-    std = np.zeros(npar)
-    try:
-        cov = s2 * np.linalg.pinv(J.T @ J)
-        std[free] = np.sqrt(np.clip(np.diag(cov), 0, None)) * scale[free]
-    except np.linalg.LinAlgError:
-        std[free] = np.nan
+    std = _std(sol, free, scale)
     ysim = structure.simulate(theta, data)
     fp = fit_percent(data.y[skip:], ysim[skip:])
     at_bound = np.zeros(npar, bool)  # trust-region reflective: the active bounds at the end

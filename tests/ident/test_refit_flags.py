@@ -50,7 +50,8 @@ def _spoilt(monkeypatch, how: dict):
     (lambda y, yh: yh - 0.5 * (y - yh), "worse_than_base", "worse than the model it extends"),
     # a refit below 0 % (the output mirrored about its mean)
     (lambda y, yh: 2.0 * y.mean(axis=0) - y, "below_zero", "below 0 %")])
-def test_diagnose_flags_refits_and_never_ranks_them(monkeypatch, spoil, flag, words):
+def test_diagnose_flags_refits_and_never_ranks_them(monkeypatch, tmp_path, spoil, flag,
+                                                     words):
     """A Hammerstein record whose static nonlinearity is found when its refit is honest
     (test_generated_records); here its refit is spoilt: flagged, not significant, after
     every unflagged finding, said in the text; every other refit obeys the same rule."""
@@ -79,6 +80,14 @@ def test_diagnose_flags_refits_and_never_ranks_them(monkeypatch, spoil, flag, wo
     line = next(ln for ln in summary(out).splitlines()
                 if "static_nonlinearity" in ln and "score" in ln)
     assert words in line and "not ranked" in line, line
+    # the report's table says it too, beside every figure of the sub-model
+    from rigd.diagnose.report_page import write_report
+
+    write_report(diag, tmp_path / "rep")
+    page = (tmp_path / "rep" / "figures.html").read_text()
+    assert f"(flagged: {flag}, not ranked)" in page
+    for fig in ("time", "spectrum", "amplitude", "resid"):
+        assert (tmp_path / "rep" / f"generic_{fig}.png").is_file(), fig
 
 
 def test_identify_add_warns_when_the_effects_made_the_fit_worse():
