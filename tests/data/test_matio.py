@@ -45,19 +45,7 @@ def _identify(capsys, path, *opts):
 
 
 def _fits(js):
-    out = []
-
-    def walk(v):
-        if isinstance(v, dict):
-            for k in sorted(v):
-                if "fit" in k and isinstance(v[k], (int, float)):
-                    out.append(float(v[k]))
-                walk(v[k])
-        elif isinstance(v, list):
-            for x in v:
-                walk(x)
-    walk(js)
-    return out
+    return _numbers(js, ("fit",))
 
 
 def test_identify_mat_equals_csv(written, capsys):
