@@ -176,13 +176,33 @@ def _describe_base(bf) -> str:
 
 
 def _order_notes(bf) -> list[str]:
+    """The order chosen and, when the base has more modes than one per output, the modes a
+    mechanical model of one DOF per output misses (with its held-out fit)."""
     from rigd.ident.order import ModalStructure
+    from rigd.ident.readouts import resonances_hz
+    from rigd.ident.thresholds import MODE_SEPARATION
 
     chosen, structure = bf.order, bf.structure
     out = [f"base model order: {chosen.describe()}"]
-    if isinstance(structure, ModalStructure):
+    if isinstance(structure, ModalStructure):   # the mechanical base + parallel modes
         missed = ", ".join(f"{f:.4g} Hz" for f, _, _ in structure.modes_of(bf.theta))
         out.append(f"one mode per output misses mode(s) at {missed}: the base model has "
                    f"{chosen.modes} modes (fit {chosen.fits[structure.base.n]:.2f} % with "
                    f"{structure.base.n})")
+        return out
+    ny = len(bf.data.output_names)
+    if chosen.modes <= ny:
+        return out
+    mech = [c for c in getattr(chosen, "candidates", []) if c.family == "mechanical"]
+    have = []
+    if mech:
+        have = resonances_hz(mech[0].structure.linear_part(mech[0].theta))
+    got = resonances_hz(structure.linear_part(bf.theta))
+    missed = [f for f in got if all(abs(f - h) > MODE_SEPARATION * h for h in have)]
+    if not missed:
+        return out
+    with_one = (f" (fit {mech[0].fit_val:.2f} % with {ny})" if mech else "")
+    out.append(f"one mode per output misses mode(s) at "
+               f"{', '.join(f'{f:.4g} Hz' for f in missed)}: the base model has "
+               f"{chosen.modes} modes{with_one}")
     return out

@@ -74,6 +74,14 @@ def _lag(ev: dict[str, Any], where: str) -> str:
             f"positive lag; it {_explains(ev)}")
 
 
+def _base_lag(ev: dict[str, Any]) -> str:
+    d = ev["delay_samples"]
+    return (f"the model delays {ev['input']} by {N.freqs([d])[0]} samples "
+            f"({N.duration(d / ev['fs'])} at {ev['fs']:g} Hz; per input: "
+            f"{', '.join(str(v) for v in ev['delays_samples'])}), chosen from the data before "
+            f"the order: a transport delay or a sensor/computation latency")
+
+
 def _short_lag(ev: dict[str, Any], domain: str) -> str:
     d = max(ev["delay_samples"], 0.0)
     parts = ("valve or sensor dynamics" if domain == "rotor" else
@@ -97,6 +105,7 @@ TEMPLATES: dict[tuple[str, str], dict[str, Words]] = {
     ("cross_coupling", "coupling"): {d: (lambda ev, d=d: _coupling(ev, d))
                                      for d in ("rotor", "mechanical", "process", "generic")},
     ("delay", "lead"): {"*": _lead},
+    ("delay", "delay.in_base"): {"*": _base_lag},
     ("delay", "lag"): {
         "rotor": lambda ev: _lag(ev, "valve to film force"),
         "*": lambda ev: _lag(ev, "input to response")},

@@ -188,9 +188,11 @@ class Effect:
     # --- diagnosis ----------------------------------------------------------------------
     def not_offered(self, structure: Any) -> str | None:
         """Why the base ``structure`` cannot carry this effect (None: it can)."""
-        if "mechanical" in self.requires and not is_mechanical(structure):
-            return (f"{self.name} acts on the velocities of a mechanical model; the base "
-                    f"model ({type(structure).__name__}) is not one")
+        if ("mechanical" in self.requires or self.level == "state") and \
+                not is_mechanical(structure):
+            return (f"{self.name} acts on the positions and velocities of a mechanical "
+                    f"model (p̈ + D ṗ + K p = B u); the base model "
+                    f"({getattr(structure, 'kind', type(structure).__name__)}) is not one")
         return None
 
     def carried_by_base(self, ctx: Context) -> Any:
@@ -313,9 +315,15 @@ def accepts_hooks(structure: Any) -> bool:
 
 
 def is_mechanical(structure: Any) -> bool:
-    """True for a mechanical base (``continuous`` gives x = [p, ṗ]) whose simulator takes
-    hooks (rigd.ident.mechanical and the modal structures built on it), wrapped or not."""
-    return accepts_hooks(structure) and callable(getattr(structure, "continuous", None))
+    """True for a mechanical base (``continuous`` gives x = [p, ṗ], the structure says
+    ``mechanical = True``) whose simulator takes hooks (rigd.ident.mechanical and the modal
+    structures built on it), wrapped or not. A general LTI model has ``continuous`` too, in
+    modal states: not mechanical."""
+    base = structure
+    while isinstance(base, ExtendedStructure):
+        base = base.base
+    return (bool(getattr(base, "mechanical", False)) and accepts_hooks(structure)
+            and callable(getattr(structure, "continuous", None)))
 
 
 def dims(base: Any) -> tuple[int, int]:

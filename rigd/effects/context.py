@@ -248,10 +248,14 @@ class Context:
         Falls back to :meth:`through_model` on input ``axis`` for structures without a
         continuous state-space form.
         """
-        cont = getattr(self.structure, "continuous", None)
-        if not callable(cont):
+        base = self.structure
+        while hasattr(base, "effect") and hasattr(base, "base"):  # effect wrappers
+            base = base.base
+        # no [p, ṗ] states (a general LTI model has modal ones: rigd.effects.base.is_mechanical)
+        if not (getattr(base, "mechanical", False) and
+                callable(getattr(self.structure, "continuous", None))):
             return self.through_model(v, min(axis, self.nu - 1))
-        A, B, C, _, _ = cont(self.theta)
+        A, B, C, _, _ = self.structure.continuous(self.theta)
         nx = A.shape[0]
         Bf = np.zeros((nx, 1))
         Bf[nx // 2 + axis, 0] = 1.0  # states [p, ṗ]

@@ -13,8 +13,9 @@ import numpy as np
 from rigd.effects import numbers as N
 from rigd.effects._signals import band_power_share, shift
 from rigd.effects.base import Effect
-from rigd.effects.context import CannotReveal, Context
+from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.effects.signature import signature_fit
+from rigd.ident.figures import fit_percent
 from rigd.ident.iddata import replace_inputs
 
 #: scan range of the signature, samples (relative to the record's rate: 4 ms at the rig's
@@ -36,6 +37,24 @@ class Delay(Effect):
         if dmax <= MAX_SCAN:
             return np.arange(1, dmax + 1, dtype=float)
         return np.unique(np.round(np.geomspace(1, dmax, MAX_SCAN)))
+
+    def carried_by_base(self, ctx: Context) -> Finding | None:
+        """A finding when the base model already delays its inputs (the general LTI and
+        process families take a per-input delay in whole samples, chosen before their order:
+        rigd.ident.lti.order): the delay is named from the base, not added."""
+        base = ctx.structure
+        while hasattr(base, "effect") and hasattr(base, "base"):
+            base = base.base
+        delays = [int(d) for d in getattr(base, "delays", ()) or ()]
+        if not delays or max(delays) <= 0:
+            return None
+        fp = float(np.mean(fit_percent(ctx.y[ctx.val], ctx.yhat[ctx.val])))
+        j = int(np.argmax(delays))
+        ev = {"code": "delay.in_base", "delay_samples": float(delays[j]),
+              "delay_ms": float(1000 * delays[j] / ctx.fs), "input": ctx.label(j, "in"),
+              "delays_samples": delays, "hold": getattr(base, "hold", "")}
+        # the words are the diagnosis' (rigd.diagnose.wording, from the code)
+        return Finding(self.name, 0.0, True, "", ctx.submodel, 0.0, fp, ev)
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
         share = min(band_power_share(ctx.u[:, j], ctx.fs, 0.05 * ctx.fs, ctx.fs / 2)

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigd.effects.base import Effect, dims
+from rigd.effects.base import Effect, dims, is_mechanical
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.linearised import joint_signature
 from rigd.effects.signature import SignatureFit
@@ -83,9 +83,8 @@ class Friction(Effect):
         the smoothing velocity and the base's viscous damping."""
         fc = -np.asarray(sig.beta, float)
         ev = {"coulomb_accel": fc.tolist(), "smoothing_velocity": self._veps(ctx).tolist()}
-        cont = getattr(ctx.structure, "continuous", None)
-        if callable(cont):
-            A, B, _, _, _ = cont(ctx.theta)
+        if is_mechanical(ctx.structure):   # states [p, ṗ]
+            A, B, _, _, _ = ctx.structure.continuous(ctx.theta)
             A, B = np.asarray(A, float), np.asarray(B, float)
             m = B.shape[0] // 2
             ev["viscous_per_s"] = (-np.diag(A[m:, m:])).tolist()   # the base's damping D_ii

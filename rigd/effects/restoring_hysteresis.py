@@ -162,7 +162,8 @@ class RestoringExtended(ExtendedStructure):
                                  f"{base.effect.name} added before it")
             base.effect.apply_hooks(th[base.nb:], hooks, data)
             base, th = base.base, th[:base.nb]
-        if not callable(getattr(base, "continuous", None)):
+        if not (getattr(base, "mechanical", False) and callable(getattr(base, "continuous",
+                                                                        None))):
             raise ValueError("the restoring-force hysteresis needs a mechanical base model "
                              "(states [p, ṗ])")
         A, Bc, _, _, x0 = base.continuous(th)

@@ -45,6 +45,9 @@ class MechanicalStructure(Structure):
     input_names, output_names : list of str
         Channel names (for the StateSpace and reports).
     """
+    #: states [p, ṗ] (p̈ + D ṗ + K p = B u): what state-level effects act on
+    mechanical = True
+
 
     def __init__(self, kind, mask_K, mask_D, mask_B, mask_Bd, prefix="", out_labels=None,
                  in_labels=None, input_names=None, output_names=None, x0_name="x0_",

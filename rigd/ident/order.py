@@ -45,6 +45,10 @@ class ModalStructure(Structure):
     """``base`` (a generic :class:`~rigd.ident.mechanical.MechanicalStructure`) plus ``m``
     parallel modes (see module docstring)."""
 
+    #: the base's states are [p, ṗ] (state-level effects act on them; the parallel modes
+    #: are added to the output)
+    mechanical = True
+
     def __init__(self, base: Any, m: int):
         self.base = base
         self.m = int(m)

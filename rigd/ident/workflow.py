@@ -85,7 +85,7 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData,
     half = len(getattr(mech, "x0_index", [])) // 2
     # velocity states [p, ṗ] of a mechanical model; other families: every state at y's scale
     vel = (set(list(getattr(mech, "x0_index", []))[half:])
-           if callable(getattr(mech, "continuous", None)) else set())
+           if getattr(mech, "mechanical", False) else set())
     steps = np.array([vs if i in vel else ys for i in idx]) * 1e-2
     cols = []
     for i, d in zip(idx, steps):

@@ -19,7 +19,7 @@ EVIDENCE = {
     "extra_mode": {"frequency_hz": 0.013, "zeta": 0.05, "model_peaks_hz": [0.004]},
     "cross_coupling": {"output": "y1", "input": "u2", "corr": 0.4, "antisymmetric": True,
                        "omega_hz": 50.0},
-    "delay": {"delay_samples": 3.2, "min_samples": 0.5},
+    "delay": {"delay_samples": 3.2, "min_samples": 0.5, "input": "u", "delays_samples": [3]},
     "static_nonlinearity": {"site": "input", "channel": "u1", "bend_at_spread": [0.3]},
     "friction": {"output": "y1", "against_motion": True},
     "integrator": {"in_base": True, "time_constant_s": 900.0, "estimation_seconds": 80.0,

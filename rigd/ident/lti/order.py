@@ -83,6 +83,18 @@ class BaseChoice:
         lp = self.structure.linear_part(self.theta)
         return sum(1 for m in modes(lp) if "f_n_hz" in m)
 
+    def fit_by_modes(self) -> dict[str, float]:
+        """Best held-out fit of the candidates by their number of oscillatory modes
+        (complex pairs; the mechanical n-DOF model: one per output)."""
+        out: dict[str, float] = {}
+        for c in self.candidates:
+            m = (c.structure.ny if c.family == "mechanical"
+                 else getattr(c.structure, "nc", None))
+            if m is None or not np.isfinite(c.fit_val):
+                continue
+            out[str(m)] = max(out.get(str(m), -np.inf), round(float(c.fit_val), 3))
+        return dict(sorted(out.items(), key=lambda kv: int(kv[0])))
+
     def describe(self) -> str:
         fam = {"lti": "general LTI", "mechanical": "mechanical n-DOF",
                "process": "process"}.get(self.family, self.family)
@@ -99,7 +111,8 @@ class BaseChoice:
                 by_states[k] = max(by_states.get(k, -np.inf), round(c.fit_val, 3))
         return {"modes": self.modes, "family": self.family, "states": self.states,
                 "delays_samples": list(self.delays), "asked": self.asked,
-                "validation_fit_by_modes": {}, "validation_fit_by_states": by_states,
+                "validation_fit_by_modes": self.fit_by_modes(),
+                "validation_fit_by_states": by_states,
                 "criterion": "BIC on the estimation part; held-out fit within "
                              f"{MIN_GAIN} points of the best",
                 "candidates": [c.to_json() for c in self.candidates], "reason": self.reason}

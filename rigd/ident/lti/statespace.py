@@ -70,6 +70,8 @@ class StateSpaceModel(Structure):
     """
 
     kind = "lti"
+    #: the states are modal, not [p, ṗ]: state-level effects need a mechanical base
+    mechanical = False
 
     def __init__(self, inputs, outputs, fs: float, n_complex: int = 0, n_real: int = 0,
                  n_int: int = 0, delays=None, hold: str = "foh", feedthrough: bool = False,
@@ -227,6 +229,13 @@ class StateSpaceModel(Structure):
         ints = tuple(st for t, st in s if t == "int")
         return LinearPart(m["A"], m["B"], m["C"], m["D"], m["K"], self.delays, self.hold,
                           tuple(self.input_names), tuple(self.output_names), self.fs, ints)
+
+    def continuous(self, theta):
+        """(A, B, C, D, x0) of the continuous model (modal states; not the [p, ṗ] states of a
+        mechanical model: :attr:`mechanical` is False). Read-outs of the poles (an
+        integrator's slow real pole, rigd.effects.integrator) use it."""
+        m = self.matrices(theta)
+        return m["A"], m["B"], m["C"], m["D"], m["x0"]
 
     def set_record(self, n_est: int) -> None:
         """Bounds relative to the record: its estimation part has ``n_est`` samples."""
