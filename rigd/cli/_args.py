@@ -6,7 +6,21 @@ Commands never import each other; what several of them parse is defined once her
 from __future__ import annotations
 
 import argparse
+import json
+import sys
 from typing import Any
+
+from rigd.plain import plain
+
+
+def print_json(obj: Any) -> None:
+    """Print ``obj`` as one line of strict JSON on stdout (the ``--json`` outputs).
+
+    Goes through :func:`rigd.plain.plain`, the project's one NaN policy: a non-finite number
+    (a diverged fit is ``-inf`` %) becomes ``null``, never ``NaN``/``-Infinity``, which strict
+    JSON readers (``jq``, browsers, Go, Rust) refuse.
+    """
+    sys.stdout.write(json.dumps(plain(obj), allow_nan=False) + "\n")
 
 
 def add_range_argument(p: argparse.ArgumentParser) -> None:

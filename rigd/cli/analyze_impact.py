@@ -10,8 +10,8 @@ with ``controller_on``) or one record file (HDF5 or interchange CSV); the analys
 from __future__ import annotations
 
 import argparse
-import json
-import sys
+
+from rigd.cli._args import print_json
 
 HELP = "damping ratio and frequency of impact responses (K∞ off/on) with uncertainty"
 
@@ -29,8 +29,7 @@ def run(args: argparse.Namespace) -> int:
 
     out = analyze_impact(args.run, window_s=args.window, report=args.report)
     if args.json:
-        json.dump(out, sys.stdout, default=float)
-        sys.stdout.write("\n")
+        print_json(out)
         return 0
     for s in out["summary"]:
         k = {True: "on ", False: "off", None: "?  "}[s["controller_on"]]

@@ -8,10 +8,14 @@ validation part of the identification record as stored in the model file). The w
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 
-from rigd.cli._args import add_plain_csv_arguments, add_range_argument, load_options, print_source
+from rigd.cli._args import (
+    add_plain_csv_arguments,
+    add_range_argument,
+    load_options,
+    print_json,
+    print_source,
+)
 
 HELP = "compare an identified model with a measured record (fit, residuals, report)"
 
@@ -42,8 +46,7 @@ def run(args: argparse.Namespace) -> int:
                       **load_options(args))
     out = res.summary()
     if args.json:
-        json.dump(out, sys.stdout)
-        print()
+        print_json(out)
     else:
         print_source(res.source)
         for name, c in res.comparisons.items():

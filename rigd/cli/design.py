@@ -13,8 +13,8 @@ model's actuator; without ``--range`` only the design point is assessed. The wor
 from __future__ import annotations
 
 import argparse
-import json
-import sys
+
+from rigd.cli._args import print_json
 
 HELP = "H∞ mixed-sensitivity design, reduction, Tustin; writes the controller YAML"
 
@@ -47,8 +47,7 @@ def run(args: argparse.Namespace) -> int:
                report=args.report, method=args.method, order=args.order,
                allow_flagged=args.allow_flagged).summary
     if args.json:
-        json.dump(s, sys.stdout, default=float)
-        sys.stdout.write("\n")
+        print_json(s)
     else:
         print(f"controller written: {s['controller']} ({s['method']}, order "
               f"{s['controller_order']}; full order {s['order_full']}, gamma = {s['gamma']:.3f})")

@@ -4,10 +4,15 @@ much adding it helps (see docs/diagnose.md); the work is :func:`rigd.api.diagnos
 from __future__ import annotations
 
 import argparse
-import json
 
 from rigd.api.data import source_text
-from rigd.cli._args import add_mat_arguments, add_order_argument, load_options, order_text
+from rigd.cli._args import (
+    add_mat_arguments,
+    add_order_argument,
+    load_options,
+    order_text,
+    print_json,
+)
 
 HELP = "diagnose a model on a record: where it fails, which physical effect is missing"
 
@@ -62,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
                        report=args.report, **load_options(args))
     out = res.summary()
     if args.json:
-        print(json.dumps(out))
+        print_json(out)
     else:
         print(summary(out))
     return 0

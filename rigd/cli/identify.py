@@ -12,7 +12,6 @@ or any two sample ranges, ``--est A:B --val A:B``, as ``rigd diagnose``).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -24,6 +23,7 @@ from rigd.cli._args import (
     add_range_argument,
     load_options,
     order_text,
+    print_json,
     print_source,
 )
 from rigd.errors import InputError
@@ -149,8 +149,7 @@ def run(args: argparse.Namespace) -> int:
         res = api.identify_sweep(args.data, out=args.out, jobs=args.jobs, method=args.method,
                                  split=args.split, **_prefilter_kw(args))
         if args.json:
-            json.dump({**res.summary(), "source": res.source}, sys.stdout)
-            print()
+            print_json({**res.summary(), "source": res.source})
         else:
             print_source(res.source)
             print(res.text())
@@ -160,8 +159,7 @@ def run(args: argparse.Namespace) -> int:
                        val=args.val, hold=args.hold,
                        order=args.order, out=args.out, **_prefilter_kw(args), **load_options(args))
     if args.json:
-        json.dump(idf.summary(), sys.stdout)
-        print()
+        print_json(idf.summary())
     else:
         print_source(idf.source)
         _print_human(idf.model, sys.stdout, idf.yardstick)

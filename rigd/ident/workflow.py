@@ -118,13 +118,14 @@ def residual_stats(y: np.ndarray, yhat: np.ndarray, names: list[str]) -> dict[st
     """Per-output residual statistics: mean, std, rms, max |ε|, lag-1 autocorrelation."""
     out = {}
     for i, nm in enumerate(names):
-        e = y[:, i] - yhat[:, i]
-        ec = e - e.mean()
-        den = float(ec @ ec)
-        r1 = float(ec[1:] @ ec[:-1] / den) if den > 0 else 0.0
-        out[nm] = {"mean": float(e.mean()), "std": float(e.std()),
-                   "rms": float(np.sqrt(np.mean(e ** 2))), "max_abs": float(np.abs(e).max()),
-                   "autocorr_lag1": r1}
+        with np.errstate(over="ignore", invalid="ignore"):  # a diverged fit: inf/NaN, quietly
+            e = y[:, i] - yhat[:, i]
+            ec = e - e.mean()
+            den = float(ec @ ec)
+            r1 = float(ec[1:] @ ec[:-1] / den) if den > 0 else 0.0
+            out[nm] = {"mean": float(e.mean()), "std": float(e.std()),
+                       "rms": float(np.sqrt(np.mean(e ** 2))),
+                       "max_abs": float(np.abs(e).max()), "autocorr_lag1": r1}
     return out
 
 

@@ -364,3 +364,26 @@ def test_a_negative_stiffness_start_is_reflected_and_the_fit_stays_finite(tmp_pa
     assert main(_ma_noise_csv(tmp_path)) == 0
     out = capsys.readouterr().out
     assert "nan %" not in out and "not finite" not in out, out
+
+
+def test_json_outputs_are_strict_when_a_fit_diverged(tmp_path, capsys, monkeypatch):
+    """The diverged fit above through ``identify --json`` and ``compare --json``: one line of
+    strict JSON each (a reader refusing NaN/Infinity parses it), the fit ``null`` — the
+    project's one NaN policy (rigd.plain); ``json.dump`` wrote ``-Infinity`` before."""
+    from rigd.ident import initial
+
+    def strict(text):
+        def refuse(name):
+            raise ValueError(f"non-strict JSON constant {name}")
+        return json.loads(text, parse_constant=refuse)
+
+    monkeypatch.setattr(initial, "stabilise", lambda K, D: (K, D))
+    assert main(_ma_noise_csv(tmp_path) + ["--json"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("\n") == 1
+    assert strict(out)["fit_percent"] in (None, [None]), out
+    assert main(["compare", str(tmp_path / "m.yaml"), str(tmp_path / "f.csv"), "--fs", "100",
+                 "--inputs", "u", "--outputs", "y", "--json"]) == 0
+    out = capsys.readouterr().out
+    got = strict(out)
+    assert got["fit_percent"] is None and got["fit_per_output"]["generic"]["y"] is None, out
