@@ -31,25 +31,43 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
 
-# `make test`: lint, then pytest in two parts; both always run, one exit status (fails if either
-# fails). 1. Everything but the timing-sensitive tests, on PYTEST_WORKERS processes
+# `make test`: lint, then pytest in two parts AT ONCE; both always run, one exit status (fails if
+# either fails). 1. Everything but the timing-sensitive tests, on PYTEST_WORKERS processes
 # (pytest-xdist; worksteal: the long diagnosis tests do not leave one worker idle at the end),
-# BLAS pinned to one thread per worker so that two workers do not fight over the 2 cores.
-# 2. The timing-sensitive tests (real-time daemons, sockets, the browser console) alone and
-# serially, as before. Each test is in exactly one part: part 1 ignores what part 2 runs.
-# Plain `python -m pytest` still runs the whole suite serially.
+# at `nice` TEST_NICE so that they only take the CPU the other part leaves. 2. The
+# timing-sensitive tests (real-time daemons, sockets, the browser console) in one process of
+# their own, serially, beside part 1 at normal priority: they take about one core (a real-time
+# loop sleeps, then spins the end of each period), so run after part 1 (as before) they left
+# the other core idle for ≈ 6 min; they pass with every core busy (`under-load`), and part 1
+# yields to them. Their output is printed when part 1 ends. BLAS pinned to one thread per process so that they do not fight over the 2
+# cores. Each test is in exactly one part: part 1 ignores what part 2 runs. Outputs that tests
+# of both parts read (the quick demo, tests/sharedruns.py) are made once, in a temporary
+# folder ($RIGD_TEST_SHARED) removed at the end. Plain `python -m pytest` still runs the whole
+# suite serially.
 REALTIME_TESTS := tests/service tests/loop tests/web tests/browser \
                   tests/experiments/test_daemon_experiment.py
 PYTEST_WORKERS ?= 2
+TEST_NICE ?= 10
 ONE_BLAS_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
+# a job started with `&` in make's (non-interactive) shell ignores SIGINT, and so would its
+# pytest: this restores it before exec'ing the command, so that Ctrl-C (and the trap below)
+# stop part 2 through pytest's KeyboardInterrupt, with its fixtures' teardown (the daemons)
+SIGINT_BACK := $(BIN)/python -c "import os, signal, sys; signal.signal(signal.SIGINT, \
+               signal.SIG_DFL); os.execv(sys.argv[1], sys.argv[1:])"
 
 test: lint
-	@rc=0; \
-	echo "make test [1/2]: compute tests, $(PYTEST_WORKERS) workers"; \
-	$(ONE_BLAS_THREAD) $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist worksteal \
-	    $(addprefix --ignore=,$(REALTIME_TESTS)) tests || rc=1; \
-	echo "make test [2/2]: timing-sensitive tests, serially: $(REALTIME_TESTS)"; \
-	$(BIN)/python -m pytest -q $(REALTIME_TESTS) || rc=1; \
+	@rc=0; rt=; RIGD_TEST_SHARED=$$(mktemp -d); export RIGD_TEST_SHARED; \
+	trap 'test -z "$$rt" || kill -INT $$rt 2>/dev/null; rm -rf "$$RIGD_TEST_SHARED"' EXIT; \
+	trap 'exit 130' INT TERM; \
+	echo "make test [2/2]: timing-sensitive tests, serially, beside part 1 (output when part 1 ends): $(REALTIME_TESTS)"; \
+	$(ONE_BLAS_THREAD) $(SIGINT_BACK) $(BIN)/python -m pytest -q $(REALTIME_TESTS) \
+	    >"$$RIGD_TEST_SHARED/realtime.log" 2>&1 & rt=$$!; \
+	echo "make test [1/2]: compute tests, $(PYTEST_WORKERS) workers at nice $(TEST_NICE)"; \
+	$(ONE_BLAS_THREAD) nice -n $(TEST_NICE) $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) \
+	    --dist worksteal $(addprefix --ignore=,$(REALTIME_TESTS)) tests || rc=1; \
+	echo "make test [2/2]: timing-sensitive tests (waiting for them to end)"; \
+	wait $$rt || rc=1; rt=; \
+	cat "$$RIGD_TEST_SHARED/realtime.log"; \
 	exit $$rc
 
 bench: $(STAMP)

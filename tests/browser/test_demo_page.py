@@ -13,16 +13,14 @@ import pytest
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
-from rigd.cli import main
-
 WAIT_S = 120
 
 
 @pytest.fixture(scope="module")
-def demo_out(tmp_path_factory):
-    out = tmp_path_factory.mktemp("demo") / "demo-out"
-    assert main(["demo", "--quick", "--out", str(out)]) == 0
-    return out
+def demo_out(quick_demo):
+    """``rigd demo --quick``'s folder: made once per test run (tests/conftest.py), the one
+    tests/design/test_demo_e2e.py checks."""
+    return quick_demo
 
 
 def test_demo_page_loads_every_figure_renders_every_link_resolves(browser, screenshot,

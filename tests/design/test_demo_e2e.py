@@ -11,10 +11,9 @@ from rigd.cli import main
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory):
-    out = tmp_path_factory.mktemp("demo")
-    assert main(["demo", "--out", str(out), "--quick"]) == 0
-    return out, json.loads((out / "summary.json").read_text())
+def demo(quick_demo):
+    """``rigd demo --quick``'s folder (made once per test run, tests/conftest.py) and summary."""
+    return quick_demo, json.loads((quick_demo / "summary.json").read_text())
 
 
 def test_summary_has_the_contract_keys(demo):
