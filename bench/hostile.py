@@ -17,9 +17,10 @@ The 64 idle clients with the web's one subscription take every one of the daemon
 and one of the 4 connections it keeps for control commands: the loads still get in on those
 (``safe``, reset, enable, load, op, start, stop are taken there; queries are not). The
 cycle and overrun counts are read on one connection this process opens before the attack.
-On a busy machine a window outlasts the daemon's 60 s idle rule: the held connections are
-kept active (one space every 5 s, never a whole request), and each window starts once the
-daemon has seen the last one's connections close.
+On a busy machine a window outlasts the daemon's 60 s idle rule (which counts from a client's
+last complete request: bytes of a line do not count): the held connections are kept active
+(a ``ping`` every 5 s, its answer left unread on the idle clients), and each window starts
+once the daemon has seen the last one's connections close.
 
 Figures: ``hostile_load_miss_fraction`` / ``idle_miss_fraction`` (real-time overruns per cycle
 over all hostile / idle windows, from the daemon's ``timing``), ``safe_latency_ms`` {p50,
@@ -72,15 +73,16 @@ class _Timing:
         self.lock = threading.Lock()
 
     def ask(self, cmd: str) -> dict:
-        """The result of one query on the held connection."""
+        """The result of one query on the held connection (one at a time: the keeper's
+        pings share it)."""
         with self.lock:
             self.s.sendall((json.dumps({"id": 1, "cmd": cmd}) + "\n").encode())
-        while b"\n" not in self.buf:
-            chunk = self.s.recv(65536)
-            if not chunk:
-                raise RuntimeError("the daemon closed the timing connection")
-            self.buf += chunk
-        line, _, self.buf = self.buf.partition(b"\n")
+            while b"\n" not in self.buf:
+                chunk = self.s.recv(65536)
+                if not chunk:
+                    raise RuntimeError("the daemon closed the timing connection")
+                self.buf += chunk
+            line, _, self.buf = self.buf.partition(b"\n")
         return json.loads(line)["result"]
 
     def counts(self) -> tuple[int, int]:
@@ -100,11 +102,14 @@ class _Timing:
         self.s.close()
 
 
+PING = b'{"id": 0, "cmd": "ping"}\n'
+
+
 class _Keeper(threading.Thread):
     """Keeps the held connections active while a window lasts (the daemon closes a client
-    silent for 60 s, and on a busy machine the loads alone take longer): one space every
-    ``every_s`` on each idle client and on the timing connection — bytes of a line, never a
-    whole request, so nothing is answered."""
+    that completed no request for 60 s, and on a busy machine the loads alone take longer):
+    a ``ping`` every ``every_s`` on each idle client (its answer left unread) and on the
+    timing connection."""
 
     def __init__(self, idles: list[socket.socket], timing: _Timing, every_s: float = 5.0):
         super().__init__(daemon=True)
@@ -116,11 +121,13 @@ class _Keeper(threading.Thread):
         while not self._halt.wait(self.every_s):
             for c in self.idles:
                 try:
-                    c.send(b" ")
+                    c.send(PING)
                 except OSError:
                     pass
-            with self.timing.lock:
-                self.timing.s.send(b" ")
+            try:
+                self.timing.ask("ping")
+            except (OSError, RuntimeError):
+                pass
 
     def close(self):
         self._halt.set()

@@ -19,7 +19,6 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.linalg
-from scipy import signal
 
 Expm = Callable[[np.ndarray], np.ndarray]
 
@@ -116,6 +115,10 @@ def foh(A: np.ndarray, B: np.ndarray, dt: float, *,
 def resonator(x: np.ndarray, f_hz: float, zeta: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
     """Responses of a unit-DC-gain mode w^2/(s^2 + 2 zeta w s + w^2) and of s/w times it
     (its velocity, same units), discretised by Tustin pre-warped at f_hz."""
+    # imported here: 3x scipy.linalg's import time (13 s at load 25), and every process of
+    # the daemon imports this module (the drivers' parameter blocks)
+    from scipy import signal
+
     w = 2 * np.pi * f_hz
     num_d = [0, 0, w * w]
     num_v = [0, w, 0]
@@ -127,6 +130,8 @@ def resonator(x: np.ndarray, f_hz: float, zeta: float, fs: float) -> tuple[np.nd
 
 
 def _prewarped(num, den, fs: float, f_hz: float):
+    from scipy import signal
+
     w = 2 * np.pi * f_hz
     k = w / np.tan(w / (2 * fs))  # s -> k (z-1)/(z+1)
     return signal.bilinear(num, den, fs=k / 2)

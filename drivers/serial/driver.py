@@ -290,6 +290,11 @@ class SerialFrameDriver(FastDriver):
             frame_in[IN_STATUS] = DRV_DISCONNECT | DRV_TIMEOUT
             return
         st = self._state
+        # the time is taken BEFORE the port is read: "nothing for timeout_ms" is then true of
+        # everything the device sent up to ``now``. Taken after, a preemption between the
+        # read and the clock (a loaded host) counted the frames that arrived meanwhile,
+        # unread yet, as missing: a false timeout
+        now = time.monotonic()
         try:
             # VMIN=VTIME=0: returns 0 at once when nothing is waiting. A vanished pty or
             # USB device raises EIO here or in write() (which runs every cycle).
@@ -303,7 +308,6 @@ class SerialFrameDriver(FastDriver):
         if n:
             st[sp.C_RXLEN] += n
             sp.ingest_sensor(self._rx, st, self._fifo)
-        now = time.monotonic()
         if now - self._last_call > self._timeout_s and self._delivered < self.fs:
             self._resync(fd)
         self._last_call = now

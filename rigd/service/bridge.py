@@ -71,6 +71,9 @@ class SocketFrontend:
         The loop's rate (the socket process refuses controllers for another one).
     runs_root : str, optional
         The daemon's runs folder (the socket process refuses a ``run_dir`` outside it).
+    idle_s : float, optional
+        A client that completed no request this long is closed, s (default
+        :data:`rigd.service.server.IDLE_S`).
     """
 
     def __init__(self, path: str, mode: int, handle_command: Callable[[bytes], bytes],
@@ -78,7 +81,8 @@ class SocketFrontend:
                  log=None, nice: int = 10, max_clients: int = 64,
                  helper_priority: int | None = None, ring=None,
                  safe_generation: Callable[[], int] | None = None,
-                 fs_hz: float | None = None, runs_root: str | None = None):
+                 fs_hz: float | None = None, runs_root: str | None = None,
+                 idle_s: float | None = None):
         self.path = str(path)
         self.mode = mode
         self.handle_command = handle_command
@@ -88,7 +92,7 @@ class SocketFrontend:
         self.log = log
         self.helper_priority = helper_priority
         self.opts = {"path": self.path, "nice": nice, "max_clients": max_clients,
-                     "ring": ring, "fs_hz": fs_hz, "runs_root": runs_root}
+                     "ring": ring, "fs_hz": fs_hz, "runs_root": runs_root, "idle_s": idle_s}
         self.ready = threading.Event()
         self.restarts = 0
         self.pid: int | None = None

@@ -70,8 +70,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="permissions of the socket file (default %(default)s)")
     g.add_argument("--no-notify", action="store_true",
                    help="do not talk to systemd even if NOTIFY_SOCKET is set")
+    g.add_argument("--client-idle-s", type=_positive, default=None, metavar="S",
+                   help="close a socket client that completed no request for S seconds "
+                        "(default 60; bytes of an unfinished line do not count)")
     g.add_argument("--runs-dir", default="runs", metavar="DIR",
                    help="where experiments started over the socket write their runs")
+
+
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not v > 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"not a positive number of seconds: {text!r}")
+    return v
 
 
 class Daemon:
@@ -129,7 +142,9 @@ class Daemon:
                                          ring=self._ring(),
                                          safe_generation=self._safe_generation,
                                          fs_hz=float(self.loop.fs),
-                                         runs_root=runs_root).start()
+                                         runs_root=runs_root,
+                                         idle_s=getattr(self.args, "client_idle_s",
+                                                        None)).start()
             self._attach_safe_word(sock, mode)
         self._faults = self.loop.subscribe()
         if threading.current_thread() is threading.main_thread():

@@ -12,8 +12,10 @@ silent or hostile client can never block another one or the loop:
   point, experiments — a query or a stream there gets one error line saying the daemon is
   full, and is closed): however many clients hold the slots, the operator can still act;
   beyond those, new ones get one error line and are closed;
-* a client that sends nothing for ``idle_s`` (no request waiting, no push) is closed, so idle
-  connections cannot hold the slots for ever;
+* a client that completes no request for ``idle_s`` (no request waiting, no push) is closed,
+  so idle connections cannot hold the slots for ever: the time counts from its last complete
+  (non-empty) request line or the last answer it got, not from its last byte — a client
+  trickling a line byte by byte, or sending blank lines, is closed all the same;
 * any exception while handling a request becomes an error reply to that client only;
 * a request whose answer takes time (a command the socket process forwards to the daemon)
   does not hold the thread: ``handle`` returns a :class:`concurrent.futures.Future` of the
@@ -49,7 +51,8 @@ from rigd.service.listen import listen
 
 #: connections accepted beyond ``max_clients``, for control commands only (protocol.CONTROL)
 RESERVED = 4
-#: a client silent this long is closed, s (default of ``ControlServer(idle_s=...)``)
+#: a client that completed no request this long is closed, s (default of
+#: ``ControlServer(idle_s=...)``; bytes of an unfinished line do not count)
 IDLE_S = 60.0
 
 
@@ -290,7 +293,6 @@ class ControlServer:
                 self._flush(c)   # the replies still due, then close
             return
         c.rbuf += data
-        c.last = time.monotonic()
         if c.waiting is not None:
             # its lines wait behind the reply being worked on; bounded like unread replies
             if len(c.rbuf) > self.max_pending:
@@ -312,6 +314,7 @@ class ControlServer:
                 return
             if not line:
                 continue
+            c.last = time.monotonic()      # the idle time counts from a complete request
             self.stats["requests"] += 1
             if c.reserved and not _is_control_request(line):
                 self.stats["refused_clients"] += 1
@@ -369,6 +372,7 @@ class ControlServer:
             if c.closed or fut is None or not fut.done():
                 continue
             c.waiting = None
+            c.last = time.monotonic()          # ... or from its answer
             try:
                 c.wbuf += fut.result()
             except Exception as exc:  # noqa: BLE001 - a failed future is an error reply
