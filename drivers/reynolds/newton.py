@@ -73,7 +73,7 @@ from rigd_drivers.reynolds.layout import (
     W_T2,
     W_VR,
 )
-from rigd_drivers.reynolds.solver import block_cyclic_solve, inv_small
+from rigd_drivers.reynolds.solver import block_cyclic_resolve, block_cyclic_solve, inv_small
 
 
 @numba.njit(cache=True, nogil=True)
@@ -185,6 +185,7 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, nmax, tol, c0c):
     upd = 0.0
     clipped = False
     it = 0
+    chord = False
     while True:
         if dt_on and it >= nit:
             upd = residual_measure(geo, cs, wts, p, cb00, cb01, cb10, cb11, xk0, xk1, omega,
@@ -192,59 +193,29 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, nmax, tol, c0c):
                                    mdot, dmdot, fw, hist, c0, c0c)
             if upd < tol or it >= nmax or math.isnan(upd):
                 break
+            # the first iteration past nit reuses the last Jacobian's factors (a chord step:
+            # same residual, same test after it); any further one is a full Newton step
+            chord = it == nit
         elif not dt_on and it >= nit:
             break
+        else:
+            chord = False
         it += 1
         fx, fy = film_force(geo, cs, p)
         xb = cb00 * fx + cb01 * fy + xk0
         yb = cb10 * fx + cb11 * fy + xk1
-        film_rates(geo, cs, wts, p, xb, yb, omega, rate, outf, jA, jB, jC, dRx, dRy, pm, True)
+        film_rates(geo, cs, wts, p, xb, yb, omega, rate, outf, jA, jB, jC, dRx, dRy, pm,
+                   not chord)
         feed_flows(geo, pm, pc, xb, yb, psup, af, mdot, dmdot, fw)
         chamber_eliminate(geo, c0c, pc, histc, mdot, dmdot, fw, resc, gch)
-        add_sources(geo, wts, mdot, fw, rate, dRx, dRy, True)
-        for i in range(nt):
-            ci = cs[i]
-            si = cs[nt + i]
-            h = c - xb * ci - yb * si
-            if h < H_MIN * c:
-                h = H_MIN * c
-            for j in range(mz):
-                k = i * mz + j
-                r = c0 * p[k] * h * A - hist[k] - rate[k]
-                jB[i, j, j] += c0 * h * A
-                dRx[k] += c0 * p[k] * A * (-ci)
-                dRy[k] += c0 * p[k] * A * (-si)
-                d[i, j, 0] = -r
-                # low-rank columns U: shaft (through Cb), orifices
-                d[i, j, 1] = dRx[k] * cb00 + dRy[k] * cb10
-                d[i, j, 2] = dRx[k] * cb01 + dRy[k] * cb11
-                for v in range(NV):
-                    d[i, j, 3 + v] = -0.5 * rt * dmdot[v] * wts[v * n + k]
-        block_cyclic_solve(jA, jB, jC, d, nr1, Dinv, E, T1, T2, Fb, G, gv)
-        # capacitance I + Vᵀ Z, and Vᵀ z
-        for a in range(NR):
-            for b in range(NR):
-                cap[a, b] = 1.0 if a == b else 0.0
-            vr[a] = 0.0
-        a2 = 2.0 * A
-        for i in range(nt):
-            ci = cs[i]
-            si = cs[nt + i]
-            for j in range(mz):
-                k = i * mz + j
-                for b in range(NR):
-                    cap[0, b] += -a2 * ci * d[i, j, 1 + b]
-                    cap[1, b] += -a2 * si * d[i, j, 1 + b]
-                vr[0] += -a2 * ci * d[i, j, 0]
-                vr[1] += -a2 * si * d[i, j, 0]
-                for v in range(NV):
-                    w = wts[v * n + k]
-                    if w != 0.0:
-                        for b in range(NR):
-                            cap[2 + v, b] += w * d[i, j, 1 + b]
-                        vr[2 + v] += w * d[i, j, 0]
-        # y = cap⁻¹ (Vᵀ z)  (cap is overwritten)
-        _solve_dense(cap, capi, vr, NR)
+        add_sources(geo, wts, mdot, fw, rate, dRx, dRy, not chord)
+        if chord:
+            _chord_solve(nt, mz, n, c, A, c0, xb, yb, cs, wts, p, hist, rate, d, jA, jC, Dinv,
+                         E, T2, gv, capi, vr)
+        else:
+            _newton_solve(nt, mz, n, c, A, c0, xb, yb, cs, wts, p, hist, rate, d, jA, jB, jC,
+                          dRx, dRy, Dinv, E, T1, T2, Fb, G, gv, cap, capi, vr, cb00, cb01,
+                          cb10, cb11, rt, dmdot, nr1)
         # chamber pressures from the film's update: Vᵀδp = (δF_x, δF_y, δp̄_1..4)
         for v in range(NV):
             pm[v] = vr[NR + 2 + v]
@@ -277,6 +248,93 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, nmax, tol, c0c):
         if clipped:
             state[ssc + ST_PFLOOR] += 1.0
     return upd
+
+
+@numba.njit(cache=True, nogil=True)
+def _newton_solve(nt, mz, n, c, A, c0, xb, yb, cs, wts, p, hist, rate, d, jA, jB, jC, dRx, dRy,
+                  Dinv, E, T1, T2, Fb, G, gv, cap, capi, vr, cb00, cb01, cb10, cb11, rt, dmdot,
+                  nr1):
+    """A full Newton step's linear algebra: the Jacobian completed with the time term, the
+    block solve of the residual and the low-rank columns Z, the capacitance I + VᵀZ (its
+    inverse kept in ``capi``) and y = cap⁻¹ Vᵀz in ``vr[NR:]``."""
+    for i in range(nt):
+        ci = cs[i]
+        si = cs[nt + i]
+        h = c - xb * ci - yb * si
+        if h < H_MIN * c:
+            h = H_MIN * c
+        for j in range(mz):
+            k = i * mz + j
+            r = c0 * p[k] * h * A - hist[k] - rate[k]
+            jB[i, j, j] += c0 * h * A
+            dRx[k] += c0 * p[k] * A * (-ci)
+            dRy[k] += c0 * p[k] * A * (-si)
+            d[i, j, 0] = -r
+            # low-rank columns U: shaft (through Cb), orifices
+            d[i, j, 1] = dRx[k] * cb00 + dRy[k] * cb10
+            d[i, j, 2] = dRx[k] * cb01 + dRy[k] * cb11
+            for v in range(NV):
+                d[i, j, 3 + v] = -0.5 * rt * dmdot[v] * wts[v * n + k]
+    block_cyclic_solve(jA, jB, jC, d, nr1, Dinv, E, T1, T2, Fb, G, gv)
+    # capacitance I + Vᵀ Z, and Vᵀ z
+    for a in range(NR):
+        for b in range(NR):
+            cap[a, b] = 1.0 if a == b else 0.0
+        vr[a] = 0.0
+    a2 = 2.0 * A
+    for i in range(nt):
+        ci = cs[i]
+        si = cs[nt + i]
+        for j in range(mz):
+            k = i * mz + j
+            for b in range(NR):
+                cap[0, b] += -a2 * ci * d[i, j, 1 + b]
+                cap[1, b] += -a2 * si * d[i, j, 1 + b]
+            vr[0] += -a2 * ci * d[i, j, 0]
+            vr[1] += -a2 * si * d[i, j, 0]
+            for v in range(NV):
+                w = wts[v * n + k]
+                if w != 0.0:
+                    for b in range(NR):
+                        cap[2 + v, b] += w * d[i, j, 1 + b]
+                    vr[2 + v] += w * d[i, j, 0]
+    # y = cap⁻¹ (Vᵀ z)  (cap is overwritten)
+    _solve_dense(cap, capi, vr, NR)
+
+
+@numba.njit(cache=True, nogil=True)
+def _chord_solve(nt, mz, n, c, A, c0, xb, yb, cs, wts, p, hist, rate, d, jA, jC, Dinv, E, Ginv,
+                 gv, capi, vr):
+    """A chord step's linear algebra: the new residual solved with the factors, the low-rank
+    columns Z and the capacitance inverse ``capi`` of the last full Newton step (all still in
+    their work arrays); y = cap⁻¹ Vᵀz in ``vr[NR:]``. O(n mz²) instead of O(n mz³)."""
+    for i in range(nt):
+        h = c - xb * cs[i] - yb * cs[nt + i]
+        if h < H_MIN * c:
+            h = H_MIN * c
+        for j in range(mz):
+            k = i * mz + j
+            d[i, j, 0] = hist[k] + rate[k] - c0 * p[k] * h * A
+    block_cyclic_resolve(jA, jC, d, Dinv, E, Ginv, gv)
+    for a in range(NR):
+        vr[a] = 0.0
+    a2 = 2.0 * A
+    for i in range(nt):
+        ci = cs[i]
+        si = cs[nt + i]
+        for j in range(mz):
+            k = i * mz + j
+            vr[0] += -a2 * ci * d[i, j, 0]
+            vr[1] += -a2 * si * d[i, j, 0]
+            for v in range(NV):
+                w = wts[v * n + k]
+                if w != 0.0:
+                    vr[2 + v] += w * d[i, j, 0]
+    for r in range(NR):
+        s = 0.0
+        for q in range(NR):
+            s += capi[r, q] * vr[q]
+        vr[NR + r] = s
 
 
 @numba.njit(cache=True, nogil=True)

@@ -143,3 +143,60 @@ def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
                 for q in range(m):
                     s += Dinv[j, a, q] * g[q, r]
                 d[j, a, r] = s
+
+
+@numba.njit(cache=True, nogil=True)
+def block_cyclic_resolve(jA, jC, d, Dinv, E, Ginv, g):
+    """Solve again, for the first right-hand side column of ``d`` only (in place), with the
+    factors a :func:`block_cyclic_solve` call left: ``Dinv`` and ``E`` (per block) and
+    ``Ginv`` (the reduced bottom block's inverse, its ``T2``); ``jA`` and ``jC`` unchanged.
+
+    O(n m²) instead of O(n m³): the bottom row's multipliers F_j D_j⁻¹ are applied by Horner's
+    rule backwards (F_{j+1} = −F_j D_j⁻¹ diag(C_j)) instead of being formed. ``g``: work
+    (m, ≥ 3).
+    """
+    n = Dinv.shape[0]
+    m = Dinv.shape[1]
+    # forward elimination: d_i −= diag(A_i) D_{i−1}⁻¹ d_{i−1}
+    for i in range(1, n - 1):
+        for a in range(m):
+            s = 0.0
+            for q in range(m):
+                s += Dinv[i - 1, a, q] * d[i - 1, q, 0]
+            d[i, a, 0] -= jA[i, a] * s
+    # Σ_j F_j D_j⁻¹ d_j: u = D_{n−2}⁻¹ d_{n−2}; u ← D_j⁻¹ (d_j − C_j ∘ u), j = n−3 … 0
+    for a in range(m):
+        s = 0.0
+        for q in range(m):
+            s += Dinv[n - 2, a, q] * d[n - 2, q, 0]
+        g[a, 1] = s                     # w_{n−2} (the A_{n−1} term)
+        g[a, 0] = s                     # u
+    for j in range(n - 3, -1, -1):
+        for a in range(m):
+            g[a, 2] = d[j, a, 0] - jC[j, a] * g[a, 0]
+        for a in range(m):
+            s = 0.0
+            for q in range(m):
+                s += Dinv[j, a, q] * g[q, 2]
+            g[a, 0] = s
+    for a in range(m):
+        g[a, 2] = d[n - 1, a, 0] - jC[n - 1, a] * g[a, 0] - jA[n - 1, a] * g[a, 1]
+    for a in range(m):
+        s = 0.0
+        for q in range(m):
+            s += Ginv[a, q] * g[q, 2]
+        d[n - 1, a, 0] = s
+    # back substitution x_j = D_j⁻¹ (d_j − C_j x_{j+1} − E_j x_{n−1})
+    for j in range(n - 2, -1, -1):
+        for a in range(m):
+            s = d[j, a, 0]
+            for q in range(m):
+                s -= E[j, a, q] * d[n - 1, q, 0]
+            if j < n - 2:
+                s -= jC[j, a] * d[j + 1, a, 0]
+            g[a, 2] = s
+        for a in range(m):
+            s = 0.0
+            for q in range(m):
+                s += Dinv[j, a, q] * g[q, 2]
+            d[j, a, 0] = s
