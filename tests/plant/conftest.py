@@ -72,3 +72,26 @@ def free_modes():
 @pytest.fixture
 def pd():
     return run_pd
+
+
+def run_reynolds_arrays(pa, drives, impact=None):
+    """Run the physics-grade plant's batch kernel on ``analysis.make_arrays`` arrays ``pa``
+    with ``drives`` (n, 4) V; ``impact`` (axis "x"|"y", peak N) starts a 1 ms hammer first.
+    Returns the (n, N_IN) frames."""
+    from rigd.frame import N_IN
+    from rigd_drivers.reynolds import kernel as k
+    from rigd_drivers.reynolds import layout as L
+
+    frames = np.zeros((drives.shape[0], N_IN))
+    if impact is not None:
+        pa.params[L.H_IMP_AXIS] = 0.0 if impact[0] == "x" else 1.0
+        pa.params[L.H_IMP_PEAK] = impact[1]
+        pa.params[L.H_IMP_DUR] = 1e-3
+        pa.params[L.H_IMP_SEQ] += 1
+    k.run_batch(pa.state, pa.params, drives, frames)
+    return frames
+
+
+@pytest.fixture
+def reynolds_run():
+    return run_reynolds_arrays

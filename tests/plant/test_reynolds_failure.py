@@ -78,17 +78,6 @@ def test_1kn_hammer_with_the_checks_off_ends_in_a_reported_contact_and_a_finite_
     assert 25.0 < rec.columns["e_x"][hit[0]] < 100.0        # µm at the disc, past the gap
 
 
-def _run(pa, drives, impact=None):
-    frames = np.zeros((drives.shape[0], N_IN))
-    if impact is not None:
-        pa.params[L.H_IMP_AXIS] = 0.0 if impact[0] == "x" else 1.0
-        pa.params[L.H_IMP_PEAK] = impact[1]
-        pa.params[L.H_IMP_DUR] = 1e-3
-        pa.params[L.H_IMP_SEQ] += 1
-    k.run_batch(pa.state, pa.params, drives, frames)
-    return frames
-
-
 def test_ordinary_running_is_converged_and_clean():
     """Valve steps of ±1 V on every valve and a 20 N hammer at 3 krpm: every sub-step meets
     the residual tolerance within its iterations (≈ 1.1 on average), nothing floored or
@@ -107,7 +96,7 @@ def test_ordinary_running_is_converged_and_clean():
     assert np.all(fr[:, IN_STATUS] == 0.0)
 
 
-def test_non_finite_solution_stops_the_plant_and_is_counted():
+def test_non_finite_solution_stops_the_plant_and_is_counted(reynolds_run):
     """A NaN in the film (as a solver blow-up leaves it): counted, ``drv_status`` says
     diverged, the shaft stays at its last finite state, the sensors stay finite."""
     pa = an.make_arrays(QUIET)
@@ -115,7 +104,7 @@ def test_non_finite_solution_stops_the_plant_and_is_counted():
     e0 = np.zeros(N_IN)
     k.plant_sense(pa.state, pa.params, e0)
     pa.p[3] = np.nan
-    fr = _run(pa, np.full((20, 4), 5.0))
+    fr = reynolds_run(pa, np.full((20, 4), 5.0))
     assert pa.stsc[L.ST_NAN] == 1 and pa.stsc[L.ST_STOP] == L.STATUS_DIVERGED
     assert np.all(fr[:, IN_STATUS] == L.STATUS_DIVERGED)
     assert np.all(np.isfinite(fr)) and np.allclose(fr[:, IN_E_X], e0[IN_E_X], atol=1e-9)

@@ -107,19 +107,8 @@ def test_cross_coupled_stiffness_grows_with_speed():
     assert kc[2] > 1.5 * kc[1]
 
 
-def _run(pa, drives, impact=None):
-    frames = np.zeros((drives.shape[0], N_IN))
-    if impact is not None:
-        pa.params[L.H_IMP_AXIS] = 0.0 if impact[0] == "x" else 1.0
-        pa.params[L.H_IMP_PEAK] = impact[1]
-        pa.params[L.H_IMP_DUR] = 1e-3
-        pa.params[L.H_IMP_SEQ] += 1
-    k.run_batch(pa.state, pa.params, drives, frames)
-    return frames
-
-
 @pytest.mark.parametrize("newton, tol", [(8, 1e-12), (1, 2e-5)])
-def test_film_mass_is_conserved(newton, tol):
+def test_film_mass_is_conserved(reynolds_run, newton, tol):
     """Mass in − mass out = change of film mass over a transient (valve steps, impact, 3 krpm).
 
     Converged Newton: to round-off (1e-15 measured); the default single Newton iteration:
@@ -133,7 +122,7 @@ def test_film_mass_is_conserved(newton, tol):
     drives = np.full((300, 4), 5.0)
     drives[50:150, 0] = 7.0
     drives[100:, 3] = 3.0
-    _run(pa, drives, impact=("y", 30.0))
+    reynolds_run(pa, drives, impact=("y", 30.0))
     net = (sc[L.ST_MIN] - in0) - (sc[L.ST_MOUT] - out0)
     through = sc[L.ST_MIN] - in0
     assert through > 0
@@ -158,7 +147,7 @@ def _ring_down(y, fs, f0):
 
 
 @pytest.mark.parametrize("p_inj, axis", [(4.0, "x"), (4.0, "y"), (7.0, "x"), (7.0, "y")])
-def test_time_stepping_rings_at_the_linearised_mode_of_the_hammered_axis(p_inj, axis):
+def test_time_stepping_rings_at_the_linearised_mode_of_the_hammered_axis(reynolds_run, p_inj, axis):
     """A 20 N hammer along x or y at rest (Ω = 0): the ring-down of that axis, fitted from
     2 ms after the blow, has the frequency and damping of the linearised mode whose disc motion
     is along that axis (``LinearModes.of_axis``; under gravity the x and y modes are 8 % apart
@@ -171,13 +160,13 @@ def test_time_stepping_rings_at_the_linearised_mode_of_the_hammered_axis(p_inj, 
     e0 = np.zeros(N_IN)
     k.plant_sense(pa.state, pa.params, e0)
     ch = IN_E_X if axis == "x" else IN_E_Y
-    fr = _run(pa, np.full((1000, 4), 5.0), impact=(axis, 20.0))
+    fr = reynolds_run(pa, np.full((1000, 4), 5.0), impact=(axis, 20.0))
     f, z = _ring_down(fr[10:, ch] - e0[ch], 5000.0, lm.freq_hz[j])
     assert f == pytest.approx(lm.freq_hz[j], rel=0.02)
     assert z == pytest.approx(lm.zeta[j], rel=0.10)
 
 
-def test_valve_numbering_and_sign_follow_fig_1():
+def test_valve_numbering_and_sign_follow_fig_1(reynolds_run):
     """Closing valve 1 (+y) or valve 2 (+x) moves the shaft towards +y or +x (u > 0 → e > 0)."""
     for valve, ch, other in ((0, IN_E_Y, IN_E_X), (1, IN_E_X, IN_E_Y)):
         pa = _arrays()
@@ -186,18 +175,18 @@ def test_valve_numbering_and_sign_follow_fig_1():
         k.plant_sense(pa.state, pa.params, e0)
         d = np.full((500, 4), 5.0)
         d[:, valve] = 6.0
-        fr = _run(pa, d)
+        fr = reynolds_run(pa, d)
         de = fr[-1] - e0
         assert de[ch] > 0.25                                 # µm (0.41 on y at 4 bar)
         assert abs(de[other]) < 0.2 * de[ch]
 
 
-def test_rest_state_is_at_rest():
+def test_rest_state_is_at_rest(reynolds_run):
     pa = _arrays(omega=6000.0, p_inj=7.0)
     an.rest(pa, 5.0)
     e0 = np.zeros(N_IN)
     k.plant_sense(pa.state, pa.params, e0)
-    fr = _run(pa, np.full((200, 4), 5.0))
+    fr = reynolds_run(pa, np.full((200, 4), 5.0))
     assert np.abs(fr[:, :2] - e0[:2]).max() < 1e-3          # µm
 
 
@@ -227,7 +216,7 @@ def test_kernel_allocates_nothing_per_step():
     assert long_ == short            # 400 steps allocate exactly what 2 steps do (the call)
 
 
-def test_unbalance_response_is_synchronous_and_linear_in_the_unbalance():
+def test_unbalance_response_is_synchronous_and_linear_in_the_unbalance(reynolds_run):
     """Disc unbalance m·e at 3 krpm: a 1× (50 Hz) response whose amplitude doubles with m·e,
     forward whirl (e_y lags e_x by 90°) — on the weightless rig, whose bearing is isotropic at
     rest (under gravity k_yy ≈ 1.25 k_xx and the orbit is an ellipse)."""
@@ -235,7 +224,7 @@ def test_unbalance_response_is_synchronous_and_linear_in_the_unbalance():
     for ue in (2.0, 4.0):
         pa = _arrays(omega=3000.0, unbalance_g_mm=ue, load={"gravity_m_s2": 0.0})
         an.rest(pa, 5.0)
-        fr = _run(pa, np.full((2000, 4), 5.0))[1000:]          # after the start transient
+        fr = reynolds_run(pa, np.full((2000, 4), 5.0))[1000:]          # after the start transient
         t = np.arange(fr.shape[0]) / 5000.0
         z = np.exp(-2j * np.pi * 50.0 * t)
         cx = 2 * np.mean((fr[:, IN_E_X] - fr[:, IN_E_X].mean()) * z)
