@@ -47,6 +47,16 @@ G_CAP = 14           # valve-to-hole chamber capacity V_c / (R_g T), kg/Pa
 G_N = 15
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def film_gap(c, xb, yb, cos_t, sin_t):
+    """Film thickness (m) at angle θ (cos θ, sin θ) with the journal at (xb, yb) m, floored at
+    ``H_MIN`` c (touchdown is not modelled: the film is kept finite)."""
+    h = c - xb * cos_t - yb * sin_t
+    if h < H_MIN * c:
+        return H_MIN * c
+    return h
+
+
 @numba.njit(cache=True, nogil=True)
 def orifice_flow(p_up, p_down, cda, rt, gam):
     """Isentropic orifice mass flow (kg/s) and its derivative d/dp_down.
@@ -182,9 +192,7 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, rate, out_flow, jA, jB, jC, dRx, 
         ip = i + 1 if i + 1 < nt else 0
         cf = cs[2 * nt + i]
         sf = cs[3 * nt + i]
-        hf = c - xb * cf - yb * sf
-        if hf < H_MIN * c:               # touchdown is not modelled: keep the film finite
-            hf = H_MIN * c
+        hf = film_gap(c, xb, yb, cf, sf)
         kf = hf * hf * hf * dz / (12.0 * mu * R * dth)
         uf = 0.5 * U * hf * dz
         dkf = 3.0 * hf * hf * dz / (12.0 * mu * R * dth)
@@ -214,9 +222,7 @@ def film_rates(geo, cs, wts, p, xb, yb, omega, rate, out_flow, jA, jB, jC, dRx, 
     for i in range(nt):
         ci = cs[i]
         si = cs[nt + i]
-        h = c - xb * ci - yb * si
-        if h < H_MIN * c:
-            h = H_MIN * c
+        h = film_gap(c, xb, yb, ci, si)
         kz = h * h * h * R * dth / (12.0 * mu * dz)
         dkz = 3.0 * h * h * R * dth / (12.0 * mu * dz)
         for j in range(mz - 1):

@@ -16,9 +16,9 @@ from rigd_drivers.reynolds.film import (
     G_MZ,
     G_NT,
     G_PA,
-    H_MIN,
     NV,
     film_force,
+    film_gap,
     film_rates,
 )
 from rigd_drivers.reynolds.layout import (
@@ -61,9 +61,7 @@ def residual_measure(geo, cs, wts, p, cb00, cb01, cb10, cb11, xk0, xk1, omega, p
     c = geo[G_C]
     worst = 0.0
     for i in range(nt):
-        h = c - xb * cs[i] - yb * cs[nt + i]
-        if h < H_MIN * c:
-            h = H_MIN * c
+        h = film_gap(c, xb, yb, cs[i], cs[nt + i])
         s = c0 * h * A
         for j in range(mz):
             k = i * mz + j

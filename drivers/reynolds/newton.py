@@ -23,10 +23,10 @@ from rigd_drivers.reynolds.film import (
     G_AREA,
     G_C,
     G_N,
-    H_MIN,
     NR,
     NV,
     film_force,
+    film_gap,
     film_rates,
 )
 from rigd_drivers.reynolds.health import residual_measure
@@ -260,9 +260,7 @@ def _newton_solve(nt, mz, n, c, A, c0, xb, yb, cs, wts, p, hist, rate, d, jA, jB
     for i in range(nt):
         ci = cs[i]
         si = cs[nt + i]
-        h = c - xb * ci - yb * si
-        if h < H_MIN * c:
-            h = H_MIN * c
+        h = film_gap(c, xb, yb, ci, si)
         for j in range(mz):
             k = i * mz + j
             r = c0 * p[k] * h * A - hist[k] - rate[k]
@@ -309,9 +307,7 @@ def _chord_solve(nt, mz, n, c, A, c0, xb, yb, cs, wts, p, hist, rate, d, jA, jC,
     columns Z and the capacitance inverse ``capi`` of the last full Newton step (all still in
     their work arrays); y = cap⁻¹ Vᵀz in ``vr[NR:]``. O(n mz²) instead of O(n mz³)."""
     for i in range(nt):
-        h = c - xb * cs[i] - yb * cs[nt + i]
-        if h < H_MIN * c:
-            h = H_MIN * c
+        h = film_gap(c, xb, yb, cs[i], cs[nt + i])
         for j in range(mz):
             k = i * mz + j
             d[i, j, 0] = hist[k] + rate[k] - c0 * p[k] * h * A

@@ -20,6 +20,7 @@ from rigd_drivers.reynolds.film import (
     H_MIN,
     NV,
     film_force,
+    film_gap,
 )
 from rigd_drivers.reynolds.health import stop_plant
 from rigd_drivers.reynolds.layout import (
@@ -186,9 +187,7 @@ def substep(state, params, fdx, fdy):
     # new film mass per cell, and the flows at the new time (for the mass balance)
     A = geo[G_AREA]
     for i in range(nt):
-        h = c - xb * cs[i] - yb * cs[nt + i]
-        if h < H_MIN * c:
-            h = H_MIN * c
+        h = film_gap(c, xb, yb, cs[i], cs[nt + i])
         for j in range(mz):
             k = i * mz + j
             state[ops1 + k] = state[ops + k]
