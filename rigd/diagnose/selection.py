@@ -106,6 +106,23 @@ def _words(eff, ctx: Context, sig) -> tuple[str, dict[str, Any]]:
     return text, dict(ev, code=code)
 
 
+def _refitted_words(eff, ctx: Context, f: Finding, theta_e: np.ndarray) -> None:
+    """An effect whose size is read better from its refit than from its first-order
+    signature (``refitted_evidence(ctx, theta_e) -> numbers``, e.g. a delay) is reported
+    and worded with the refit's numbers and share (the signature's kept as
+    ``signature_*``)."""
+    if not hasattr(eff, "refitted_evidence") or not np.all(np.isfinite(theta_e)):
+        return
+    new = eff.refitted_evidence(ctx, theta_e)
+    for k, v in new.items():
+        if k in f.evidence:
+            f.evidence[f"signature_{k}"] = f.evidence[k]
+        f.evidence[k] = v
+    ev = {k: v for k, v in f.evidence.items() if k != "code"}
+    f.explanation = W.explanation(eff.name, f.evidence["code"],
+                                  dict(ev, share=f.score, fs=ctx.fs), ctx.domain)
+
+
 def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             cannot: list[CannotReveal] | None,
             method: str = "oe") -> tuple[list[Finding], dict[str, Refit]]:
@@ -163,7 +180,9 @@ def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             if flag is not None:  # a refit that lost fit or is below 0 %: never ranked
                 f.evidence["refit_flag"] = flag
                 f.significant = False
-            why_not = eff.implausible(ctx, np.asarray(ref.theta)[len(ctx.theta):])
+            theta_e = np.asarray(ref.theta)[len(ctx.theta):]
+            _refitted_words(eff, ctx, f, theta_e)
+            why_not = eff.implausible(ctx, theta_e)
             if why_not is not None:
                 # it helps, but not as the physics its name says: unexplained, not named
                 f.evidence["implausible"] = why_not

@@ -2,8 +2,13 @@
 
 Signature: the residual is explained by the model response to the input shifted by d samples
 (scanned over d), i.e. the residual–input cross-correlation peaks at a positive lag and the
-phase lag grows with frequency. Extension: the input delayed by a fitted d (fractional
-samples, linear interpolation).
+phase lag grows with frequency. On a generic record whose base fit has absorbed the delay
+into its own lags (a second-order model takes a first-order plant's 3-sample delay into a
+wrong damping and gain: its residual then barely correlates with the shift), the same scan
+is made on the linearised refit (:mod:`rigd.effects.linearised`: the shift together with the
+base's own sensitivities) when the plain one is not decisive. Extension: the input delayed
+by a fitted d (fractional samples, linear interpolation); the size reported is the refit's
+(:meth:`Delay.refitted_evidence`), the signature's first-order estimate only without a refit.
 """
 
 from __future__ import annotations
@@ -14,9 +19,11 @@ from rigd.effects import numbers as N
 from rigd.effects._signals import band_power_share, shift
 from rigd.effects.base import Effect
 from rigd.effects.context import CannotReveal, Context, Finding
+from rigd.effects.linearised import joint_signature
 from rigd.effects.signature import signature_fit
 from rigd.ident.figures import fit_percent
 from rigd.ident.iddata import replace_inputs
+from rigd.ident.thresholds import P_LEVEL
 
 #: scan range of the signature, samples (relative to the record's rate: 4 ms at the rig's
 #: 5 kHz loop; a longer lag is a dynamics the model misses, not a latency)
@@ -66,30 +73,52 @@ class Delay(Effect):
                                 ctx.submodel)
         return None
 
-    def scan(self, ctx: Context) -> tuple[float, np.ndarray, list]:
+    def scan(self, ctx: Context, joint: bool = False) -> tuple[float, np.ndarray, list]:
+        """(delay d, its regressor, its signature) of the trial delay whose signature
+        explains most on the estimation part; ``joint``: the linearised refit's signature."""
         lin = ctx.through_model(ctx.u)
         best = (-1.0, 0.0, None, None)
         for d in self._grid(ctx):
-            z = ctx.through_model(np.column_stack([shift(ctx.u[:, j], d)
-                                                   for j in range(ctx.nu)])) - lin
-            sig = signature_fit(ctx, [z])
+            z = ctx.through_model(_shifted(ctx.u, d)) - lin
+            sig = joint_signature(ctx, [z]) if joint else signature_fit(ctx, [z])
             if sig.score_est > best[0]:
                 best = (sig.score_est, d, z, sig)
         return best[1], best[2], best[3]
 
-    def signature(self, ctx):
-        d, z, sig = self.scan(ctx)
+    def _scan(self, ctx: Context) -> tuple[float, np.ndarray, list]:
+        """The plain scan, or on a generic record whose plain scan is not decisive the
+        linearised one when that is (module docstring)."""
+        plain = self.scan(ctx)
+        if ctx.submodel != "generic" or (plain[2].f_p < P_LEVEL
+                                          and plain[2].score >= self.min_score):
+            return plain
+        joint = self.scan(ctx, joint=True)
+        if joint[2].f_p < P_LEVEL and joint[2].score >= self.min_score:
+            joint[2].extra["linearised"] = True
+            return joint
+        return plain
+
+    def _signature(self, ctx):
+        d, z, sig = self._scan(ctx)
         sig.extra["delay_samples"] = float(d)
         return sig
 
     def regressors(self, ctx):
-        return [self.scan(ctx)[1]]
+        d = self.signature(ctx).extra["delay_samples"]
+        return [ctx.through_model(_shifted(ctx.u, d)) - ctx.through_model(ctx.u)]
 
     def evidence(self, ctx, sig):
         """Evidence code (``lag`` / ``lead``) and numbers (rigd.diagnose.wording)."""
         d = sig.extra.get("delay_samples", 0.0) * float(sig.beta[0] if sig.beta.size else 1.0)
         ev = {"delay_samples": float(d), "delay_ms": float(1000 * d / ctx.fs)}
         return ("lag" if d > 0 else "lead"), ev  # a lead is never printed as a negative delay
+
+    def refitted_evidence(self, ctx, theta_e) -> dict:
+        """The refit's delay (the size reported once refitted: the signature's first-order
+        estimate d·β overshoots when the base had absorbed part of the lag)."""
+        d = max(float(theta_e[0]), 0.0)
+        out = {"delay_samples": d, "delay_ms": 1000 * d / ctx.fs}
+        return dict(out, code="lag") if d > 0 else out
 
     def implausible(self, ctx, theta_e):
         d = float(theta_e[0])
@@ -115,6 +144,9 @@ class Delay(Effect):
 
     def simulate_with(self, sim, theta_e, data, base):
         d = max(0.0, float(theta_e[0]))
-        u = np.asarray(data.inputs, float)
-        return sim(replace_inputs(data, np.column_stack([shift(u[:, j], d)
-                                                         for j in range(u.shape[1])])))
+        return sim(replace_inputs(data, _shifted(np.asarray(data.inputs, float), d)))
+
+
+def _shifted(u: np.ndarray, d: float) -> np.ndarray:
+    """Each column of (n, nu) ``u`` delayed by ``d`` samples (fractional: interpolated)."""
+    return np.column_stack([shift(u[:, j], d) for j in range(u.shape[1])])
