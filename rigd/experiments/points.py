@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +50,21 @@ def play(loop: Any, exc: np.ndarray, **kw: Any) -> Any:
     if getattr(res, "fault", None):
         raise SegmentFault(res.fault)
     return res
+
+
+@dataclass(frozen=True)
+class Hit:
+    """A simulated hammer blow as a segment event: ``plant.impact(axis, peak_n, pulse_s)``
+    when called (in the thread running the cycles). Data, not a closure: the experiment
+    process sends it to the loop's process as ``("impact", axis, peak_n, pulse_s)``."""
+
+    plant: Any
+    axis: str
+    peak_n: float
+    pulse_s: float
+
+    def __call__(self) -> None:
+        self.plant.impact(self.axis, self.peak_n, self.pulse_s)
 
 
 class PointFailed(Exception):
@@ -286,8 +302,7 @@ class PointRunner:
                                   trigger_index=n_pre, trigger=spec.trigger)
                 if spec.trigger == "sim":
                     meta.update(peak_n=spec.peak_n, pulse_s=spec.pulse_s)
-                    def hit(a=spec.axis, f=spec.peak_n, d=spec.pulse_s):
-                        plant.impact(a, f, d)
+                    hit = Hit(plant, spec.axis, spec.peak_n, spec.pulse_s)
 
                 def keep(n, ctrl=ctrl, r=r, path=path):
                     self.manifest.add_file(point, path, kind="impact",

@@ -46,6 +46,8 @@ class Experiment:
     point: Any = None
     source: str = "<spec>"
     text: str | None = None
+    #: SHA-256 of the spec's text when the text itself did not travel (a packed experiment)
+    sha256: str | None = None
 
     @property
     def name(self) -> str:
@@ -121,7 +123,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
                          "loaded: set 'controller:' in the rig config", exp.source)
     _refuse_latched_fault(loop, exp.source)
     k_was = controller_enabled(loop)
-    src = data_source(loop.fast, getattr(loop, "slow", ()))
+    src = getattr(loop, "source_info", None) or data_source(loop.fast, getattr(loop, "slow", ()))
     rd = new_run_dir(run_dir, exp.name, runs_root)
     cfg_text = config_text
     if cfg_text is None:
@@ -131,7 +133,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         experiment={"name": exp.name, "kind": exp.spec.kind, "source": exp.source,
                     "spec": exp.spec.model_dump(mode="json"),
                     "at_each": exp.point.model_dump(mode="json") if exp.point else None,
-                    "spec_sha256": sha256_text(exp.text) if exp.text else None},
+                    "spec_sha256": sha256_text(exp.text) if exp.text else exp.sha256},
         mode=str(getattr(loop, "clock", "unknown")), fs_hz=fs,
         config={"path": config_path or getattr(getattr(loop, "loaded", None), "path", None),
                 "sha256": sha256_text(cfg_text) if cfg_text else None},

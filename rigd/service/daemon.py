@@ -6,7 +6,8 @@
   (:class:`~rigd.service.bridge.SocketFrontend`, :mod:`rigd.service.frontend`) that validates
   every request and answers queries from a snapshot published here; valid commands come back
   to the :class:`~rigd.service.protocol.Dispatcher`, mapping them to the loop and to the
-  :class:`~rigd.experiments.manager.ExperimentManager` (experiments run in a worker thread);
+  :class:`~rigd.service.experiment_host.ExperimentHost` (each experiment's bookkeeping runs
+  in an experiment process of its own, :mod:`rigd.experiments.process`);
 * **sd_notify** (unless ``--no-notify``): ``READY=1`` once the loop cycles, ``STATUS=`` on
   every change (fault latched/reset, experiment), ``WATCHDOG=1`` at half ``WATCHDOG_USEC`` —
   only while the loop's cycle counter advances, so a hung loop gets restarted by systemd —
@@ -48,6 +49,7 @@ from rigd.errors import InputError
 from rigd.log import get_logger
 from rigd.service import spawned
 from rigd.service.bridge import SocketFrontend, as_helper
+from rigd.service.experiment_host import ExperimentHost
 from rigd.service.notify import Notifier
 from rigd.service.protocol import Dispatcher, unpack_controller
 
@@ -123,10 +125,8 @@ class Daemon:
 
     # --- life cycle -------------------------------------------------------------------
     def __enter__(self) -> Daemon:
-        from rigd.experiments.manager import ExperimentManager
-
         runs_root = os.path.abspath(getattr(self.args, "runs_dir", None) or "runs")
-        self.experiments = ExperimentManager(self.loop, runs_root, log=self.log)
+        self.experiments = ExperimentHost(self.loop, runs_root, log=self.log)
         self.dispatcher = Dispatcher(self.loop, self.experiments, info=self._info,
                                      reads_files=False)
         sock = getattr(self.args, "socket", None)

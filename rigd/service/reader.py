@@ -49,21 +49,29 @@ def read_controller(path: str, fs_hz: float | None) -> dict[str, Any]:
 
 
 def read_experiment(path: str | None, spec: dict | None) -> dict[str, Any]:
-    """A file or an inline spec validated: ``{"spec", "point", "source", "text"}``, the fields
-    of :class:`rigd.experiments.runner.Experiment` (built by the experiment manager; only the
-    schemas are imported here, not the runner and its loop).
+    """A file or an inline spec validated and packed for the daemon: ``{"spec", "source",
+    "spec_sha256", "name", "kind"}`` — the validated spec as plain JSON values (no model
+    object crosses: the loop's process never imports the experiment schemas), re-read by
+    the experiment process (:func:`rigd.experiments.process.unpack`).
 
     Raises
     ------
     InputError
     """
+    import hashlib
+
     from rigd.experiments.schemas import load_experiment, spec_from_dict
 
     if spec is not None:
-        s, p = spec_from_dict(spec)
-        return {"spec": s, "point": p, "source": "<spec>", "text": None}
-    s, p, text = load_experiment(path)
-    return {"spec": s, "point": p, "source": str(path), "text": text}
+        s, _ = spec_from_dict(spec)
+        source, sha, name = "<spec>", None, s.name or s.kind
+    else:
+        s, _, text = load_experiment(path)
+        source = str(path)
+        sha = "sha256:" + hashlib.sha256(text.encode("utf-8")).hexdigest()
+        name = s.name or Path(source).stem     # as rigd.experiments.runner.Experiment.name
+    return {"spec": s.model_dump(mode="json"), "source": source, "spec_sha256": sha,
+            "name": name, "kind": s.kind}
 
 
 def warm_up() -> None:

@@ -16,10 +16,10 @@ import pytest
 from rigd.data import load_record
 from rigd.data.manifest import read_manifest
 from rigd.errors import InputError
-from rigd.experiments.manager import ExperimentManager
 from rigd.experiments.runner import run_experiment
 from rigd.loop.app import build_loop
 from rigd.rigconfig import default_config
+from rigd.service.experiment_host import ExperimentHost as ExperimentManager
 
 FS = 5000.0
 # a 300 N hit drives the shaft beyond the allowed fraction of the film gap: the supervisor

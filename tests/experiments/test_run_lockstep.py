@@ -158,10 +158,11 @@ def test_never_overwrites_and_refuses_before_running(loop, tmp_path):
 
 
 def test_manager_start_status_stop(loop, tmp_path):
-    """The daemon's ExperimentManager: runs in a thread, stop keeps completed points."""
+    """The daemon's ExperimentHost: runs in an experiment process, stop keeps completed
+    points."""
     import time
 
-    from rigd.experiments.manager import ExperimentManager
+    from rigd.service.experiment_host import ExperimentHost as ExperimentManager
 
     mgr = ExperimentManager(loop, runs_root=tmp_path / "runs")
     spec = {"kind": "sweep", "grid": {"omega_rpm": [0, 1000, 2000, 3000],

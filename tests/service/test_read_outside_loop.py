@@ -3,6 +3,7 @@ loop's process: the daemon's side (SocketFrontend + Dispatcher(reads_files=False
 in the test process, with every file reader of this process made to fail — a ~0.7 MB
 controller and an experiment still load, and what arrives here is the packed result."""
 
+import hashlib
 import json
 import os
 import socket
@@ -24,8 +25,8 @@ class _Experiments:
 
     def start(self, path=None, spec=None, run_dir=None, experiment=None):
         self.started.append((path, spec, run_dir, experiment))
-        return {"run_dir": run_dir, "name": experiment["spec"].name,
-                "kind": experiment["spec"].kind, "total": None}
+        return {"run_dir": run_dir, "name": experiment["name"], "kind": experiment["kind"],
+                "total": None}
 
     def status(self):
         return {"state": "idle"}
@@ -115,10 +116,14 @@ def test_an_experiment_is_read_in_the_socket_process(daemon_side, tmp_path):
                     "run_dir": str(runs / "a")})
     assert r["ok"], r
     (path, spec, run_dir, experiment), = exps.started
-    # what crossed into this process: the validated spec (and its text, for the manifest)
-    assert sorted(experiment) == ["point", "source", "spec", "text"]
-    assert run_dir == str(runs / "a") and experiment["spec"].kind == "prbs"
-    assert experiment["source"] == str(exp) and experiment["text"] == exp.read_text()
+    # what crossed into this process: the validated spec as plain values (no model object:
+    # this process never imports the experiment schemas) and its text's hash, for the manifest
+    assert sorted(experiment) == ["kind", "name", "source", "spec", "spec_sha256"]
+    assert run_dir == str(runs / "a") and experiment["spec"]["kind"] == "prbs"
+    assert experiment["kind"] == "prbs"
+    assert json.loads(json.dumps(experiment)) == experiment
+    assert experiment["source"] == str(exp) and experiment["name"] == "prbs-w0-p4"
+    assert experiment["spec_sha256"] == "sha256:" + hashlib.sha256(exp.read_bytes()).hexdigest()
     # a run folder outside the runs folder is refused before anything is read
     for bad in (str(tmp_path / "elsewhere"), str(runs / ".." / "x")):
         r = _ask(sock, {"id": 2, "cmd": "experiment.start", "path": str(exp), "run_dir": bad})

@@ -1,0 +1,255 @@
+"""Experiments from the daemon: each in an experiment process of its own.
+
+The daemon's ``experiment.start`` / ``experiment.status`` / ``experiment.stop`` map to
+:meth:`ExperimentHost.start`, :meth:`status` and :meth:`stop`. The experiment's bookkeeping
+(spec, excitation signals, run folder, manifests, renames) runs in a process spawned by module
+name (:mod:`rigd.experiments.process`; import contract: this module and the rest of the
+loop's process never import :mod:`rigd.experiments`); here one thread per experiment only
+answers its small, packed calls on the loop (docs/ARCHITECTURE.md, "The loop's process"):
+
+* a segment: the excitation's samples come in a sealed memfd, mapped read-only and copied
+  once by ``run_segment`` (into the padded array it plays); a hammer blow as
+  ``("impact", axis, peak_n, pulse_s)``, called on the loop's simulated plant at its cycle;
+* ``status``, ``enable``, ``op`` (K∞ on/off, the operating point).
+"""
+
+from __future__ import annotations
+
+import mmap
+import multiprocessing
+import os
+import threading
+from pathlib import Path
+from typing import Any
+
+from rigd.bounded import confined
+from rigd.driver import data_source
+from rigd.errors import FaultError, InputError
+from rigd.spawn import call
+
+#: how long ``start`` waits for the experiment process to make its run folder, s (the spawn
+#: and its imports take seconds on a loaded machine; a spec refused in it answers sooner)
+START_WAIT_S = 60.0
+
+
+def _plant(loop: Any) -> Any | None:
+    """The loop's simulated plant with a hammer (``impact``), or None."""
+    for name in ("fast", "plant", "driver", "fast_driver"):
+        d = getattr(loop, name, None)
+        if d is not None and callable(getattr(d, "impact", None)):
+            return d
+    return None
+
+
+class ExperimentHost:
+    """Runs experiments on ``loop``, each in an experiment process; thread-safe
+    ``start``/``status``/``stop``.
+
+    Parameters
+    ----------
+    loop : rigd.loop.ControlLoop
+    runs_root : path
+        Where run directories go when a request gives no ``run_dir``.
+    log : structlog logger, optional
+    """
+
+    def __init__(self, loop: Any, runs_root: str | Path = "runs", log: Any = None):
+        self.loop = loop
+        self.runs_root = Path(runs_root)
+        self.log = log
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+        self._proc: Any = None
+        self._stop: Any = None
+        self._state: dict[str, Any] = {"state": "idle"}
+        #: set once the running experiment's process said it is done (or ended)
+        self._over = threading.Event()
+        self._over.set()
+
+    def _facts(self) -> dict[str, Any]:
+        """What the runner reads of the loop (fixed while it runs)."""
+        loop = self.loop
+        fs = getattr(loop, "fs", None) or (loop.status() or {}).get("fs_hz")
+        loaded = getattr(loop, "loaded", None)
+        cfg = getattr(getattr(loop, "config", None), "loop", None)
+        fast = getattr(loop, "fast", None)
+        return {"fs_hz": float(fs), "clock": str(getattr(loop, "clock", "unknown")),
+                "k_ramp_s": float(getattr(cfg, "k_ramp_s", 0.05)),
+                "config_path": getattr(loaded, "path", None),
+                "config_text": getattr(loaded, "text", None),
+                "source_info": (data_source(fast, getattr(loop, "slow", ()))
+                                if fast is not None else None),
+                "hammer": _plant(loop) is not None}
+
+    def start(self, path: str | None = None, spec: dict | None = None,
+              run_dir: str | None = None, experiment: dict | None = None) -> dict[str, Any]:
+        """Start an experiment; ``{"run_dir", "name", "kind", "total"}`` once its run folder
+        exists.
+
+        Parameters
+        ----------
+        path, spec : str, dict
+            The experiment YAML or an inline spec (read and validated in the experiment
+            process), or
+        experiment : dict
+            one already read, validated and packed by the socket process
+            (:func:`rigd.service.reader.read_experiment`).
+        run_dir : str, optional
+            Must lie inside the runs folder (symlinks resolved).
+
+        Raises
+        ------
+        InputError
+            Another experiment is running, the run folder is outside the runs folder, or the
+            spec is invalid.
+        """
+        if run_dir is not None:
+            run_dir = str(confined(run_dir, self.runs_root, "experiment.start: run_dir"))
+        request = ({"packed": experiment} if experiment is not None
+                   else {"spec": spec} if spec is not None else {"path": path})
+        with self._lock:
+            if not self._over.is_set():
+                raise InputError("an experiment is already running (experiment.stop first)",
+                                 "experiment.start")
+            ctx = multiprocessing.get_context("spawn")
+            ours, theirs = ctx.Pipe()
+            self._stop = ctx.Event()
+            started = threading.Event()
+            self._over = over = threading.Event()
+            packed = experiment or {}
+            self._state = {"state": "starting", "name": packed.get("name"),
+                           "kind": packed.get("kind"), "done": 0, "total": None,
+                           "run_dir": None, "message": ""}
+            # not daemonic: an operator impact's window is cut in a helper it spawns
+            self._proc = ctx.Process(target=call, name="rigd-experiment", args=(
+                "rigd.experiments.process", "main", theirs, self._stop, request, run_dir,
+                str(self.runs_root), self._facts()))
+            self._proc.start()
+            theirs.close()
+            self._thread = threading.Thread(target=self._serve,
+                                            args=(ours, self._proc, started, over),
+                                            name="rigd-experiment", daemon=True)
+            self._thread.start()
+        started.wait(START_WAIT_S)
+        if self._state["state"] == "failed":
+            raise InputError(self._state["message"], "experiment.start")
+        return {k: self._state.get(k) for k in ("run_dir", "name", "kind", "total")}
+
+    def status(self) -> dict[str, Any]:
+        """State of the current/last experiment (``idle``, ``starting``, ``running``,
+        ``complete``, ``interrupted``, ``failed``) with ``done``/``total`` segments and the
+        run directory; ``fault`` (seq, code, name, text) when a latched fault ended it."""
+        return dict(self._state)
+
+    def stop(self) -> dict[str, Any]:
+        """Ask the running experiment to stop after the current segment."""
+        running = not self._over.is_set()
+        if self._stop is not None:
+            self._stop.set()
+        return {"stopping": running}
+
+    def join(self, timeout: float | None = None) -> None:
+        """Wait up to ``timeout`` for the experiment to be over (tests, shutdown); its process
+        is then given a few seconds to exit, and killed if it has not (or if the experiment is
+        not over by then: a process left behind would hold the daemon's exit)."""
+        over = self._over.wait(timeout)
+        proc = self._proc
+        if proc is not None:
+            proc.join(10.0 if over else 0.0)
+            if proc.is_alive():
+                proc.kill()
+                proc.join(5.0)
+
+    # --- the experiment's thread: answers its process's calls -------------------------
+    def _serve(self, conn: Any, proc: Any, started: threading.Event,
+               over: threading.Event) -> None:
+        try:
+            while True:
+                try:
+                    msg = conn.recv()
+                except (EOFError, OSError):
+                    if self._state.get("state") in ("starting", "running"):
+                        self._state.update(state="failed", message="the experiment process "
+                                           f"ended (exit code {proc.exitcode})")
+                    return
+                kind = msg[0]
+                if kind == "state":
+                    self._state.update(msg[1])
+                    if msg[1].get("state") == "running":
+                        started.set()
+                elif kind == "done":
+                    self._state.update(msg[1])
+                    return
+                elif kind == "call":
+                    conn.send(self._answer(conn, msg[1], msg[2:]))
+        finally:
+            over.set()
+            started.set()
+            conn.close()
+
+    def _answer(self, conn: Any, name: str, args: tuple) -> tuple:
+        try:
+            if name == "segment":
+                return ("ok", self._segment(conn, *args))
+            if name == "status":
+                return ("ok", self.loop.status())
+            if name == "enable":
+                self.loop.enable_controller(bool(args[0]))
+                return ("ok", None)
+            if name == "op":
+                self.loop.set_operating_point(float(args[0]), float(args[1]))
+                return ("ok", None)
+            return ("raise", "internal", f"unknown call {name!r}")
+        except InputError as exc:
+            return ("raise", "input", str(exc))
+        except FaultError as exc:
+            return ("raise", "fault", str(exc))
+        except Exception as exc:  # noqa: BLE001 - the experiment fails, the daemon lives
+            return ("raise", "internal", f"{type(exc).__name__}: {exc}")
+
+    def _segment(self, conn: Any, n: int, record: Any, events: list, controller_on: Any,
+                 stop_on_fault: bool, pre: int, post: int) -> dict[str, Any]:
+        from multiprocessing.reduction import recv_handle
+
+        import numpy as np
+
+        fd = recv_handle(conn)
+        try:
+            size = max(int(n) * 16, 1)
+            if os.fstat(fd).st_size < size:
+                raise InputError(f"segment of {n} samples: its shared memory is too small")
+            with mmap.mmap(fd, size, flags=mmap.MAP_SHARED, prot=mmap.PROT_READ) as mm:
+                exc = np.ndarray((int(n), 2), dtype=np.float64, buffer=mm)
+                try:
+                    res = self.loop.run_segment(
+                        exc, record=self._record(record), events=self._events(events),
+                        controller_on=controller_on, stop_on_fault=stop_on_fault, pre=pre,
+                        post=post)
+                finally:
+                    del exc
+        finally:
+            os.close(fd)
+        return {k: getattr(res, k, None) for k in ("first_seq", "last_seq", "n_frames", "path",
+                                                   "frames", "faults", "fault")}
+
+    @staticmethod
+    def _record(record: Any) -> Any:
+        from rigd.loop.sinks import RecordSpec
+
+        if record is None or record == "memory":
+            return record
+        _, path, meta = record
+        return RecordSpec(str(path), dict(meta))
+
+    def _events(self, events: list) -> list:
+        plant = _plant(self.loop)
+        out = []
+        for off, (what, axis, peak_n, pulse_s) in events:
+            if what != "impact" or plant is None:
+                raise InputError(f"event {what!r} at {off}: no simulated hammer on this loop")
+            out.append((int(off), lambda a=str(axis), f=float(peak_n), d=float(pulse_s):
+                        plant.impact(a, f, d)))
+        return out
+
+
+__all__ = ["ExperimentHost"]
