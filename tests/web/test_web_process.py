@@ -134,3 +134,25 @@ def test_stream_relayed_from_the_daemon(rig):
     for u in updates:
         assert set(u["min"]) == {"e_x", "e_y"} and 0 < len(u["min"]["e_x"]) <= 5
         assert "cycle" in u["status"] and "k_on" in u["status"]
+
+
+def test_a_big_controller_upload_is_parsed_outside_the_daemon(rig, tmp_path):
+    """Issue 21: an 810 kB controller uploaded with the token cost the loop 0.5 s of missed
+    cycles (parsed in its process). The web server stores it as data; the daemon's socket
+    process reads and validates it and the daemon gets its four matrices: it loads, and the
+    daemon never read a file (``tests/service/test_read_outside_loop.py``)."""
+    from bigcontroller import write_big_controller
+
+    d, web, http = rig
+    k = tmp_path / "big.yaml"
+    write_big_controller(k)
+    text = k.read_text()
+    assert len(text) > 700_000
+    seq0 = d.ctl_json("status")["seq"]
+    r = http.post("/api/load", json={"upload": {"name": "big.yaml", "text": text}},
+                  headers=_auth(web), timeout=600)
+    assert r.status_code == 200, r.text
+    st = d.ctl_json("status")
+    assert st["controller"]["loaded"] and "big" in st["controller"]["source"], st["controller"]
+    assert st["controller"]["order"] == 64
+    assert st["seq"] > seq0 and st["fault"]["code"] == 0, st["fault"]
