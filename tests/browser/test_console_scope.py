@@ -45,13 +45,13 @@ def _js(browser, expr):
     return browser.execute_script("return " + expr)
 
 
-def _open(browser, web):
+def _open(browser, web, query=""):
     try:
-        browser.get(web.url + "/")
+        browser.get(web.url + "/" + query)
     except TimeoutException:    # a machine so busy that parsing Plotly outlasts the page-load
         pass                    # timeout: the page goes on loading; the waits below bound it
     box = _wait(browser, lambda drv: (drv.find_elements(By.ID, "token") or [None])[0],
-                what="the page")
+                timeout=300, what="the page")
     box.clear()
     box.send_keys(web.token)
     browser.find_element(By.ID, "token-save").click()
@@ -79,10 +79,61 @@ def _shot(browser, screenshot, name):
         browser.set_window_size(size["width"],
                                 _js(browser, "document.documentElement.scrollHeight") + chrome)
         _wait(browser, lambda drv: drv.execute_script(_PLOTS_FIT), what="plots fitted")
-    path = screenshot(name)
+    for attempt in range(3):     # a renderer too starved to paint in 10 s: try again
+        try:
+            path = screenshot(name)
+            break
+        except TimeoutException:
+            if attempt == 2:
+                raise
     if doc:
         shutil.copyfile(path, ROOT / "docs" / "img" / f"{name}.png")
         browser.set_window_size(size["width"], size["height"])
+
+
+def _record_axes(browser):
+    """{axis title: channels shown on it} of the record view; asserts that every y axis has a
+    shown channel (no empty panel), one unit each (its title ends with it), and that no two
+    axis titles overlap on the page."""
+    got = json.loads(_js(browser, """JSON.stringify((() => {
+        const el = document.getElementById('record-plot'), out = {};
+        for (const [k, ax] of Object.entries(el.layout)) {
+          if (!/^yaxis\\d*$/.test(k)) continue;
+          const ref = k === 'yaxis' ? 'y' : 'y' + k.slice(5);
+          out[(ax.title || {}).text] = el.data.filter(t => t.visible === true && t.yaxis === ref)
+            .map(t => [t.meta, t.name]);
+        }
+        return out; })())"""))
+    for title, chans in got.items():
+        assert chans, f"record axis {title!r} has no shown channel: {got}"
+        for _, name in chans:
+            assert title.endswith(name.split("[", 1)[1].split("]")[0]), (title, name)
+    _no_overlapping_titles(browser, "record-plot")
+    return {title: {c for c, _ in chans} for title, chans in got.items()}
+
+
+def _no_overlapping_titles(browser, plot):
+    """No two of the plot's titles (axes, plot) and its legend overlap on the page."""
+    boxes = json.loads(_js(browser, f"JSON.stringify([...document.querySelectorAll("
+                                    f"'#{plot} .infolayer g[class$=\"title\"] text, "
+                                    f"#{plot} .legend .bg')]"
+                                    ".filter(e => e.getBoundingClientRect().width > 0)"
+                                    ".map(e => {const r = e.getBoundingClientRect(); return "
+                                    "[e.textContent || 'legend', r.left, r.top, r.right, "
+                                    "r.bottom];}))"))
+    assert boxes, f"{plot}: no titles found"
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            apart = a[3] <= b[1] or b[3] <= a[1] or a[4] <= b[2] or b[4] <= a[2]
+            assert apart, f"{plot}: axis titles overlap: {a} {b}"
+
+
+def _legend_click(browser, name):
+    item = [e for e in browser.find_elements(By.CSS_SELECTOR, "#record-plot .legend .traces")
+            if e.find_element(By.CSS_SELECTOR, ".legendtext").text == name]
+    assert item, f"{name} not in the legend"
+    ActionChains(browser.driver).move_to_element(
+        item[0].find_element(By.CSS_SELECTOR, ".legendtext")).click().perform()
 
 
 def _clear_fault(d):
@@ -106,12 +157,26 @@ def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, 
           what="stale state")
     stale = _text(browser, "stale-text")
     assert stale.startswith("disconnected — values are stale (last at ")
+    # greyed: the header's values dimmed, the plots too
+    assert float(_js(browser, "getComputedStyle(document.querySelector('header#top .item'))"
+                              ".opacity")) < 1
+    assert float(_js(browser, "getComputedStyle(document.querySelector('.plots figure'))"
+                              ".opacity")) < 1
     # the header's stream state stays short (the reason is in its tooltip and the banner)
     assert _text(browser, "stream-state") == "no live stream: polling status, traces stopped"
-    # a command while the daemon is down: 503, a message that goes when the daemon is back
+    # SAFE while the daemon is down: it failed, and the page says so (503, an error) ...
+    browser.find_element(By.ID, "safe").click()
+    _wait(browser, lambda drv: _text(browser, "message").startswith("safe: ")
+          and "(HTTP 503)" in _text(browser, "message"), what="failed SAFE shown")
+    assert "error" in browser.find_element(By.ID, "message").get_attribute("class")
+    # ... and another command's 503: each goes once the daemon answers again
     browser.find_element(By.ID, "enable").click()
-    _wait(browser, lambda drv: "(HTTP 503)" in _text(browser, "message"), what="503 shown")
+    _wait(browser, lambda drv: _text(browser, "message").startswith("enable: ")
+          and "(HTTP 503)" in _text(browser, "message"), what="503 shown")
     _shot(browser, screenshot, "console-stale")
+    browser.find_element(By.ID, "safe").click()       # the failed SAFE is the last message
+    _wait(browser, lambda drv: _text(browser, "message").startswith("safe: "),
+          what="failed SAFE shown again")
     d.notify.close()                          # its readiness socket: the new one binds it
     (tmp / "notify.sock").unlink(missing_ok=True)
     d = rig["d"] = start_daemon(tmp)          # the same socket, a new process
@@ -126,7 +191,8 @@ def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, 
     _wait(browser, lambda drv: (_js(browser, "(document.getElementById('traces').data[0].meta"
                                              " || {}).daemon") == new_pid),
           what="traces redrawn for the new daemon")
-    _wait(browser, lambda drv: "503" not in _text(browser, "message"), what="503 message gone")
+    _wait(browser, lambda drv: _text(browser, "message") == "", what="failed SAFE message gone")
+    assert "error" not in browser.find_element(By.ID, "message").get_attribute("class")
     assert _js(browser, "window.rigd.restarts.length") >= 1
     assert "restarted" in _text(browser, "live-note")
     buf_t0 = _js(browser, "window.rigd.buf.t[0]")
@@ -144,7 +210,24 @@ def test_fault_banner_with_reset_and_a_refusal_that_clears_with_the_fault(browse
     _open(browser, web)
     _wait(browser, lambda drv: _js(browser, "window.rigd.renders") > 0, what="traces drawn")
     assert not browser.find_element(By.ID, "fault-banner").is_displayed()
+    # SAFE goes out within the press's own event dispatch: before any drawing the page has
+    # queued (draws run in later animation-frame tasks). The page's fetch of /api/safe is
+    # recorded with whether the pointerdown was still being dispatched and the draw count.
+    browser.execute_script("""
+        const r = window.rigd; r.probe = {down: false, sent: null};
+        window.addEventListener('pointerdown', () => { r.probe.down = true;
+          r.probe.rendersAtDown = r.renders + r.orbitRenders; }, true);
+        window.addEventListener('pointerdown', () => { r.probe.down = false; }, false);
+        const f = window.fetch;
+        window.fetch = function (url, opts) {
+          if (String(url).endsWith('/api/safe') && !r.probe.sent)
+            r.probe.sent = {inDown: r.probe.down, renders: r.renders + r.orbitRenders};
+          return f.apply(this, arguments);
+        };""")
     browser.find_element(By.ID, "safe").click()       # with the Live tab drawing
+    probe = _wait(browser, lambda drv: _js(browser, "window.rigd.probe.sent"), what="SAFE sent")
+    assert probe["inDown"] is True, probe
+    assert probe["renders"] == _js(browser, "window.rigd.probe.rendersAtDown"), probe
     wait_for(lambda: d.ctl_json("status")["fault"]["name"] == "operator_safe", timeout=60,
              what="operator_safe latched")
     banner = _wait(browser, lambda drv: drv.find_element(By.ID, "fault-banner").is_displayed()
@@ -165,6 +248,29 @@ def test_fault_banner_with_reset_and_a_refusal_that_clears_with_the_fault(browse
     assert click["seq"] is not None and click["wall_ms"] > 0
     errors = browser.take_console_errors()              # the 409 response
     assert all("409" in e for e in errors), errors
+
+
+def test_webgl_traces_and_server_side_decimation(browser, rig):
+    d, web = rig["d"], rig["web"]
+    _clear_fault(d)
+    _open(browser, web, "?gl=1")             # WebGL forced (the page picks SVG on SwiftShader)
+    _wait(browser, lambda drv: _js(browser, "window.rigd.renders") > 1
+          and _js(browser, "window.rigd.orbitRenders") > 1, what="traces and orbit drawn")
+    for key in ("orbit", "traces"):
+        types = _js(browser, f"document.getElementById('{key}').data.map(t => t.type)")
+        assert set(types) == {"scattergl"}, (key, types)
+    # the stream is decimated by the server: 4 min/max buckets per update at 50 updates/s,
+    # each bucket covering many 5 kHz frames (the page never receives the raw frames)
+    sub = _js(browser, "window.rigd.subscription")
+    assert sub["points"] == 4 and sub["rate_hz"] == 50, sub
+    u0 = _js(browser, "window.rigd.updates")
+    _wait(browser, lambda drv: _js(browser, "window.rigd.updates") > u0 + 50, what="50 updates")
+    assert 1 <= _js(browser, "window.rigd.maxBuckets") <= 4
+    t = _wait(browser, lambda drv: (lambda v: v if len(v) >= 10 else None)(
+        _js(browser, "window.rigd.buf.t")), what="10 buckets in the buffer")
+    assert len(t) <= 4 * 50 * 2.5 + 4          # 2.5 s kept: ~1 bucket per pixel column
+    assert (t[-1] - t[0]) / (len(t) - 1) >= 1 / 5000 * 10     # ≥ 10 frames per bucket
+    assert browser.console_errors() == []
 
 
 def test_operating_point_form_follows_refuses_and_confirms(browser, screenshot, rig):
@@ -240,16 +346,43 @@ def test_scope_orbit_pause_trigger_cursor_trends_units(browser, screenshot, rig)
     _wait(browser, lambda drv: _js(browser, "document.getElementById('orbit').layout.xaxis"
                                    ".range[1]") >= gap, what="film-gap scale")
     browser.find_element(By.CSS_SELECTOR, "[data-orbit=auto]").click()
+    _wait(browser, lambda drv: "scale auto" in _text(browser, "orbit-cap"), what="auto scale")
+    # zoom: a drag on the orbit narrows the view and the redraws keep it (scale "user") ...
+    r_auto = _js(browser, "document.getElementById('orbit').layout.xaxis.range[1]")
+    drag = browser.find_element(By.CSS_SELECTOR, "#orbit .nsewdrag")
+    ActionChains(browser.driver).move_to_element_with_offset(drag, -40, -40).click_and_hold() \
+        .move_by_offset(40, 40).move_by_offset(40, 40).release().perform()
+    _wait(browser, lambda drv: "scale user" in _text(browser, "orbit-cap"), what="zoomed")
+    zoomed = _js(browser, "document.getElementById('orbit').layout.xaxis.range")
+    assert zoomed[1] - zoomed[0] < 2 * r_auto
+    n0 = _js(browser, "window.rigd.orbitRenders")
+    try:
+        _wait(browser, lambda drv: _js(browser, "window.rigd.orbitRenders") > n0 + 3,
+              timeout=180, what="redraws")
+    except TimeoutException:
+        raise AssertionError("no orbit redraws after the zoom: " + _js(
+            browser, "JSON.stringify([window.rigd.orbitRenders, window.rigd.renders, "
+            "window.rigd.updates, window.rigd.mode, window.rigd.stale, window.rigd.orbitScale])"
+        )) from None
+    assert _js(browser, "document.getElementById('orbit').layout.xaxis.range") == zoomed
+    # ... and a double-click goes back to auto
+    ActionChains(browser.driver).double_click(drag).perform()
+    _wait(browser, lambda drv: "scale auto" in _text(browser, "orbit-cap"), what="auto again")
     # units on every axis, one axis group per unit, distinct colours
     lay = json.loads(_js(browser, "JSON.stringify(document.getElementById('traces').layout)"))
     titles = [lay[k]["title"]["text"] for k in ("yaxis", "yaxis2", "yaxis3")]
-    assert titles[0].endswith("µm") and titles[1].endswith("V") and titles[2].endswith("V")
+    assert titles == ["e, µm", "x/y, V", "valves, V"]
+    # which channel on which axis: the lumped x/y signals and the valves on V axes of their own
+    on = json.loads(_js(browser, "JSON.stringify(document.getElementById('traces').data"
+                                 ".map(t => [t.name, t.yaxis]))"))
+    assert {n for n, a in on if a == "y"} == {"e_x", "e_y"}
+    assert {n for n, a in on if a == "y2"} == {"u_x", "u_y", "r_x", "r_y", "K∞ k_x", "K∞ k_y"}
+    assert {n for n, a in on if a == "y3"} == {f"{k}_p{i}" for k in "yr" for i in range(1, 5)}
+    # distinct over each whole plot (one legend for all its axes)
     for key in ("traces", "trends"):
-        data = json.loads(_js(browser, f"JSON.stringify(document.getElementById('{key}').data"
-                                       ".map(t => [t.yaxis || 'y', t.line && t.line.color]))"))
-        for axis in {a for a, _ in data}:
-            cols = [c for a, c in data if a == axis and c]
-            assert len(cols) == len(set(cols)), (key, axis, cols)
+        cols = [c for c in _js(browser, f"document.getElementById('{key}').data"
+                                        ".map(t => t.line && t.line.color)") if c]
+        assert len(cols) == len(set(cols)), (key, cols)
     # cycle times on a log scale
     _wait(browser, lambda drv: _js(browser, "(document.getElementById('timing').layout || {})"
                                    ".yaxis") is not None, what="timing drawn")
@@ -327,6 +460,7 @@ def test_scope_orbit_pause_trigger_cursor_trends_units(browser, screenshot, rig)
         axes = {k: (v.get("title") or {}).get("text") for k, v in lay.items()
                 if re.fullmatch(r"[xy]axis\d*", k)}
         assert axes and all(axes.values()), (key, axes)
+        _no_overlapping_titles(browser, key)
     _shot(browser, screenshot, "console-scope")
     d.ctl("reset")
 
@@ -370,19 +504,20 @@ def test_record_view_one_axis_per_unit_and_failed_run_reason(browser, screenshot
     row.find_element(By.CSS_SELECTOR, "button.open-record").click()
     _wait(browser, lambda drv: _js(browser, "(document.getElementById('record-plot').data "
                                    "|| []).length") > 0, what="record plotted")
-    data = json.loads(_js(browser, "JSON.stringify(document.getElementById('record-plot').data"
-                                   ".map(t => [t.name, t.yaxis, t.line.color]))"))
-    lay = json.loads(_js(browser, "JSON.stringify(document.getElementById('record-plot').layout)"))
-    by_axis = {}
-    for name, axis, _ in data:
-        unit = name.rsplit("[", 1)[1].rstrip("]")
-        by_axis.setdefault(axis, set()).add(unit)
-        key = "yaxis" if axis == "y" else "yaxis" + axis[1:]
-        assert lay[key]["title"]["text"] == unit
-    assert all(len(units) == 1 for units in by_axis.values()), by_axis
-    colours = [c for _, _, c in data]
+    axes = _record_axes(browser)
+    assert axes["µm"] == {"e_x", "e_y"}                                # not the file's "um"
+    assert axes["x/y, V"] >= {"u_x", "u_y", "r_x", "r_y"}
+    assert "valves, V" not in axes                # no valve shown: no empty valve panel
+    colours = _js(browser, "document.getElementById('record-plot').data.map(t => t.line.color)")
     assert len(colours) == len(set(colours))
-    assert "µm" in {u for units in by_axis.values() for u in units}     # not the file's "um"
+    # a legend click shows a valve: the valves get their own V axis (not the x/y one) ...
+    _legend_click(browser, "y_p1 [V]")
+    _wait(browser, lambda drv: "valves, V" in _record_axes(browser), what="valve axis shown")
+    axes = _record_axes(browser)
+    assert axes["valves, V"] == {"y_p1"} and "y_p1" not in axes["x/y, V"]
+    # ... hiding the last channel of a unit takes its panel away (Ω: the rpm axis)
+    _legend_click(browser, "omega_rpm [rpm]")
+    _wait(browser, lambda drv: "rpm" not in _record_axes(browser), what="rpm axis gone")
     # every shown channel is drawn (a path; a constant one simplified to a few points), the
     # varying positions with their thousands of buckets
     drawn = ("JSON.stringify([document.getElementById('record-plot').data.filter("

@@ -18,13 +18,13 @@ export async function command(name, body, okText) {
   } else {
     const e = String(r.body.error || "failed");
     // a refusal because of a latched fault goes once the fault is reset; "not reachable"
-    // once the daemon answers again — but a SAFE that failed stays until the next message:
-    // the rig did not go safe, and the daemon coming back does not change that
-    const cause = name === "safe" ? null : r.status === 409 && /fault/i.test(e) ? "fault"
+    // (SAFE's too) once the daemon answers again: from then on the header, not an old
+    // error, says whether the rig is safe (fault: operator_safe, or none)
+    const cause = r.status === 409 && /fault/i.test(e) ? "fault"
       : (r.status === 503 || r.status === 0) ? "conn" : null;
     say((e.startsWith(name + ":") ? e : name + ": " + e) + " (HTTP " + r.status + ")", "error", cause);
   }
-  refreshStatus();
+  refreshStatus(true);
   return r;
 }
 

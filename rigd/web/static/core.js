@@ -64,13 +64,23 @@ export function clock(ms) {
 // ---------------------------------------------------------------- units and colours
 /** The unit of a record/stream channel (docs/ARCHITECTURE.md). */
 export function unitOf(c) {
-  if (/^(e_|x_)/.test(c)) return "µm";
-  if (/^(u_|r_|k_[xy]|y_p|r_p|v_)/.test(c)) return "V";
+  if (/^e_/.test(c)) return "µm";
+  if (/^(u_|r_|k_[xy]|x_[xy]|y_p|r_p|v_)/.test(c)) return "V";
   if (c === "omega_rpm") return "rpm";
   if (c === "p_inj_bar") return "bar";
   if (c === "phi") return "rad";
   if (/^f_/.test(c)) return "N";
   return "";
+}
+
+/** The axis group of channel `c` whose unit is `unit` (one unit per group; V split by role,
+ * as on the Live tab: the lumped x/y signals of Eq. 1 and the four valves' own): {key, label}.
+ * GROUP_ORDER lists the keys top to bottom. */
+export const GROUP_ORDER = ["µm", "V lumped", "V valves", "rpm", "bar", "rad", "N", "1"];
+export function groupOf(c, unit) {
+  if (unit === "V" && /^(y_p|r_p|v_)/.test(c)) return {key: "V valves", label: "valves, V"};
+  if (unit === "V" && /^(u_[xy]|r_[xy]|k_[xy]|x_[xy])$/.test(c)) return {key: "V lumped", label: "x/y, V"};
+  return {key: unit, label: unit === "1" ? "flags (1)" : unit};
 }
 
 // 20 distinct colours (no repeats within a plot): Tableau 10 then its darker/lighter mates
@@ -105,8 +115,10 @@ export const RECORD_CONFIG = {displaylogo: false, responsive: true};
 
 export function layoutBase(title, extra) {
   return Object.assign({
-    title: {text: title, font: {size: 13}}, margin: {l: 58, r: 10, t: 30, b: 36},
-    legend: {orientation: "h", y: -0.14, font: {size: 10}}, uirevision: "keep",
+    title: {text: title, font: {size: 13}}, margin: {l: 58, r: 10, t: 30, b: 40},
+    // inside the plot's top-left corner: below it, it would sit on the x axis's title
+    legend: {orientation: "h", x: 0.01, xanchor: "left", y: 0.99, yanchor: "top",
+      bgcolor: "rgba(255,255,255,0.75)", font: {size: 10}}, uirevision: "keep",
   }, extra || {});
 }
 

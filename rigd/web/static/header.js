@@ -11,39 +11,59 @@ function setText(id, text) {
   if (e.textContent !== text) e.textContent = text;
 }
 
-/** Show one status (the stream's `status` object, or one built from GET /api/status). */
+/** The header is repainted at most this often, ms: the stream brings 50 statuses a second,
+ * and writing the page's text 50 times a second costs a style and layout pass each. */
+export const HEADER_MS = 100;
+let pending = null, paintedAt = -1e9;
+
+/** Take one status (the stream's `status` object, or one built from GET /api/status): kept at
+ * once (rigd.lastStatus, the staleness clock), shown in the header at the next animation frame
+ * at most every HEADER_MS (the newest status then; a latched fault stays latched in it). */
 export function showStatus(s) {
   rigd.lastStatus = s;
   rigd.lastGood = Date.now();
   if (rigd.stale) setStale(false);
-  if (s.cycle !== undefined && s.cycle !== null) {
-    rigd.cycle = s.cycle;
-    setText("cycle", String(s.cycle));
-  }
-  const k = $("kinf");
+  if (s.cycle !== undefined && s.cycle !== null) rigd.cycle = s.cycle;
+  if (s.compute_us || s.lateness_us) rigd.timing = {compute_us: s.compute_us, lateness_us: s.lateness_us};
+  const scheduled = pending !== null;
+  pending = s;
+  if (!scheduled) requestAnimationFrame(paintStatus);
+}
+
+function paintStatus(now) {
+  if (now - paintedAt < HEADER_MS) { requestAnimationFrame(paintStatus); return; }
+  paintedAt = now;
+  const s = pending;
+  pending = null;
+  if (s.cycle !== undefined && s.cycle !== null) setText("cycle", String(s.cycle));
   setText("kinf", s.k_on ? "on" : (s.k_loaded === false ? "off (none loaded)" : "off"));
-  k.className = "badge " + (s.k_on ? "on" : "off");
+  setClass("kinf", "badge " + (s.k_on ? "on" : "off"));
   setText("omega", fmt(s.omega_rpm, 0));
   setText("pinj", fmt(s.p_inj_bar, 2));
   if (s.misses !== undefined && s.misses !== null) setText("misses", String(s.misses));
   showFault(s.fault || {});
   if (s.experiment) showExperiment(s.experiment);
-  if (s.compute_us || s.lateness_us) rigd.timing = {compute_us: s.compute_us, lateness_us: s.lateness_us};
   followSetPoint(s);
+  rigd.headerPaints = (rigd.headerPaints || 0) + 1;
+}
+
+function setClass(id, cls) {
+  const e = $(id);
+  if (e.className !== cls) e.className = cls;
 }
 
 function showFault(f) {
   const latched = !!f.code;
   // the header names it (the banner below says it whole)
   setText("fault", latched ? f.name + " (cycle " + f.seq + ")" : "none");
-  $("fault").title = latched ? f.text : "";
-  $("fault").className = latched ? "faulted" : "";
+  if ($("fault").title !== (latched ? f.text : "")) $("fault").title = latched ? f.text : "";
+  setClass("fault", latched ? "faulted" : "");
   const b = $("fault-banner");
   if (latched) {
     setText("fault-text", "FAULT " + f.name + " latched at cycle " + f.seq + ": " + f.text +
       " — the rig is in the safe state (K∞ off, excitation off)");
   }
-  b.hidden = !latched;
+  if (b.hidden !== !latched) b.hidden = !latched;
   if (!latched) causeCleared("fault");
 }
 

@@ -2,7 +2,7 @@
 // and its fallback (polling GET /api/status), the trace buffers (cleared, visibly, when the
 // daemon restarts or the stream has a gap), the daemon's identity, the trends of the last
 // minutes and the scope's pause and trigger. docs/web.md.
-import {$, api, clock, rigd} from "./core.js";
+import {$, api, causeCleared, clock, rigd} from "./core.js";
 import {checkStale, showExperiment, showStatus} from "./header.js";
 
 export const TRACE_S = 2.0;   // seconds of history in the time traces
@@ -245,11 +245,14 @@ function takeStatus(s, seqNow) {
   rigd.prevStatus = s;
 }
 
-/** GET /api/status into the header (when the stream is not live); returns its body or null. */
-export async function refreshStatus() {
+/** GET /api/status into the header (when the stream is not live); returns its body or null.
+ * An answer clears a "not reachable" message (cause "conn") unless `keepConn` (a command's
+ * own follow-up: its error is shown at least until the next read). */
+export async function refreshStatus(keepConn) {
   const r = await api("/api/status");
   if (r.ok) {
     if (rigd.mode !== "stream") takeStatus(statusFromCtl(r.body), r.body.seq);
+    if (keepConn !== true) causeCleared("conn");
     return r.body;
   }
   rigd.lastError = r.status ? r.status + ": " + (r.body.error || "") : (r.body.error || "");
@@ -265,7 +268,7 @@ function startPolling(reason) {
   $("stream-state").textContent = "no live stream: polling status, traces stopped";
   $("stream-state").title = "live stream unavailable: " + reason;
   if (poller) return;
-  poller = setInterval(refreshStatus, 500);
+  poller = setInterval(() => refreshStatus(), 500);
 }
 
 export function connectStream() {
@@ -277,12 +280,15 @@ export function connectStream() {
     $("stream-state").textContent = "live " + rigd.subscription.rate_hz + " Hz";
     $("stream-state").title = "";
     retryMs = 1000;
+    causeCleared("conn");     // the daemon streams again: a "not reachable" message is over
     if (poller) { clearInterval(poller); poller = null; }
     fetchIdentity();
   });
   es.onmessage = (e) => {
     const u = JSON.parse(e.data);
     rigd.updates++;
+    // the server decimates: at most POINTS min/max buckets per update, whatever the frames
+    rigd.maxBuckets = Math.max(rigd.maxBuckets || 0, (u.t || []).length);
     rigd.lastSeq = u.seq;
     rigd.lastWallNs = u.wall_ns;
     if (u.status) takeStatus(Object.assign({cycle: u.seq}, u.status), u.seq);

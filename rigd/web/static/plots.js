@@ -11,13 +11,16 @@ const TRACES_MS = 200;     // the time traces 5 times
 const TREND_MS = 1000;     // trends and cycle times once a second
 const DUTY = 0.1;          // drawing takes at most this fraction of the wall time
 
+// one axis group per unit (V split by role: the lumped x/y signals, the valves), short titles
+// that fit their third of the plot (core.js groupOf: the record view's groups)
 const GROUPS = [
-  {unit: "µm", label: "p = (e_x, e_y), µm", chans: ["e_x", "e_y"]},
-  {unit: "V", label: "u, r, K∞ k, V", chans: ["u_x", "u_y", "r_x", "r_y", "k_x", "k_y"]},
-  {unit: "V", label: "valves y_p, r_p, V", chans: ["y_p1", "y_p2", "y_p3", "y_p4", "r_p1", "r_p2", "r_p3", "r_p4"]},
+  {unit: "µm", label: "e, µm", chans: ["e_x", "e_y"]},
+  {unit: "V", label: "x/y, V", chans: ["u_x", "u_y", "r_x", "r_y", "k_x", "k_y"]},
+  {unit: "V", label: "valves, V", chans: ["y_p1", "y_p2", "y_p3", "y_p4", "r_p1", "r_p2", "r_p3", "r_p4"]},
 ];
 const NAMES = {k_x: "K∞ k_x", k_y: "K∞ k_y"};
-const COLOURS = Object.assign({}, ...GROUPS.map((g) => colours(g.chans)));
+// distinct over the whole plot (its one legend names every trace by colour)
+const COLOURS = colours(GROUPS.flatMap((g) => g.chans));
 
 // WebGL traces (`scattergl`) where WebGL runs on a GPU; SVG traces where it would be emulated on
 // the CPU (Chromium's SwiftShader: there each WebGL redraw costs more CPU than the SVG one and
@@ -243,7 +246,8 @@ async function drawHistogram() {
   }
   Plotly.react("timing-hist", bars, layoutBase("cycle-time histogram",
     {barmode: "overlay", yaxis: {type: "log", title: {text: "cycles (log)"}},
-      xaxis: {title: {text: "µs"}}}), PLOT_CONFIG);
+      xaxis: {title: {text: "µs"}}, legend: {orientation: "h", x: 0.99, xanchor: "right", y: 0.99,
+        yanchor: "top", bgcolor: "rgba(255,255,255,0.75)", font: {size: 10}}}), PLOT_CONFIG);
   rigd.histRenders++;
 }
 
@@ -277,6 +281,8 @@ function drawOne(now) {
 }
 
 function renderLoop(now) {
+  // the next frame is asked for first: a draw that throws must not end the drawing for good
+  requestAnimationFrame(renderLoop);
   if ($("live").classList.contains("active") && now >= nextDraw && !pendingInput()) {
     const a = performance.now();
     if (drawOne(now)) {
@@ -287,7 +293,6 @@ function renderLoop(now) {
       nextDraw = now + Math.min(d / DUTY, 500);
     }
   }
-  requestAnimationFrame(renderLoop);
 }
 
 export function startRendering() {
