@@ -104,13 +104,15 @@ function drawOrbit(force) {
     orbitRange = want;
     const lay = orbitLayout(want || 1, m);
     if (rigd.orbitScale === "user" && el.layout) { lay.xaxis.range = el.layout.xaxis.range; lay.yaxis.range = el.layout.yaxis.range; }
-    Plotly.react(el, data, lay, PLOT_CONFIG);
+    // double-click is ours (back to auto), not Plotly's reset to the first ranges drawn
+    Plotly.react(el, data, lay, Object.assign({}, PLOT_CONFIG, {doubleClick: false}));
     if (!el.dataset.wired) {
       el.dataset.wired = "1";
       el.on("plotly_relayout", (ev) => {
         if ("xaxis.range[0]" in ev && !rigd.orbitRelayout) { rigd.orbitScale = "user"; setButtons(); }
         else if (ev["xaxis.autorange"]) setOrbitScale("auto");
       });
+      el.on("plotly_doubleclick", () => setOrbitScale("auto"));
     }
   } else {
     Plotly.restyle(el, {x: [x, x.slice(-1)], y: [y, y.slice(-1)], meta: [data[0].meta, null]});

@@ -85,14 +85,16 @@ function recordAxes(traces) {
     const i = shown.indexOf(t.legendgroup);
     t.yaxis = i < 0 ? "y" : st.ref[i];
   }
-  return {st, n: shown.length};
+  return {st, n: shown.length, shown};
 }
 
 function recordLayout(title, traces, t0, t1) {
-  const {st, n} = recordAxes(traces);
+  const {st, n, shown} = recordAxes(traces);
   const layout = layoutBase(title, Object.assign({
     xaxis: {title: {text: "t, s"}, anchor: st.ref.length ? st.ref[st.ref.length - 1] : "y"},
-    uirevision: title, margin: {l: 70, r: 10, t: 30, b: 40},
+    // a new set of axes is a new revision: Plotly would otherwise bring back the user state of
+    // an axis that is gone (an untitled, empty panel)
+    uirevision: title + "|" + shown.join(","), margin: {l: 70, r: 10, t: 30, b: 40},
     legend: {orientation: "v", x: 1.01, y: 1, font: {size: 10}, groupclick: "toggleitem"},
   }, st.axes));
   if (!n) {
