@@ -279,25 +279,12 @@ def _newton_solve(nt, mz, n, c, A, c0, xb, yb, cs, wts, p, hist, rate, d, jA, jB
         for b in range(NR):
             cap[a, b] = 1.0 if a == b else 0.0
         vr[a] = 0.0
-    a2 = 2.0 * A
-    for i in range(nt):
-        ci = cs[i]
-        si = cs[nt + i]
-        for j in range(mz):
-            k = i * mz + j
-            for b in range(NR):
-                cap[0, b] += -a2 * ci * d[i, j, 1 + b]
-                cap[1, b] += -a2 * si * d[i, j, 1 + b]
-            vr[0] += -a2 * ci * d[i, j, 0]
-            vr[1] += -a2 * si * d[i, j, 0]
-            for v in range(NV):
-                w = wts[v * n + k]
-                if w != 0.0:
-                    for b in range(NR):
-                        cap[2 + v, b] += w * d[i, j, 1 + b]
-                    vr[2 + v] += w * d[i, j, 0]
+    for b in range(NR):
+        _vt_column(nt, mz, n, A, cs, wts, d, 1 + b, cap[:, b])
+    _vt_column(nt, mz, n, A, cs, wts, d, 0, vr)
     # y = cap⁻¹ (Vᵀ z)  (cap is overwritten)
-    _solve_dense(cap, capi, vr, NR)
+    inv_small(cap, capi, NR)
+    _matvec(capi, vr, NR)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -314,29 +301,32 @@ def _chord_solve(nt, mz, n, c, A, c0, xb, yb, cs, wts, p, hist, rate, d, jA, jC,
     block_cyclic_resolve(jA, jC, d, Dinv, E, Ginv, gv)
     for a in range(NR):
         vr[a] = 0.0
+    _vt_column(nt, mz, n, A, cs, wts, d, 0, vr)
+    _matvec(capi, vr, NR)
+
+
+@numba.njit(cache=True, nogil=True)
+def _vt_column(nt, mz, n, A, cs, wts, d, col, out):
+    """out[:NR] += Vᵀ d[:, :, col]: the low-rank rows V of the Woodbury update (film force
+    x, y — the area 2A cos θ, sin θ with its sign — and the four feed-patch means) applied
+    to one column of the block solve, accumulated cell by cell in k order."""
     a2 = 2.0 * A
     for i in range(nt):
         ci = cs[i]
         si = cs[nt + i]
         for j in range(mz):
             k = i * mz + j
-            vr[0] += -a2 * ci * d[i, j, 0]
-            vr[1] += -a2 * si * d[i, j, 0]
+            out[0] += -a2 * ci * d[i, j, col]
+            out[1] += -a2 * si * d[i, j, col]
             for v in range(NV):
                 w = wts[v * n + k]
                 if w != 0.0:
-                    vr[2 + v] += w * d[i, j, 0]
-    for r in range(NR):
-        s = 0.0
-        for q in range(NR):
-            s += capi[r, q] * vr[q]
-        vr[NR + r] = s
+                    out[2 + v] += w * d[i, j, col]
 
 
 @numba.njit(cache=True, nogil=True)
-def _solve_dense(a, inv, v, m):
-    """v[m:2m] = a⁻¹ v[:m] (Gauss–Jordan inverse of the solver module; a overwritten)."""
-    inv_small(a, inv, m)
+def _matvec(inv, v, m):
+    """v[m:2m] = inv · v[:m] (m × m)."""
     for r in range(m):
         s = 0.0
         for q in range(m):
