@@ -1,4 +1,4 @@
-"""Argument and printing helpers shared by the modelling commands (not a command itself).
+"""Argument and printing helpers shared by the commands (not a command itself).
 
 Commands never import each other; what several of them parse is defined once here.
 """
@@ -13,14 +13,16 @@ from typing import Any
 from rigd.plain import plain
 
 
-def print_json(obj: Any) -> None:
-    """Print ``obj`` as one line of strict JSON on stdout (the ``--json`` outputs).
+def print_json(obj: Any, indent: int | None = None) -> None:
+    """Print ``obj`` as strict JSON on stdout (the ``--json`` outputs): one line, or
+    pretty-printed with ``indent`` spaces per level.
 
     Goes through :func:`rigd.plain.plain`, the project's one NaN policy: a non-finite number
     (a diverged fit is ``-inf`` %) becomes ``null``, never ``NaN``/``-Infinity``, which strict
-    JSON readers (``jq``, browsers, Go, Rust) refuse.
+    JSON readers (``jq``, browsers, Go, Rust) refuse; anything else JSON cannot hold is
+    written as its ``str``.
     """
-    sys.stdout.write(json.dumps(plain(obj), allow_nan=False) + "\n")
+    sys.stdout.write(json.dumps(plain(obj), allow_nan=False, indent=indent) + "\n")
 
 
 def add_range_argument(p: argparse.ArgumentParser) -> None:

@@ -18,7 +18,8 @@ The pipeline is :func:`rigd.api.demo.run_demo` (default plant: the physics-grade
 from __future__ import annotations
 
 import argparse
-import json
+
+from rigd.cli._args import print_json
 
 HELP = ("run the whole story (identify, diagnose, add, design, deploy, impacts) on the "
         "simulated rig")
@@ -52,5 +53,5 @@ def run(args: argparse.Namespace) -> int:
     shown = {k: s[k] for k in keys}
     shown["diagnosis"] = {k: s["diagnosis"][k] for k in ("named", "named_by_submodel",
                                                          "fit_before", "fit_after")}
-    print(json.dumps(shown, indent=2, default=float))
+    print_json(shown, indent=2)
     return 0

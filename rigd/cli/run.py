@@ -9,8 +9,9 @@ sd_notify, signals). A ``--record`` file says its ``source`` (simulated or rig) 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
+
+from rigd.cli._args import print_json
 
 HELP = "run the 5 kHz control loop (simulated plant by default), print timing statistics"
 
@@ -112,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     timing = loop.timing()
     faults = loop.faults()
     if args.json:
-        print(json.dumps({"timing": timing, "faults": faults}, indent=2, default=str))
+        print_json({"timing": timing, "faults": faults}, indent=2)
     else:
         print(format_summary(timing))
         for f in faults:
