@@ -36,6 +36,27 @@ def rig(tmp_path_factory):
         state["d"].stop()
 
 
+def _restart_daemon(rig):
+    """A new daemon on the rig's socket (the old one stopped): ``rig["d"]`` is the new one."""
+    if rig["d"].proc.poll() is None:
+        rig["d"].stop()
+    rig["d"].notify.close()                   # its readiness socket: the new one binds it
+    (rig["tmp"] / "notify.sock").unlink(missing_ok=True)
+    rig["d"] = start_daemon(rig["tmp"])       # the same socket, a new process
+    return rig["d"]
+
+
+@pytest.fixture(autouse=True)
+def _daemon_running(request):
+    """Before each test: a daemon that a failed test left stopped is started again (one
+    failure stays one failure, not the cause of every later test's)."""
+    if "rig" in request.fixturenames:
+        rig = request.getfixturevalue("rig")
+        if rig["d"].proc.poll() is not None:
+            _restart_daemon(rig)
+    yield
+
+
 def _wait(browser, cond, timeout=90, what=""):
     return WebDriverWait(browser.driver, timeout, poll_frequency=0.1).until(
         lambda drv: cond(drv), message=what)
@@ -142,7 +163,7 @@ def _clear_fault(d):
 
 
 def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, rig):
-    d, web, tmp = rig["d"], rig["web"], rig["tmp"]
+    d, web = rig["d"], rig["web"]
     _open(browser, web)
     old_pid = d.ctl_json("ping")["pid"]
     _wait(browser, lambda drv: _js(browser, "window.rigd.daemon.pid") == old_pid
@@ -164,6 +185,18 @@ def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, 
                               ".opacity")) < 1
     # the header's stream state stays short (the reason is in its tooltip and the banner)
     assert _text(browser, "stream-state") == "no live stream: polling status, traces stopped"
+    # the banner is one line whatever its reason (the whole text in its tooltip): a reason
+    # that wrapped it moved the controls below while a click was aiming at one
+    moved = _js(browser, """(() => {
+        const top = () => document.getElementById('enable').getBoundingClientRect().top;
+        const s = document.getElementById('stale-text'), before = top(), old = s.textContent;
+        s.textContent = old + ' ' + 'a long reason '.repeat(60);
+        const after = top();
+        s.textContent = old;
+        return after - before; })()""")
+    assert moved == 0, f"a longer stale reason moved the controls by {moved} px"
+    assert _js(browser, "document.getElementById('stale-text').title").startswith(
+        "disconnected — values are stale (last at ")
     # SAFE while the daemon is down: it failed, and the page says so (503, an error) ...
     browser.find_element(By.ID, "safe").click()
     _wait(browser, lambda drv: _text(browser, "message").startswith("safe: ")
@@ -177,9 +210,7 @@ def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, 
     browser.find_element(By.ID, "safe").click()       # the failed SAFE is the last message
     _wait(browser, lambda drv: _text(browser, "message").startswith("safe: "),
           what="failed SAFE shown again")
-    d.notify.close()                          # its readiness socket: the new one binds it
-    (tmp / "notify.sock").unlink(missing_ok=True)
-    d = rig["d"] = start_daemon(tmp)          # the same socket, a new process
+    d = _restart_daemon(rig)
     new_pid = d.ctl_json("ping")["pid"]
     assert new_pid != old_pid
     _wait(browser, lambda drv: _js(browser, "window.rigd.daemon && window.rigd.daemon.pid")

@@ -86,8 +86,12 @@ export function setStale(stale, reason) {
   const b = $("stale-banner");
   if (stale) {
     const last = rigd.lastGood ? "last at " + clock(rigd.lastGood) : "never received";
-    setText("stale-text", "disconnected — values are stale (" + last + ")" +
-      (reason ? ": " + reason : ""));
+    const text = "disconnected — values are stale (" + last + ")" + (reason ? ": " + reason : "");
+    // one line whatever the reason's length (cut with an ellipsis, whole in the tooltip): a
+    // banner that wrapped for one reason and not another moved every control below it while
+    // the operator (or a test's click) was aiming at one
+    setText("stale-text", text);
+    if ($("stale-text").title !== text) $("stale-text").title = text;
   } else {
     causeCleared("conn");
   }

@@ -255,6 +255,8 @@ export async function refreshStatus(keepConn) {
     if (keepConn !== true) causeCleared("conn");
     return r.body;
   }
+  // the stale banner's reason: this read's (the stream's own reason, worded otherwise, is in
+  // the header's tooltip: two sources taking turns made the banner's text flap)
   rigd.lastError = r.status ? r.status + ": " + (r.body.error || "") : (r.body.error || "");
   return null;
 }
@@ -262,7 +264,7 @@ export async function refreshStatus(keepConn) {
 let poller = null, es = null, retryMs = 1000;
 function startPolling(reason) {
   rigd.mode = "polling";
-  rigd.lastError = reason;
+  rigd.streamError = reason;
   // short in the header (it must not wrap the SAFE button away); the reason in its tooltip
   // and, once the status is stale too, in the stale banner
   $("stream-state").textContent = "no live stream: polling status, traces stopped";
@@ -316,5 +318,5 @@ export function startWatch() {
     const e = await api("/api/experiment");
     if (e.ok) showExperiment(e.body);
   }, 2000);
-  setInterval(() => checkStale(rigd.lastError), 250);
+  setInterval(() => checkStale(rigd.lastError || rigd.streamError), 250);
 }
