@@ -41,10 +41,11 @@ def write_controller(path: Path) -> Path:
     return path
 
 
-def start_daemon(tmp: Path) -> Daemon:
-    """``rigd run`` on the simulated rig with a controller loaded (K∞ off), READY waited."""
+def start_daemon(tmp: Path, daemon_args: tuple[str, ...] = ()) -> Daemon:
+    """``rigd run`` on the simulated rig with a controller loaded (K∞ off), READY waited;
+    ``daemon_args`` are more ``rigd run`` options (e.g. ``("--client-idle-s", "3600")``)."""
     ctrl = write_controller(tmp / "k.yaml")
-    d = Daemon(tmp, make_config(tmp), "--controller", str(ctrl))
+    d = Daemon(tmp, make_config(tmp), "--controller", str(ctrl), *daemon_args)
     try:
         d.wait_notify("READY=1")
     except BaseException:
@@ -123,11 +124,11 @@ class WebProcess:
 
 
 @contextlib.contextmanager
-def daemon_and_web(tmp: Path, **web_kwargs):
-    """A real ``rigd run`` (:func:`start_daemon`) and a real ``rigd web`` in front of it on
-    ``tmp`` (``web_kwargs`` go to :class:`WebProcess`); yields ``(daemon, web)`` and stops
-    both (``web.proc.returncode`` tells how ``rigd web`` ended)."""
-    d = start_daemon(tmp)
+def daemon_and_web(tmp: Path, daemon_args: tuple[str, ...] = (), **web_kwargs):
+    """A real ``rigd run`` (:func:`start_daemon`, with ``daemon_args``) and a real ``rigd web``
+    in front of it on ``tmp`` (``web_kwargs`` go to :class:`WebProcess`); yields
+    ``(daemon, web)`` and stops both (``web.proc.returncode`` tells how ``rigd web`` ended)."""
+    d = start_daemon(tmp, daemon_args)
     try:
         web = WebProcess(tmp, d.sock, tmp / "runs", config_folder(tmp), **web_kwargs)
         try:

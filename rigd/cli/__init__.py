@@ -66,8 +66,33 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rigd {args.command}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
-        return 0
+        if _stdout_closed():
+            return 0       # `rigd ctl status | head`: the reader had enough
+        # any other pipe (a socket, a child's stdin) is a failure, never a silent exit 0
+        print(f"rigd {args.command}: broken pipe (the other end closed the connection)",
+              file=sys.stderr)
+        return 2
 
+
+def _stdout_closed() -> bool:
+    """Did the broken pipe come from stdout — is its reader gone (``POLLERR``/``POLLHUP`` on
+    the descriptor)? If so, stdout is pointed at /dev/null so the interpreter's exit flush
+    stays quiet."""
+    import os
+    import select
+
+    try:
+        fd = sys.stdout.fileno()
+        p = select.poll()
+        p.register(fd, select.POLLOUT)
+        gone = any(ev & (select.POLLERR | select.POLLHUP) for _, ev in p.poll(0))
+    except (OSError, ValueError):    # no descriptor (captured, closed): not a pipe's reader
+        return False
+    if gone:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+    return gone
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

@@ -92,6 +92,34 @@ class ControlClient:
         """Send raw bytes (for tests of malformed requests)."""
         self._sock.sendall(data)
 
+    def _send(self, data: bytes) -> None:
+        """Send a request; a connection the daemon already closed (it refused this client at
+        the door: one error line, then close) is an :class:`InputError` carrying that line,
+        never a bare ``BrokenPipeError`` (which ``rigd``'s main takes for a closed stdout)."""
+        try:
+            self._sock.sendall(data)
+        except (BrokenPipeError, ConnectionResetError):
+            said = self._pending_error()
+            raise InputError("the daemon closed the connection before the request"
+                             + (f": {said}" if said else ""), self.path) from None
+
+    def _pending_error(self) -> str:
+        """The error line the daemon wrote before closing, if it is waiting here ("")."""
+        try:
+            self._sock.setblocking(False)
+            while b"\n" not in self._buf:
+                chunk = self._sock.recv(65536)
+                if not chunk:
+                    break
+                self._buf += chunk
+        except OSError:
+            pass
+        line = self._buf.split(b"\n", 1)[0]
+        try:
+            return str(json.loads(line).get("error") or "")
+        except (ValueError, AttributeError):
+            return ""
+
     def read_reply(self) -> dict[str, Any]:
         """Read one reply line."""
         while b"\n" not in self._buf:
@@ -99,11 +127,19 @@ class ControlClient:
                 chunk = self._sock.recv(65536)
             except TimeoutError:
                 raise InputError(f"no reply within {self.timeout:g} s", self.path) from None
+            except ConnectionResetError:
+                chunk = b""
             if not chunk:
-                raise InputError("daemon closed the connection", self.path)
+                raise InputError("daemon closed the connection"
+                                 + (" in the middle of a reply" if self._buf else
+                                    " without a reply"), self.path)
             self._buf += chunk
         line, self._buf = self._buf.split(b"\n", 1)
-        return json.loads(line)
+        try:
+            return json.loads(line)
+        except ValueError:
+            raise InputError(f"the daemon's reply is not JSON: {bytes(line[:80])!r}",
+                             self.path) from None
 
     def request(self, cmd: str, **args: Any) -> dict[str, Any]:
         """Send one request; return the whole reply object (``ok`` true or false).
@@ -118,7 +154,7 @@ class ControlClient:
         req = {"id": rid, "cmd": cmd, **args}
         if self.timeout:
             req["timeout_s"] = command_timeout(self.timeout)
-        self._sock.sendall((json.dumps(req) + "\n").encode())
+        self._send((json.dumps(req) + "\n").encode())
         reply = self.read_reply()
         if reply.get("id") != rid:
             if reply.get("id") is None and reply.get("ok") is False:
