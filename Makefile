@@ -44,6 +44,10 @@ lint: $(STAMP)
 # of both parts read (the quick demo, tests/sharedruns.py) are made once, in a temporary
 # folder ($RIGD_TEST_SHARED) removed at the end. Plain `python -m pytest` still runs the whole
 # suite serially.
+# Before both parts, tests/warm_kernels.py compiles the big numba kernels (the loop's cycle, both
+# simulated plants) once into numba's cache, a few processes in parallel: on a clean clone the
+# cache is empty and otherwise every worker and every daemon the tests start compiled the same
+# kernels at the same time (minutes of CPU each on 2 cores); after it they load them.
 REALTIME_TESTS := tests/service tests/loop tests/web tests/browser \
                   tests/experiments/test_daemon_experiment.py
 PYTEST_WORKERS ?= 2
@@ -59,6 +63,8 @@ test: lint
 	@rc=0; rt=; RIGD_TEST_SHARED=$$(mktemp -d); export RIGD_TEST_SHARED; \
 	trap 'test -z "$$rt" || kill -INT $$rt 2>/dev/null; rm -rf "$$RIGD_TEST_SHARED"' EXIT; \
 	trap 'exit 130' INT TERM; \
+	echo "make test [0/2]: numba's kernels compiled once into its cache (tests/warm_kernels.py)"; \
+	$(ONE_BLAS_THREAD) $(BIN)/python tests/warm_kernels.py || rc=1; \
 	echo "make test [2/2]: timing-sensitive tests, serially, beside part 1 (output when part 1 ends): $(REALTIME_TESTS)"; \
 	$(ONE_BLAS_THREAD) $(SIGINT_BACK) $(BIN)/python -m pytest -q $(REALTIME_TESTS) \
 	    >"$$RIGD_TEST_SHARED/realtime.log" 2>&1 & rt=$$!; \
