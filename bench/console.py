@@ -14,8 +14,8 @@ Figures (keys of :func:`run`, part of ``python -m bench web``):
 * ``console_tab_where``: where the renderer's main thread spends its time, in % of the
   window's wall time — Chrome's own counters (CDP ``Performance.getMetrics``: ``task`` every
   task, of which ``script``, ``layout``, ``style``) and the page's ``draw`` (its Plotly calls,
-  ``window.rigd.drawMs``) — with the stream ``updates_per_s`` and the redraws per second of
-  the time traces and the orbit.
+  ``window.rigd.drawMs``; per plot job in ``draw_by_plot``: ``window.rigd.jobMs``) — with the
+  stream ``updates_per_s`` and the redraws per second of the time traces and the orbit.
 * ``console_by_trace_type``: the same renderer / GPU-process / sum figures for the page forced
   to SVG (``?gl=0``, ``scatter``) and to WebGL (``?gl=1``, ``scattergl``): the measurement
   behind the page's choice (docs/web.md "Cheap to draw").
@@ -143,7 +143,7 @@ def _metrics(driver) -> dict[str, float]:
 def _page_counters(driver) -> dict[str, float]:
     return driver.execute_script(
         "const r = window.rigd; return {draw_ms: r.drawMs, updates: r.updates, "
-        "traces: r.renders, orbit: r.orbitRenders, type: r.traceType};")
+        "traces: r.renders, orbit: r.orbitRenders, type: r.traceType, jobs: r.jobMs || {}};")
 
 
 def _get(driver, url: str) -> None:
@@ -190,6 +190,10 @@ def _window(driver, service, seconds: float) -> dict:
     where["updates_per_s"] = round((j1["updates"] - j0["updates"]) / dt, 1)
     where["traces_redraws_per_s"] = round((j1["traces"] - j0["traces"]) / dt, 1)
     where["orbit_redraws_per_s"] = round((j1["orbit"] - j0["orbit"]) / dt, 1)
+    # the page's drawing per plot job (plots.js JOBS: orbit, traces, trends = trends and
+    # percentiles, hist), % of the wall time
+    where["draw_by_plot"] = {k: round(100.0 * (v - j0["jobs"].get(k, 0.0)) / 1e3 / dt, 1)
+                             for k, v in j1["jobs"].items() if not k.endswith("_n")}
     out["where"] = where
     return out
 

@@ -6,10 +6,18 @@
 import {$, PLOT_CONFIG, api, band, colours, fmt, layoutBase, rigd, stackedAxes} from "./core.js";
 import {CHANNELS, ORBIT_S, TRACE_S, identity, trend} from "./live.js";
 
-const ORBIT_MS = 100;      // orbit redrawn at most 10 times a second
+// Where the tab's CPU went (bench/console.py, CDP sampling profile of the Live tab on
+// SwiftShader, 2026-11-26): ~80 % in Plotly calls — the once-a-second trends, percentiles and
+// histogram (each a Plotly.react: a whole new layout, every text re-measured) ~40 %, the orbit
+// ~22 %, the traces ~20 %; forced layouts (Plotly measuring text) 13 %. Hence: the orbit at
+// 5/s, the slow plots every 2 s (the histogram every 5 s) and redrawn only when what they show
+// changed, and the duty cap honoured for long draws too.
+const ORBIT_MS = 200;      // orbit redrawn at most 5 times a second
 const TRACES_MS = 200;     // the time traces 5 times
-const TREND_MS = 1000;     // trends and cycle times once a second
+const TREND_MS = 2000;     // trends and cycle-time percentiles every 2 s (when changed)
+const HIST_MS = 5000;      // the cycle-time histogram (a fetch) every 5 s (when changed)
 const DUTY = 0.1;          // drawing takes at most this fraction of the wall time
+const MAX_WAIT_MS = 1000;  // ... but the next draw waits no longer than this after a long one
 
 // one axis group per unit (V split by role: the lumped x/y signals, the valves), short titles
 // that fit their third of the plot (core.js groupOf: the record view's groups)
@@ -196,6 +204,11 @@ export function cursorAt(x) {
 
 // ---------------------------------------------------------------- trends
 function drawTrends() {
+  // only when a sample or a fault came in since the last draw (the x range alone moving is
+  // not worth a redraw of three axes)
+  const key = trend.wall.length + ":" + (trend.wall[trend.wall.length - 1] || 0) + ":" + trend.faults.length;
+  if (key === drawnKey.trends) return;
+  drawnKey.trends = key;
   const st = stackedAxes([{label: "Ω, rpm"}, {label: "P_I, bar"}, {label: "misses/s"}]);
   const fx = trend.faults.map((f) => f.wall), fy = trend.faults.map(() => 0);
   const data = [
@@ -228,6 +241,10 @@ function drawTiming() {
       name: name + " µs", marker: {color: col}});
   }
   const misses = rigd.lastStatus && rigd.lastStatus.misses;
+  // percentiles as shown (3 significant digits) and the title: unchanged, nothing is redrawn
+  const key = JSON.stringify([misses, bars.map((b) => [b.name, b.y.map((v) => (v === null || v === undefined) ? v : Number(v).toPrecision(3))])]);
+  if (key === drawnKey.timing) return;
+  drawnKey.timing = key;
   Plotly.react("timing", bars, layoutBase("cycle time percentiles (misses: " +
     (misses === undefined || misses === null ? "–" : misses) + ")", {barmode: "group",
     yaxis: {type: "log", title: {text: "µs (log)"}}, xaxis: {title: {text: "percentile"}}}), PLOT_CONFIG);
@@ -246,6 +263,9 @@ async function drawHistogram() {
     bars.push({x: mid, y: d.counts, type: "bar", name: name + (d.overflow ? " (+" +
       d.overflow + " beyond)" : ""), opacity: 0.7, marker: {color: col}});
   }
+  const key = JSON.stringify(bars.map((b) => [b.name, b.y]));
+  if (key === drawnKey.hist) return;
+  drawnKey.hist = key;
   Plotly.react("timing-hist", bars, layoutBase("cycle-time histogram",
     {barmode: "overlay", yaxis: {type: "log", title: {text: "cycles (log)"}},
       xaxis: {title: {text: "µs"}}, legend: {orientation: "h", x: 0.99, xanchor: "right", y: 0.99,
@@ -255,7 +275,9 @@ async function drawHistogram() {
 
 // ---------------------------------------------------------------- the render loop
 const dirty = {orbit: false, traces: false};
-const last = {orbit: 0, traces: 0, trends: 0};
+const last = {orbit: 0, traces: 0, trends: 0, hist: 0};
+// what the slow plots show now (a redraw that would show the same is skipped)
+const drawnKey = {trends: null, timing: null, hist: null};
 let nextDraw = 0;
 export function markDirty() { dirty.orbit = dirty.traces = true; }
 
@@ -268,7 +290,8 @@ function pendingInput() {
 const JOBS = [
   {key: "orbit", every: ORBIT_MS, due: () => dirty.orbit, run: () => { dirty.orbit = false; drawOrbit(false); }},
   {key: "traces", every: TRACES_MS, due: () => dirty.traces, run: () => { dirty.traces = false; drawTraces(); }},
-  {key: "trends", every: TREND_MS, due: () => true, run: () => { drawTrends(); drawTiming(); drawHistogram(); }},
+  {key: "trends", every: TREND_MS, due: () => true, run: () => { drawTrends(); drawTiming(); }},
+  {key: "hist", every: HIST_MS, due: () => true, run: () => { drawHistogram(); }},
 ];
 
 function drawOne(now) {
@@ -278,7 +301,12 @@ function drawOne(now) {
   }
   if (!job) return false;
   last[job.key] = now;
+  const a = performance.now();
   job.run();
+  // per plot, ms (bench/console.py reports where the drawing goes)
+  const jm = rigd.jobMs || (rigd.jobMs = {});
+  jm[job.key] = (jm[job.key] || 0) + performance.now() - a;
+  jm[job.key + "_n"] = (jm[job.key + "_n"] || 0) + 1;
   return true;
 }
 
@@ -291,8 +319,8 @@ function renderLoop(now) {
       const d = performance.now() - a;
       rigd.drawMs += d;
       // at most DUTY of the time drawing (a plot's first draw, WebGL set-up, may take a
-      // second on a busy machine: that one-off does not hold the others back longer)
-      nextDraw = now + Math.min(d / DUTY, 500);
+      // second on a busy machine: that one-off holds the others back MAX_WAIT_MS at most)
+      nextDraw = now + Math.min(d / DUTY, MAX_WAIT_MS);
     }
   }
 }
