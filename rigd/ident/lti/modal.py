@@ -131,10 +131,26 @@ def gains_by_least_squares(model, lam, data, skip: int = 0) -> np.ndarray:
             Cm[:, s], Cm[:, s + 1] = c.real, -c.imag
         else:
             Bm[s], Cm[:, s] = b.real, c.real
-    # 3. A and C fixed: B, x0, D, offsets jointly (outputs weighted by 1/std)
+    # 3. A and C fixed: B, x0, D, offsets jointly
+    return gains_given_c(model, lam, Cm, data, skip, R=R, F=F, u=u)
+
+
+def gains_given_c(model, lam, Cm: np.ndarray, data, skip: int = 0, fixed=None, R=None, F=None,
+                  u=None) -> np.ndarray:
+    """theta of ``model`` with the poles ``lam`` and C = ``Cm`` (normalised form) fixed: B,
+    x0, D and the offsets by one linear least-squares solve over all outputs, each weighted
+    by 1/std (the output is linear in them once A and C are fixed); the first ``skip``
+    samples left out. ``fixed`` = (B, D): those kept too, only x0 and the offsets solved.
+    ``R``, ``F``, ``u``: the block responses and shifted inputs when already computed."""
+    if u is None:
+        u = shift_inputs(np.ascontiguousarray(data.u, float), model.delays)
+    if R is None or F is None:
+        R, F = block_responses(lam, u, float(data.fs), model.hold)
+    y = np.asarray(data.y, float)
+    n, nu, ny = u.shape[0], model.nu, model.ny
     w = 1.0 / np.maximum(y.std(axis=0), 1e-300)
     cols, what = [], []
-    for (t, s), r, f in zip(blocks, R, F):
+    for (t, s), r, f in zip(model.block_states(), R, F):
         c = Cm[:, s] - 1j * Cm[:, s + 1] if t == "pair" else Cm[:, s].astype(complex)
         units = (1.0, 1j) if t == "pair" else (1.0,)
         for q, unit in enumerate(units):
@@ -155,10 +171,20 @@ def gains_by_least_squares(model, lam, data, skip: int = 0) -> np.ndarray:
         z[:, i] = w[i]
         cols.append(z)
         what.append(("yoff", i, 0))
+    Bm, D = np.zeros((model.nx, nu)), np.zeros((ny, nu))
+    target = (y * w)[skip:].ravel()
+    if fixed is not None:
+        Bm, D = np.array(fixed[0], float), np.array(fixed[1], float)
+        keep = []
+        for col, (kind, a, b) in zip(cols, what):
+            if kind in ("b", "d"):
+                target = target - col[skip:].ravel() * (Bm[a, b] if kind == "b" else D[a, b])
+            else:
+                keep.append((col, (kind, a, b)))
+        cols, what = [k[0] for k in keep], [k[1] for k in keep]
     M = np.column_stack([c[skip:].ravel() for c in cols])
-    sol = _lstsq(M, (y * w)[skip:].ravel())
+    sol = _lstsq(M, target)
     x0 = np.zeros(model.nx)
-    D = np.zeros((ny, nu))
     yoff = np.zeros(ny)
     for (kind, a, b), v in zip(what, sol):
         if kind == "b":

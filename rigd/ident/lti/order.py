@@ -20,9 +20,12 @@ not a rotor's (``generic``):
    (:mod:`rigd.ident.lti.modal`; a slow real pole also as an explicit integrator), refined
    by output error (:func:`rigd.ident.pem.fit`);
    The yardstick's references join them (:mod:`rigd.ident.lti.references`): the ARX and
-   subspace models selected on the estimation part alone give their poles (and the ARX its
-   delays) to modal models of their order, refined likewise when their held-out fit before
-   the refit is within :data:`REF_MARGIN` of the scan's best;
+   subspace models selected on the estimation part alone are carried whole (poles, B, C, D;
+   x0 and offsets by least squares) into modal models of their order (up to
+   :data:`~rigd.ident.lti.references.REF_MAX_STATES` states), refined likewise — the refit
+   kept only when it lowers the criterion — when their held-out fit before the refit is
+   within :data:`REF_MARGIN` of the scan's best and they have at most :data:`MAX_STATES`
+   states;
 4. **family** — they compete with the grey-box mechanical n-DOF model (one DOF per output,
    when given) and the low-order process models (:mod:`rigd.ident.lti.process`) by the same
    criterion: among the *admissible* candidates (held-out fit within :data:`MIN_GAIN` of
@@ -164,18 +167,13 @@ def lti_candidates(data, d_est, est, val, states: int, delays, hold,
 
 def reference_candidates(data, d_est, est: slice, val: slice, models, hold: str, skip: int,
                          limit: int) -> list[Candidate]:
-    """General LTI candidates (:func:`lti_candidates`) from the poles of the reference
-    ``models`` (:func:`rigd.ident.lti.references.reference_models`) of at most ``limit``
-    states; ``skip``: samples left out of every criterion (the same for all candidates)."""
-    from rigd.ident.lti.modal import poles_from_discrete
+    """General LTI candidates carrying the reference ``models``
+    (:func:`rigd.ident.lti.references.reference_models`) of at most ``limit`` states whole:
+    :func:`rigd.ident.lti.references.carried_candidates`; ``skip``: samples left out of every
+    criterion (the same for all candidates)."""
+    from rigd.ident.lti.references import carried_candidates
 
-    out = []
-    for _name, A, delays in models:
-        nx = A.shape[0]
-        if 1 <= nx <= limit:
-            poles = {nx: poles_from_discrete(A, float(data.fs))}
-            out += lti_candidates(data, d_est, est, val, nx, delays, hold, poles, skip)
-    return out
+    return carried_candidates(data, d_est, est, val, models, hold, skip, limit)
 
 
 def _clip(model, theta):
@@ -232,7 +230,7 @@ def choose_base(data, est: slice, val: slice, order: str | int = "auto", hold: s
         (:mod:`rigd.ident.lti.references`).
     """
     from rigd.ident.lti.modal import poles_from_discrete
-    from rigd.ident.lti.references import reference_models
+    from rigd.ident.lti.references import REF_MAX_STATES, reference_models
     from rigd.ident.lti.scan import ranked, scan_delays
 
     d_est = data.slice(est.start, est.stop)
@@ -243,11 +241,12 @@ def choose_base(data, est: slice, val: slice, order: str | int = "auto", hold: s
     limit = min(max_states, _most_states(d_est))
     points = scan_delays(data, est, val, delays, limit, MIN_GAIN, hold)
     best = ranked(points, MIN_GAIN, REFINED)
-    refs = reference_models(d_est, hold) if references else []
-    # one criterion for every candidate: the same samples left out (the longest delay)
+    refs = reference_models(d_est) if references else []
+    # one criterion for every candidate: the same samples left out (the longest delay; a
+    # carried reference is also tried one sample later with a first-order hold)
     skip = max([settle(p.delays) for p in best] + [settle(delays)]
-               + [settle(r[2]) for r in refs])
-    from_refs = reference_candidates(data, d_est, est, val, refs, hold, skip, limit)
+               + [settle(r[2]) + (hold == "foh") for r in refs])
+    from_refs = reference_candidates(data, d_est, est, val, refs, hold, skip, REF_MAX_STATES)
     cands: list[Candidate] = list(from_refs)
     for p in best:
         poles = {p.states: poles_from_discrete(p.A, float(data.fs))}
@@ -286,10 +285,10 @@ def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
     # integrator), admissible or not: the scores before the refit are not the final ones
     per_point = _best_per_point([c for c in cands if c.family == "lti" and np.isfinite(c.bic)])
     lti_ok = per_point[:REFINED + 1]
-    # the references' models (best variant each) are refined too when their held-out fit
-    # before the refit is near the scan's best and no scan candidate of as many states or
-    # fewer fits as well (an output-error refit of up to 30 states is the costly step); the
-    # others compete as they are
+    # the references' carried models are refined too when their held-out fit before the
+    # refit is near the scan's best, no scan candidate of as many states or fewer fits as
+    # well and they have at most MAX_STATES states (an output-error refit of up to 30 states
+    # is the costly step); the others compete as they are
     top = max((c.fit_val for c in lti_ok), default=-np.inf)
     as_is = []
     for ref in _best_per_point([c for c in always if np.isfinite(c.bic)]):
@@ -297,7 +296,9 @@ def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
             continue
         covered = any(c.states <= ref.states and c.fit_val >= ref.fit_val - MIN_GAIN
                       for c in lti_ok)
-        (lti_ok if ref.fit_val >= top - REF_MARGIN and not covered else as_is).append(ref)
+        small = ref.states <= MAX_STATES
+        (lti_ok if ref.fit_val >= top - REF_MARGIN and not covered and small
+         else as_is).append(ref)
     refined = [_refine(c, data, d_est, est, val, max_nfev) for c in lti_ok] + as_is
     best_by_family.pop("lti", None)
     if "process" in best_by_family:
