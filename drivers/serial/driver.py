@@ -6,6 +6,17 @@ into a small FIFO (numba, no allocation) and hands the *oldest* one to the loop,
 sample reaches the recording in order while the link jitters. Each ``write`` sends one drive
 frame without blocking.
 
+Jitter, not latency: a FIFO that empties now and then (USB delivers a burst of frames per
+millisecond) absorbs the link's jitter, and one that shrinks is a host catching up after a
+stall. A FIFO that neither empties nor shrinks in a window of ``lag_window`` reads (cycles;
+consecutive blocks) holds frames the loop takes late, for good — after a burst (the
+device or the host stalled, then caught up) one in and one out keeps the queue standing, and a
+control loop fed frames k periods old is a control loop with k periods more delay (the valve
+PD loop over the emulator goes unstable beyond about 6). Stale frames are worse than lost
+ones: the frames that stood queued through the whole window are skipped, so the next read
+hands over the newest; they are counted (``late_skipped``) and flagged like an overflow
+(``DRV_GAP``), never dropped silently.
+
 Health reaches the loop through ``frame_in[IN_STATUS]`` (0 = healthy; the supervisor latches
 a fault on any bit) and ``frame_in[IN_SEQ]`` (the device sample counter: a repeated value is a
 stale frame). Bits 0–7 are the device's own status bits (``DEV_*``); the driver adds:
@@ -16,10 +27,12 @@ bit     name                set when
 8       ``DRV_TIMEOUT``     no frame for ``timeout_ms`` (set while it lasts)
 9       ``DRV_DISCONNECT``  the port is gone (EIO/HUP); reconnecting in a thread
 10      ``DRV_CRC``         a frame with a bad CRC was seen since the last read
-11      ``DRV_GAP``         the device sequence skipped, or the FIFO overflowed
+11      ``DRV_GAP``         the device sequence skipped, the FIFO overflowed, or frames
+                            that stood queued for ``lag_window`` reads were skipped
 ======  ==================  ==========================================================
 
-CRC errors, gaps, timeouts, disconnects and reconnects are counted (:meth:`counters`).
+CRC errors, gaps, skipped late frames, timeouts, disconnects and reconnects are counted
+(:meth:`counters`).
 """
 
 from __future__ import annotations
@@ -64,6 +77,10 @@ class SerialFrameOptions(StrictModel):
     timeout_ms: float = Field(5.0, gt=0, description="no frame this long -> timeout fault, ms")
     reconnect_s: float = Field(0.5, gt=0, description="retry period after a disconnect, s")
     backlog: int = Field(8, ge=2, le=1024, description="decoded frames buffered, frames")
+    lag_window: int = Field(25, ge=2, description="a FIFO that neither emptied nor shrank in "
+                            "this many consecutive reads (cycles; 25 = 5 ms at 5 kHz) holds "
+                            "late frames, not jitter: they are skipped (counted late_skipped, "
+                            "flagged as a gap), reads")
     first_frame_s: float = Field(2.0, gt=0, description="open/reconnect: wait this long for "
                                  "the device's first frame (a silent device is refused), s")
     fault_on_crc: bool = Field(True, description="a CRC error sets DRV_CRC (-> fault)")
@@ -103,6 +120,11 @@ class SerialFrameDriver(FastDriver):
         self.n_reconnects = 0
         self.n_tx_overflow = 0
         self.n_resyncs = 0
+        self.n_late_skipped = 0
+        self._lag_reads = 0          # reads in the current lag window
+        self._lag_min = 0            # fewest frames left queued after a read in that window
+        self._lag_first = 0          # frames left queued after its first read
+        self._lag_last = 0           # ... and after its latest read
         self._last_call = 0.0
         self._delivered = 0
         self._reset_rx()
@@ -142,6 +164,7 @@ class SerialFrameDriver(FastDriver):
                              "powered and streaming?")
         # warm the compiled kernels outside the cycle
         sp.ingest_sensor(self._rx, self._state, self._fifo)
+        sp.drop_oldest(self._state, self._fifo, 0)
         sp.encode_drive(self._tx, 0, False, np.zeros(4))
 
     def _attach(self, ser) -> bool:
@@ -176,6 +199,7 @@ class SerialFrameDriver(FastDriver):
         self._delivered = 0
         self._ser = ser
         self._last_rx = time.monotonic()
+        self._lag_reads = self._lag_min = self._lag_first = self._lag_last = 0
         self._in_timeout = False
         self._fd = ser.fileno()  # published last: read()/write() start using the port now
         return True
@@ -318,6 +342,18 @@ class SerialFrameDriver(FastDriver):
                 status |= DRV_CRC
             if ev & (sp.EV_GAP | sp.EV_OVERFLOW) and self.opts.fault_on_gap:
                 status |= DRV_GAP
+        self._lag_reads += 1
+        if self._lag_reads > self.opts.lag_window:
+            # a whole window of reads after none of which the FIFO was empty, and it did not
+            # shrink (a host catching up after a stall drains it: that is left alone): what
+            # stood queued all along is latency, not jitter — skipped (counted, flagged), the
+            # newest frames go on
+            if self._lag_min > 0 and self._lag_last >= self._lag_first:
+                self.n_late_skipped += sp.drop_oldest(st, self._fifo, self._lag_min)
+                if self.opts.fault_on_gap:
+                    status |= DRV_GAP
+            self._lag_reads = 1
+            self._lag_min = st[sp.C_COUNT]
         row = self._row
         if sp.pop_sensor(st, self._fifo, row):
             self._last_rx = now
@@ -339,6 +375,12 @@ class SerialFrameDriver(FastDriver):
                 self._in_timeout = True
                 self.n_timeouts += 1
             status |= DRV_TIMEOUT
+        left = st[sp.C_COUNT]
+        if left < self._lag_min:
+            self._lag_min = left
+        if self._lag_reads == 1:
+            self._lag_first = left
+        self._lag_last = left
         frame_in[IN_STATUS] = status | self._dev_status  # device bits of the latest frame
 
     def _resync(self, fd: int) -> None:
@@ -399,6 +441,7 @@ class SerialFrameDriver(FastDriver):
         c = {name: int(st[i]) for i, name in sp.COUNTER_NAMES.items()}
         c.update(timeouts=self.n_timeouts, disconnects=self.n_disconnects,
                  reconnects=self.n_reconnects, resyncs=self.n_resyncs,
+                 late_skipped=self.n_late_skipped,
                  tx_overflow=self.n_tx_overflow,
                  connected=int(self.connected))
         return c

@@ -251,6 +251,17 @@ def pop_sensor(state, fifo, row):
 
 
 @njit(cache=True, nogil=True)
+def drop_oldest(state, fifo, k):
+    """Drop the ``k`` oldest FIFO frames (at most those queued); returns how many were
+    dropped. O(1), nothing copied."""
+    k = min(k, state[C_COUNT])
+    if k > 0:
+        state[C_HEAD] = (state[C_HEAD] + k) % fifo.shape[0]
+        state[C_COUNT] -= k
+    return k
+
+
+@njit(cache=True, nogil=True)
 def decode_drive(buf, i, out):
     """Decode a drive frame at ``buf[i]`` into ``out`` (float64[6]: seq, flags, v1..v4).
 

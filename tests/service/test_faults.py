@@ -148,7 +148,12 @@ def test_fault_serial_disconnect_then_reconnect(tmp_path):
       valve loop over the emulator's valves is unstable beyond about 6 periods of delay (kp
       1.5, valve lag 0.3 per sample: pole radius 1.007 at 6) and drove the valves to their
       limits (shaft_displacement). ``catch_up`` runs the missed cycles and consumes those
-      frames — the policy for a front-end that delivers every sample;
+      frames — the policy for a front-end that delivers every sample. A stall of the
+      *emulator* builds the same standing queue (its frames come late, then in a burst, and one
+      in one out keeps them queued): the driver skips frames that stood queued through a whole
+      ``lag_window`` of reads, counted (``late_skipped``; test_serial.py
+      test_a_standing_backlog_is_skipped_counted_and_flagged) — issue 21, a driver-status
+      fault (shaft_displacement) before the unplug under load;
     * the device's host timeout (2 ms on the rig) was 50 ms: a test-host pause latched a
       device host-timeout fault. 0.5 s here (the behaviour has its own test in
       test_serial.py);

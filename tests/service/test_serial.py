@@ -136,7 +136,7 @@ def test_full_rate_stream_and_drive(link):
                                 lambda st: drv.counters()["frames"] - c0["frames"] >= 10000)
     c = drv.counters()
     lost = {k: c[k] - c0[k] for k in ("crc_errors", "gaps", "gap_frames", "overflow_dropped",
-                                       "timeouts", "resyncs")}
+                                       "late_skipped", "timeouts", "resyncs")}
     # a frame missing from seqs must show in the counters (nothing lost silently) ...
     jumps = np.flatnonzero(np.diff(seqs) != 1)
     assert jumps.size == 0 or any(lost.values()), \
@@ -290,3 +290,169 @@ def test_a_host_pause_after_the_first_frames_is_a_counted_flagged_loss(link):
     dropped = c["overflow_dropped"] - c0["overflow_dropped"]
     assert dropped > 100                            # ~1500 frames queued in 0.3 s at 5 kHz
     assert len(seqs) >= 2 and seqs[1] - seqs[0] == 1   # after the jump: contiguous again
+
+
+@pytest.fixture()
+def pty_device():
+    """The device side as the test itself on the master of a pty pair (it sends exactly the
+    frames it is told to, when it is told to) and a driver on the slave; ``send(seqs)`` writes
+    sensor frames with those sequence numbers in one write and returns once they are waiting
+    on the driver's side (so the next ``read`` gets them all: a host cycle after a burst)."""
+    import fcntl
+    import os
+    import termios
+    import threading
+    import tty
+
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    buf = np.zeros(64 * sp.SENSOR_FRAME, np.uint8)
+    waiting = np.zeros(1, np.int32)
+
+    def write(seqs):
+        n = len(seqs) * sp.SENSOR_FRAME
+        for k, s in enumerate(seqs):
+            sp.encode_sensor(buf[k * sp.SENSOR_FRAME:], s, 0, 1.0, 2.0, 5.0, 5.0, 5.0, 5.0,
+                             0.5, 0.0, 0.0)
+        os.write(master, buf[:n].tobytes())
+        return n
+
+    def send(seqs):
+        n = write(seqs)
+        end = time.monotonic() + 60
+        while True:
+            fcntl.ioctl(slave, termios.FIONREAD, waiting)
+            if waiting[0] >= n:
+                return
+            assert time.monotonic() < end, "the pty did not pass the frames on"
+            time.sleep(0.0002)
+
+    # no frame timeout and no start-up resync in the way: this is about the FIFO only
+    drv = SerialFrameDriver({"port": os.ttyname(slave), "timeout_ms": 600_000,
+                             "first_frame_s": 600, "lag_window": 25, "backlog": 64})
+    # open() drains what was sent before it listened, then waits for a first frame: seq 0,
+    # sent until it is taken; then everything left is read away (the FIFO starts empty)
+    opened = threading.Event()
+
+    def boot():
+        while not opened.wait(0.02):
+            fcntl.ioctl(slave, termios.FIONREAD, waiting)
+            if waiting[0] == 0:          # one at a time: never fill the pty while it opens
+                write([0])
+
+    booting = threading.Thread(target=boot, daemon=True)
+    booting.start()
+    try:
+        drv.open()
+    finally:
+        opened.set()
+        booting.join()
+    frame = np.zeros(N_IN)
+    while True:
+        fcntl.ioctl(slave, termios.FIONREAD, waiting)
+        if waiting[0] == 0 and drv._state[sp.C_COUNT] == 0:
+            break
+        drv.read(frame)
+    try:
+        yield send, drv
+    finally:
+        drv.close()
+        os.close(master)
+        os.close(slave)
+
+
+def _cycle(drv, frame):
+    """One host cycle's read: the sequence number and status handed over."""
+    drv.read(frame)
+    return int(frame[IN_SEQ]), int(frame[IN_STATUS])
+
+
+def test_a_standing_backlog_is_skipped_counted_and_flagged(pty_device):
+    """After a burst (the device or the host stalled, then caught up) one frame in and one out
+    per cycle keeps the FIFO standing: every frame the loop gets is as many periods late as
+    frames wait behind it, for good — the cause of ``shaft_displacement`` latched before the
+    unplug in test_fault_serial_disconnect_then_reconnect (the valve PD loop over the emulator
+    is unstable beyond ~6 periods of delay). Once the FIFO has not emptied in a whole window of
+    ``lag_window`` reads (consecutive blocks of reads), the frames that stood queued are
+    skipped, counted in ``late_skipped`` and flagged (``DRV_GAP``); from then on the loop gets
+    the frame just sent. Counted in reads (cycles), not wall time: a host preempted between
+    two reads has not seen a standing queue."""
+    send, drv = pty_device
+    frame = np.full(N_IN, np.nan)
+    got = []
+    # the burst: seq 1..7 at once (the device or the host stalled), the first handed over
+    send(range(1, 8))
+    sent = 8
+    seq, status = _cycle(drv, frame)
+    got.append(seq)
+    # then one frame per cycle, as the device sends: 6 frames stand queued behind each read
+    # until a whole window of reads has passed with the FIFO never empty
+    statuses = [status]
+    # (the windows are consecutive blocks of reads: a queue standing since any read is seen
+    # at the end of the next whole window, within two windows)
+    for _ in range(3 * drv.opts.lag_window):
+        send([sent])
+        seq, status = _cycle(drv, frame)
+        sent += 1
+        got.append(seq)
+        statuses.append(status)
+        if drv.counters()["late_skipped"]:
+            break
+    assert len(got) <= 2 * drv.opts.lag_window + 1, "skipped within two windows of reads"
+    c = drv.counters()
+    assert c["late_skipped"] == 6, c      # exactly the frames that stood queued
+    assert statuses[-1] & DRV_GAP         # flagged in the cycle that skipped them
+    assert not any(s & DRV_GAP for s in statuses[:-1])
+    assert np.all(np.diff(got[:-1]) == 1), "in order while queued"
+    assert got[-1] - got[-2] == 7         # the 6 skipped, then the newest but none
+    # from now on each read hands over the frame just sent: no latency left, nothing skipped
+    for _ in range(20):
+        send([sent])
+        seq, status = _cycle(drv, frame)
+        assert seq == sent and not status & DRV_GAP
+        sent += 1
+    assert drv.counters()["late_skipped"] == 6
+    assert c["overflow_dropped"] == 0 and c["gaps"] == 0
+
+
+def test_jitter_that_empties_the_fifo_is_kept_in_order(pty_device):
+    """A USB-like link delivers frames in bursts (here 4 at a time every 4th cycle): the FIFO
+    empties once per burst, so that queue is jitter, not latency — over many lag windows every
+    frame reaches the loop, in order, and nothing is skipped."""
+    send, drv = pty_device
+    frame = np.full(N_IN, np.nan)
+    got = []
+    sent = 1
+    while len(got) < 20 * drv.opts.lag_window:
+        send(range(sent, sent + 4))
+        got.append(_cycle(drv, frame)[0])
+        sent += 4
+        for _ in range(3):
+            drv.read(frame)
+            got.append(int(frame[IN_SEQ]))
+    c = drv.counters()
+    assert c["late_skipped"] == 0 and c["overflow_dropped"] == 0, c
+    assert got == list(range(1, sent)), "every frame, in order"
+
+
+def test_a_host_catching_up_is_not_skipped(pty_device):
+    """A host catching up after a stall (the loop's ``catch_up`` runs the missed cycles) drains
+    the FIFO: a queue that shrinks over a window is not latency standing still — over several
+    windows of reads nothing is skipped and every frame reaches the loop in order."""
+    send, drv = pty_device
+    frame = np.full(N_IN, np.nan)
+    send(range(1, 61))                    # 60 frames queued by the stall
+    sent = 61
+    got = []
+    while sent < 200:                     # then two reads per device frame: -1 per cycle
+        send([sent])
+        sent += 1
+        for _ in range(2):
+            drv.read(frame)
+            if not got or int(frame[IN_SEQ]) != got[-1]:
+                got.append(int(frame[IN_SEQ]))
+    assert len(got) > 4 * drv.opts.lag_window       # several windows of it
+    c = drv.counters()
+    assert c["late_skipped"] == 0 and c["overflow_dropped"] == 0, c
+    assert got == list(range(1, sent)), "every frame, in order"
