@@ -121,6 +121,15 @@ function drawOrbit(force) {
         else if (ev["xaxis.autorange"]) setOrbitScale("auto");
       });
       el.on("plotly_doubleclick", () => setOrbitScale("auto"));
+      // and the browser's own double-click (its click count, not Plotly's 300 ms timer: a
+      // draw between the two presses on a busy machine made Plotly see two single clicks);
+      // on the document, as Plotly's drag cover may take the second press
+      document.addEventListener("dblclick", (ev) => {
+        const r = el.getBoundingClientRect();
+        if (ev.clientX >= r.left && ev.clientX <= r.right && ev.clientY >= r.top && ev.clientY <= r.bottom) {
+          setOrbitScale("auto");
+        }
+      });
     }
   } else {
     Plotly.restyle(el, {x: [x, x.slice(-1)], y: [y, y.slice(-1)], meta: [data[0].meta, null]});
