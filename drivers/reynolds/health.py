@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numba
 
-from rigd_drivers.reynolds.feed import F_MV, NFW, add_sources, feed_flows
+from rigd_drivers.reynolds.feed import F_MV, NFW, feed_flows
 from rigd_drivers.reynolds.film import (
     G_AREA,
     G_C,
@@ -16,6 +16,7 @@ from rigd_drivers.reynolds.film import (
     G_MZ,
     G_NT,
     G_PA,
+    G_RT,
     NV,
     film_force,
     film_gap,
@@ -47,8 +48,10 @@ def residual_measure(geo, cs, wts, p, cb00, cb01, cb10, cb11, xk0, xk1, omega, p
     """The pressure change, as a fraction of p_a, that the BDF2 residual at the pressures ``p``
     (film) and ``pc`` (chambers) asks for over the step: max over the film cells of
     |R_k| / (c0 h_k A) and over the chambers of |r_c| / (cap c0c), / p_a (the journal at
-    x_b = Cb F(p) + xk). NaN if anything is not finite. Leaves the raw flows into the film
-    (ṁ_f) in ``mdot`` for the mass balance."""
+    x_b = Cb F(p) + xk). NaN if anything is not finite. Leaves the film's own rates (without
+    the injection) in ``rate``, the patch means in ``pm`` and the feed path's flows and
+    partials (:func:`rigd_drivers.reynolds.feed.feed_flows`: the raw flows into the film ṁ_f
+    in ``mdot``, for the mass balance) — what a chord step at these pressures starts from."""
     nt = int(geo[G_NT])
     mz = int(geo[G_MZ])
     fx, fy = film_force(geo, cs, p)
@@ -56,16 +59,22 @@ def residual_measure(geo, cs, wts, p, cb00, cb01, cb10, cb11, xk0, xk1, omega, p
     yb = cb10 * fx + cb11 * fy + xk1
     film_rates(geo, cs, wts, p, xb, yb, omega, rate, outf, jA, jB, jC, dRx, dRy, pm, False)
     feed_flows(geo, pm, pc, xb, yb, psup, af, mdot, dmdot, fw)
-    add_sources(geo, wts, mdot, fw, rate, dRx, dRy, False)
     A = geo[G_AREA]
     c = geo[G_C]
+    rt = geo[G_RT]
+    n = nt * mz
     worst = 0.0
     for i in range(nt):
         h = film_gap(c, xb, yb, cs[i], cs[nt + i])
         s = c0 * h * A
         for j in range(mz):
             k = i * mz + j
-            e = abs(c0 * p[k] * h * A - hist[k] - rate[k]) / s
+            rk = rate[k]                # + the injection, as add_sources adds it
+            for v in range(NV):
+                w = wts[v * n + k]
+                if w != 0.0:
+                    rk += 0.5 * rt * mdot[v] * w
+            e = abs(c0 * p[k] * h * A - hist[k] - rk) / s
             if not e <= worst:          # also NaN
                 worst = e
     cap = geo[G_CAP]

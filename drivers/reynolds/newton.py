@@ -194,7 +194,9 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, nmax, tol, c0c):
             if upd < tol or it >= nmax or math.isnan(upd):
                 break
             # the first iteration past nit reuses the last Jacobian's factors (a chord step:
-            # same residual, same test after it); any further one is a full Newton step
+            # same residual, same test after it); any further one is a full Newton step. The
+            # chord step starts from the film rates and feed flows just evaluated at these
+            # pressures (``rate`` holds the film's own, without the sources)
             chord = it == nit
         elif not dt_on and it >= nit:
             break
@@ -204,9 +206,10 @@ def newton_film(state, params, blk, c0, dt_on, xk0, xk1, nit, nmax, tol, c0c):
         fx, fy = film_force(geo, cs, p)
         xb = cb00 * fx + cb01 * fy + xk0
         yb = cb10 * fx + cb11 * fy + xk1
-        film_rates(geo, cs, wts, p, xb, yb, omega, rate, outf, jA, jB, jC, dRx, dRy, pm,
-                   not chord)
-        feed_flows(geo, pm, pc, xb, yb, psup, af, mdot, dmdot, fw)
+        if not chord:
+            film_rates(geo, cs, wts, p, xb, yb, omega, rate, outf, jA, jB, jC, dRx, dRy, pm,
+                       True)
+            feed_flows(geo, pm, pc, xb, yb, psup, af, mdot, dmdot, fw)
         chamber_eliminate(geo, c0c, pc, histc, mdot, dmdot, fw, resc, gch)
         add_sources(geo, wts, mdot, fw, rate, dRx, dRy, not chord)
         if chord:
