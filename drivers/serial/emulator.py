@@ -50,11 +50,17 @@ class FrontendEmulator:
     tx_buffer_s : float
         Device transmit buffer, s of frames (a microcontroller's DMA buffer: 10 ms). A host
         that does not read for longer loses frames (the host then sees a sequence gap).
+    late_drop_s : float, optional
+        The emulator's own stalls (a preempted process; a real device's sampling never
+        stops): when it wakes more than this late, the samples it missed are modelled (the
+        plant moves on, the sequence counter too) but only the newest is sent — the host sees
+        a gap (counted here in ``late_dropped``), never a burst of stale frames that would
+        stand queued as latency. None (default): every missed sample is sent, late.
     """
 
     def __init__(self, link: str | None = None, *, fs: float = 5000.0, hold_v: float = 5.0,
                  hold_timeout: float = 0.002, omega_rpm: float = 3000.0, fd: int | None = None,
-                 tx_buffer_s: float = 0.01):
+                 tx_buffer_s: float = 0.01, late_drop_s: float | None = None):
         self.link = link
         self.fs = float(fs)
         self.hold_v = hold_v
@@ -68,6 +74,8 @@ class FrontendEmulator:
         self.seq = 0
         self.sent = 0
         self.tx_dropped = 0          # frames not written because the host did not read
+        self.late_drop_s = late_drop_s
+        self.late_dropped = 0        # samples modelled but not sent: the emulator was late
         self.drive_frames = 0
         self.drive_crc_errors = 0
         self.last_drive = np.full(6, np.nan)   # seq, flags, v1..v4 of the last drive frame
@@ -220,6 +228,17 @@ class FrontendEmulator:
                     self.seq += due
                     due = 0
                 nbytes = 0
+                # samples this many late are not sent (late_drop_s): the model runs through
+                # them, only the newest goes out
+                quiet = due - 1 if (self.late_drop_s is not None
+                                    and due > self.late_drop_s * self.fs) else 0
+                for _ in range(quiet):
+                    self.yp += 0.3 * (self.applied - self.yp)
+                    phi = (phi + 2 * math.pi * self.omega_rpm / 60.0 * dt) % (2 * math.pi)
+                    self.seq += 1
+                    self.sent += 1
+                self.late_dropped += quiet
+                due -= quiet
                 for _ in range(min(due, 64)):
                     a = 0.3  # valve position lag per sample
                     self.yp += a * (self.applied - self.yp)

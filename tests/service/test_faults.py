@@ -165,8 +165,11 @@ def test_fault_serial_disconnect_then_reconnect(tmp_path):
 
     from rigd_drivers.serial.driver import DRV_DISCONNECT
 
+    # late_drop_s: the emulator's own stalls (preempted on the loaded machine) end in the
+    # newest sample, not a burst of stale ones standing queued as latency (a real front-end's
+    # sampling never stops)
     emu = EmulatorProcess(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.5,
-                          tx_buffer_s=0.5)
+                          tx_buffer_s=0.5, late_drop_s=0.002)
     try:
         # The machine is shared and loaded, so frames may still arrive in bursts: the
         # stale-frame and gap checks are off here (each has its own test:

@@ -456,3 +456,29 @@ def test_a_host_catching_up_is_not_skipped(pty_device):
     c = drv.counters()
     assert c["late_skipped"] == 0 and c["overflow_dropped"] == 0, c
     assert got == list(range(1, sent)), "every frame, in order"
+
+
+def test_emulator_stall_ends_in_the_newest_sample_not_a_burst(tmp_path):
+    """``late_drop_s``: when the emulator itself stalls (held here for 0.1 s = 500 samples), it
+    models the missed samples but sends only the newest — the host sees one gap of them,
+    counted on both sides, not a burst of stale frames that would stand queued as latency."""
+    from rigd_drivers.serial.emulator import FrontendEmulator
+
+    emu = FrontendEmulator(str(tmp_path / "fe"), fs=5000.0, hold_timeout=600.0,
+                           tx_buffer_s=0.5, late_drop_s=0.002).start()
+    drv = SerialFrameDriver({"port": emu.port, "timeout_ms": 600_000, "backlog": 1024})
+    try:
+        drv.open()
+        frame = np.zeros(N_IN)
+        _run_until(drv, frame, lambda st: drv._delivered > 50)
+        g0, d0 = drv.counters()["gap_frames"], emu.late_dropped
+        with emu.lock:                    # the emulator's loop waits: a stall of the device
+            time.sleep(0.1)
+        _run_until(drv, frame, lambda st: drv.counters()["gap_frames"] > g0)
+        dropped = emu.late_dropped - d0
+        assert dropped >= 400, dropped    # ~500 samples of the stall modelled, not sent
+        assert drv.counters()["gap_frames"] - g0 >= 400       # the host sees them as a gap
+        assert drv.counters()["overflow_dropped"] == 0
+    finally:
+        drv.close()
+        emu.stop()
