@@ -19,6 +19,7 @@ from rigd_drivers.plant.base import SimulatedPlantDriver
 from rigd_drivers.reynolds import analysis as an
 from rigd_drivers.reynolds import kernel as k
 from rigd_drivers.reynolds import layout as L
+from rigd_drivers.reynolds import linear
 from rigd_drivers.reynolds.options import ReynoldsOptions
 from rigd_drivers.reynolds.params import param_block
 
@@ -106,12 +107,12 @@ class ReynoldsPlantDriver(SimulatedPlantDriver):
             out.append(f"status bits {rest:#x}")
         return "; ".join(out)
 
-    def linear_modes(self, drive_v: float | None = None) -> an.LinearModes:
+    def linear_modes(self, drive_v: float | None = None) -> linear.LinearModes:
         """Modes of the linearised plant at rest at the current operating point (≈ 1 s)."""
         v0 = self.opts.valves.initial_drive_v if drive_v is None else float(drive_v)
         arr = an.make_arrays(self.opts, self.fs, self._omega, self._p_inj)
         an.rest(arr, v0)
-        return an.linear_modes(arr, an.valve_area_fractions(self.opts, v0))
+        return linear.linear_modes(arr, an.valve_area_fractions(self.opts, v0))
 
     def describe(self) -> dict[str, Any]:
         """Operating point, options and structural data (cheap: no film solve)."""

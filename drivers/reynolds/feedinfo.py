@@ -14,6 +14,7 @@ import sys
 
 from rigd_drivers.reynolds import analysis as an
 from rigd_drivers.reynolds import layout as L
+from rigd_drivers.reynolds import linear
 from rigd_drivers.reynolds import lumped as lu
 from rigd_drivers.reynolds.params import P_ATM
 
@@ -34,7 +35,7 @@ def equilibrium_table(opts: dict = QUIET) -> dict:
         af = an.valve_area_fractions(pa.opts, 5.0)
         xb = pa.stsc[L.ST_XB:L.ST_XB + 2]
         K = an.film_stiffness(pa, af, x0=tuple(xb))
-        lm = an.linear_modes(pa, af)
+        lm = linear.linear_modes(pa, af)
         jx, jy = lm.of_axis("x"), lm.of_axis("y")
         out[f"{p:g}bar"] = {
             "eccentricity": (xb / C).round(3).tolist(),
@@ -84,7 +85,7 @@ def hammer_table(opts: dict = QUIET, p_inj_bar: float = 4.0) -> dict:
         o = {**opts, "feed": {**opts.get("feed", {}), "chamber_volume_mm3": v}}
         pa = an.make_arrays(o, p_inj_bar=p_inj_bar)
         an.rest(pa, 5.0)
-        lm = an.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
+        lm = linear.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
         rows[f"{v:g}"] = {ax: {"full_hz_zeta": [round(lm.freq_hz[lm.of_axis(ax)], 1),
                                                 round(lm.zeta[lm.of_axis(ax)], 4)],
                                "lumped_unstable": bool(th[ax].unstable(v))} for ax in th}

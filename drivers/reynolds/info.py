@@ -18,6 +18,7 @@ from rigd.frame import N_IN
 from rigd_drivers.reynolds import analysis as an
 from rigd_drivers.reynolds import kernel as k
 from rigd_drivers.reynolds import layout as L
+from rigd_drivers.reynolds import linear
 
 C = 25e-6
 
@@ -46,7 +47,7 @@ def ausman() -> dict:
         b = pa.opts.bearing
         lam = 6 * b.viscosity_pa_s * rpm * math.pi / 30 * (b.radius_mm * 1e-3) ** 2 / (
             b.ambient_pa * (b.clearance_um * 1e-6) ** 2)
-        Ka = an.ausman_stiffness(b.radius_mm * 1e-3, b.length_mm * 1e-3, b.clearance_um * 1e-6,
+        Ka = linear.ausman_stiffness(b.radius_mm * 1e-3, b.length_mm * 1e-3, b.clearance_um * 1e-6,
                                  b.viscosity_pa_s, b.ambient_pa, rpm * math.pi / 30)
         row = {"bearing_number": round(lam, 3),
                "reference_kxx_kyx_kn_per_m": [round(Ka[0, 0] / 1e3, 2), round(Ka[1, 0] / 1e3, 2)]}
@@ -69,7 +70,7 @@ def operating_range() -> dict:
             af = an.valve_area_fractions(pa.opts, 5.0)
             an.rest(pa, 5.0)
             K = an.film_stiffness(pa, af, x0=tuple(pa.stsc[L.ST_XB:L.ST_XB + 2]))
-            lm = an.linear_modes(pa, af)
+            lm = linear.linear_modes(pa, af)
             out[f"{rpm:g}rpm_{p:g}bar"] = {
                 "K_mn_per_m": (K / 1e6).round(4).tolist(),
                 "circulatory_kn_per_m": round(0.5 * (K[0, 1] - K[1, 0]) / 1e3, 2),

@@ -28,6 +28,7 @@ import numpy as np
 
 from rigd_drivers.reynolds import analysis as an
 from rigd_drivers.reynolds import layout as L
+from rigd_drivers.reynolds import linear
 from rigd_drivers.reynolds.feed import NFW, feed_flows
 from rigd_drivers.reynolds.film import G_RT
 
@@ -87,7 +88,7 @@ def hammer_theory(opts: dict, p_inj_bar: float, drive_v: float = 5.0,
     x0 = tuple(pa.stsc[L.ST_XB:L.ST_XB + 2])
     K0 = an.film_stiffness(pa, af, x0)
     Kf = an.film_stiffness(pa, af, x0, frozen=True)
-    lm = an.linear_modes(pa, af)
+    lm = linear.linear_modes(pa, af)
     rt = pa.geo[G_RT]
     out = {}
     for ax, (i, chambers) in {"x": (0, (1, 3)), "y": (1, (0, 2))}.items():

@@ -12,6 +12,7 @@ from rigd.frame import IN_E_X, N_IN
 from rigd_drivers.reynolds import analysis as an
 from rigd_drivers.reynolds import kernel as k
 from rigd_drivers.reynolds import layout as L
+from rigd_drivers.reynolds import linear
 from rigd_drivers.reynolds import lumped as lu
 from rigd_drivers.reynolds.params import P_ATM
 
@@ -59,7 +60,7 @@ def theory():
 def _zeta(volume, axis):
     pa = an.make_arrays({**QUIET, "feed": {"chamber_volume_mm3": volume}})
     an.rest(pa, 5.0)
-    lm = an.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
+    lm = linear.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
     return lm.zeta[lm.of_axis(axis)]
 
 

@@ -15,6 +15,7 @@ from rigd.frame import IN_E_X, IN_E_Y, N_IN
 from rigd_drivers.reynolds import analysis as an
 from rigd_drivers.reynolds import kernel as k
 from rigd_drivers.reynolds import layout as L
+from rigd_drivers.reynolds import linear
 
 QUIET = {"noise": {"e_um": 0.0, "y_p_v": 0.0}}
 C = 25e-6
@@ -49,7 +50,7 @@ def test_hydrodynamic_stiffness_matches_ausman_small_eccentricity_solution(rpm):
     self-acting bearing (Ausman 1961). Λ = 0.24 (6 krpm) and 1.0 (25 krpm)."""
     pa = _arrays()
     b = pa.opts.bearing
-    Ka = an.ausman_stiffness(b.radius_mm * 1e-3, b.length_mm * 1e-3, b.clearance_um * 1e-6,
+    Ka = linear.ausman_stiffness(b.radius_mm * 1e-3, b.length_mm * 1e-3, b.clearance_um * 1e-6,
                              b.viscosity_pa_s, b.ambient_pa, rpm * math.pi / 30)
     errs = []
     for grid in ((32, 8), (64, 16)):
@@ -83,7 +84,7 @@ def test_first_resonance_rises_with_injection_pressure_and_lies_near_100_200_hz(
     for p in (3.0, 5.0, 7.0):
         pa = _arrays(p_inj=p)
         an.rest(pa, 5.0)
-        lm = an.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
+        lm = linear.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
         f1.append(lm.freq_hz[0])
         z1.append(lm.zeta[0])
     assert all(90.0 < f < 200.0 for f in f1)
@@ -154,7 +155,7 @@ def test_time_stepping_rings_at_the_linearised_mode_of_the_hammered_axis(reynold
     at 4 bar): within 2 % and 10 % (measured 0.07 % and 0.5 %)."""
     pa = _arrays(p_inj=p_inj)
     an.rest(pa, 5.0)
-    lm = an.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
+    lm = linear.linear_modes(pa, an.valve_area_fractions(pa.opts, 5.0))
     j = lm.of_axis(axis)
     assert lm.freq_hz[lm.of_axis("y" if axis == "x" else "x")] != lm.freq_hz[j]
     e0 = np.zeros(N_IN)
@@ -194,6 +195,7 @@ _ALLOC = """
 import numpy as np
 from numba.core.runtime import rtsys
 from rigd_drivers.reynolds import analysis as an, kernel as k
+from rigd_drivers.reynolds import linear
 from rigd.frame import N_IN
 pa = an.make_arrays({})
 an.rest(pa, 5.0)
