@@ -16,6 +16,7 @@ import pytest
 from selenium.common.exceptions import TimeoutException
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
+from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select, WebDriverWait
 from testpaths import ROOT
 from webproc import WebProcess, config_folder, start_daemon, wait_for
@@ -245,12 +246,13 @@ def test_fault_banner_with_reset_and_a_refusal_that_clears_with_the_fault(browse
     # queued (draws run in later animation-frame tasks). The page's fetch of /api/safe is
     # recorded with whether the pointerdown was still being dispatched and the draw count.
     browser.execute_script("""
-        const r = window.rigd; r.probe = {down: false, sent: null};
+        const r = window.rigd; r.probe = {down: false, sent: null, n: 0};
         window.addEventListener('pointerdown', () => { r.probe.down = true;
           r.probe.rendersAtDown = r.renders + r.orbitRenders; }, true);
         window.addEventListener('pointerdown', () => { r.probe.down = false; }, false);
         const f = window.fetch;
         window.fetch = function (url, opts) {
+          if (String(url).endsWith('/api/safe')) r.probe.n += 1;
           if (String(url).endsWith('/api/safe') && !r.probe.sent)
             r.probe.sent = {inDown: r.probe.down, renders: r.renders + r.orbitRenders};
           return f.apply(this, arguments);
@@ -274,6 +276,18 @@ def test_fault_banner_with_reset_and_a_refusal_that_clears_with_the_fault(browse
     _wait(browser, lambda drv: not drv.find_element(By.ID, "fault-banner").is_displayed(),
           what="banner gone")
     _wait(browser, lambda drv: "409" not in _text(browser, "message"), what="409 message gone")
+    # one press, one request: the click after the pointerdown is the same press
+    assert _js(browser, "window.rigd.probe.n") == 1
+    # the keyboard's press (Enter on the focused button: a click without a pointerdown) sends
+    # it too, once — and at once after the last: no time window swallows a second press
+    browser.find_element(By.ID, "safe").send_keys(Keys.ENTER)
+    wait_for(lambda: d.ctl_json("status")["fault"]["name"] == "operator_safe", timeout=60,
+             what="operator_safe latched by the keyboard's press")
+    _wait(browser, lambda drv: _js(browser, "window.rigd.probe.n") == 2, what="second request")
+    d.ctl("reset")
+    _wait(browser, lambda drv: not drv.find_element(By.ID, "fault-banner").is_displayed(),
+          what="banner gone after the keyboard's SAFE")
+    assert _js(browser, "window.rigd.probe.n") == 2
     # the SAFE click's latency, measured the bench's way (not asserted: timing is the bench's)
     click = _js(browser, "window.rigd.safeClicks[0]")
     assert click["seq"] is not None and click["wall_ms"] > 0

@@ -30,13 +30,12 @@ export async function command(name, body, okText) {
 
 // ---------------------------------------------------------------- SAFE
 // Sent from `pointerdown` (before the click's own dispatch and before any drawing work the
-// page has queued); a keyboard press reaches `click` only, which sends it if pointerdown did not.
-let safeSentAt = -1e9;
+// page has queued). The `click` that follows a pointer press is the same press and sends
+// nothing; a click with `detail` 0 (Enter/Space on the focused button, or a script) had no
+// pointerdown, and sends it. Every press sends: no time window that could swallow an
+// operator's second press (a 500 ms window did, when the first SAFE failed at once).
 function sendSafe() {
-  const now = performance.now();
-  if (now - safeSentAt < 500) return;
-  safeSentAt = now;
-  rigd.safeClicks.push({wall_ms: performance.timeOrigin + now, seq: rigd.lastSeq, wall_ns: rigd.lastWallNs});
+  rigd.safeClicks.push({wall_ms: performance.timeOrigin + performance.now(), seq: rigd.lastSeq, wall_ns: rigd.lastWallNs});
   command("safe", {}, "SAFE: safe state latched (reset, then enable, to leave it)");
 }
 
@@ -108,7 +107,7 @@ export function wireControls() {
   // "use token" (login, then start) is wired by app.js
   $("token").addEventListener("keydown", (e) => { if (e.key === "Enter") $("token-save").click(); });
   $("safe").addEventListener("pointerdown", (e) => { if (e.button === 0) sendSafe(); });
-  $("safe").onclick = sendSafe;
+  $("safe").addEventListener("click", (e) => { if (e.detail === 0) sendSafe(); });
   $("enable").onclick = () => command("enable", {}, "K∞ enabled");
   $("disable").onclick = () => command("disable", {}, "K∞ disabled");
   const reset = async () => { const r = await command("reset", {}, "fault reset"); if (r.ok) causeCleared("fault"); };
