@@ -140,14 +140,15 @@ def daemon_and_web(tmp: Path, daemon_args: tuple[str, ...] = (), **web_kwargs):
 
 
 def wait_for(cond, timeout=30.0, interval=0.1, what="condition"):
-    """Poll ``cond()`` until truthy (returned) or fail after ``timeout`` s."""
+    """Poll ``cond()`` until truthy (returned) or fail after ``timeout`` s; ``what`` names
+    the condition in the failure (a callable is called then, to say the last state seen)."""
     end = time.monotonic() + timeout
     while True:
         v = cond()
         if v:
             return v
         if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what}")
+            raise AssertionError(f"timed out waiting for {what() if callable(what) else what}")
         time.sleep(interval)
 
 

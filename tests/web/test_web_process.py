@@ -72,8 +72,15 @@ def test_commands_mirror_rigd_ctl(rig):
     wait_for(lambda: d.ctl_json("status")["fault"]["code"] == 0, what="fault reset")
     r = http.post("/api/start", json={"path": "config/experiments/web-short.yaml"}, headers=h)
     assert r.status_code == 200, r.text
-    wait_for(lambda: http.get("/api/experiment").json()["state"] in ("complete", "failed"),
-             timeout=600, interval=0.3, what="experiment finished")   # hang bound only
+    last: dict = {}
+
+    def _over() -> bool:
+        last.update(http.get("/api/experiment").json())
+        return last["state"] in ("complete", "failed")
+
+    # a hang bound only; on a timeout the experiment's last state says where it stood
+    wait_for(_over, timeout=600, interval=0.3,
+             what=lambda: f"experiment finished (last /api/experiment: {last})")
     exp = http.get("/api/experiment").json()
     assert exp["state"] == "complete", exp
     assert exp == d.ctl_json("experiment")
