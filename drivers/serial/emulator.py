@@ -164,6 +164,13 @@ class FrontendEmulator:
     def __exit__(self, *exc):
         self.stop()
 
+    def _advance(self, phi: float, dt: float) -> float:
+        """One sample of the emulated plant, sent or not: the valve positions follow the
+        applied drive (lag 0.3 per sample) and the shaft angle turns by Ω·dt; returns the new
+        angle φ (rad)."""
+        self.yp += 0.3 * (self.applied - self.yp)
+        return (phi + 2 * math.pi * self.omega_rpm / 60.0 * dt) % (2 * math.pi)
+
     def _run(self) -> None:
         out = np.zeros(sp.SENSOR_FRAME * 64, np.uint8)
         rx = np.zeros(4096, np.uint8)
@@ -233,16 +240,13 @@ class FrontendEmulator:
                 quiet = due - 1 if (self.late_drop_s is not None
                                     and due > self.late_drop_s * self.fs) else 0
                 for _ in range(quiet):
-                    self.yp += 0.3 * (self.applied - self.yp)
-                    phi = (phi + 2 * math.pi * self.omega_rpm / 60.0 * dt) % (2 * math.pi)
+                    phi = self._advance(phi, dt)
                     self.seq += 1
                     self.sent += 1
                 self.late_dropped += quiet
                 due -= quiet
                 for _ in range(min(due, 64)):
-                    a = 0.3  # valve position lag per sample
-                    self.yp += a * (self.applied - self.yp)
-                    phi = (phi + 2 * math.pi * self.omega_rpm / 60.0 * dt) % (2 * math.pi)
+                    phi = self._advance(phi, dt)
                     ux = self.yp[1] - self.yp[3]
                     uy = self.yp[0] - self.yp[2]
                     ex = 1.5 * ux + 0.2 * math.cos(phi)
