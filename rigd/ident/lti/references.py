@@ -122,22 +122,20 @@ def modal_form(ref: LinearModel, fs: float):
     if 2 * len(pairs) + len(reals) != len(w):
         return None
 
-    def cont(k):
-        return poles_from_discrete(np.array([[w[k].real, w[k].imag], [-w[k].imag, w[k].real]])
-                                   if k in complex_ else np.array([[w[k].real]]), fs)[0]
-
-    complex_ = set(pairs)
-
-    split = [k for k in pairs if -cont(k).real > ZETA_MAX * abs(cont(k))]
-    pairs = sorted((k for k in pairs if k not in split), key=lambda k: abs(cont(k)))
+    # each eigenvalue's continuous pole, once
+    cont = {k: poles_from_discrete(np.array([[w[k].real, w[k].imag], [-w[k].imag, w[k].real]]),
+                                   fs)[0] for k in pairs}
+    cont.update({k: poles_from_discrete(np.array([[w[k].real]]), fs)[0] for k in reals})
+    split = [k for k in pairs if -cont[k].real > ZETA_MAX * abs(cont[k])]
+    pairs = sorted((k for k in pairs if k not in split), key=lambda k: abs(cont[k]))
     lam, cols, groups = [], [], []
     for k in pairs:
         cols += [V[:, k].real, V[:, k].imag]
-        lam.append(cont(k))
+        lam.append(cont[k])
         groups.append((2 * len(groups), 2 * len(groups) + 2))
     s = len(cols)
-    for k in sorted(reals + split, key=lambda k: abs(cont(k))):
-        lm = cont(k)
+    for k in sorted(reals + split, key=lambda k: abs(cont[k])):
+        lm = cont[k]
         if k in split:
             cols += [V[:, k].real + V[:, k].imag, V[:, k].real - V[:, k].imag]
             lam += [complex(lm.real + lm.imag, 0.0), complex(lm.real - lm.imag, 0.0)]
