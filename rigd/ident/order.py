@@ -259,19 +259,18 @@ def candidate_mode(u, r, fs, exclude_hz, hold="foh"):
     """(f_hz, zeta, g (nu, ny)) of the mode that explains most of the residual ``r`` (n, ny)
     given the inputs ``u`` (n, nu): subspace estimates of orders 2..6 of u → r, modes away
     from ``exclude_hz``, gains by least squares; None when none is found."""
-    from rigd.ident.lti.subspace import continuous_modes, n4sid
+    from rigd.ident.lti.subspace import continuous_modes, dynamics_matrices
     from rigd.lti import resonator
 
     cands = []
-    for order in (2, 4, 6):
-        for hz in (None, 4 * order + 10):
-            try:
-                A = n4sid(u, r, order, horizon=hz).model.A
-            except (ValueError, np.linalg.LinAlgError):
-                continue
-            for f, z in continuous_modes(A, fs):
-                if all(abs(f - e) > MIN_SEPARATION * e for e in exclude_hz):
-                    cands.append((f, z))
+    # one decomposition per distinct horizon, A alone (the gains come below)
+    tries = [(order, hz) for order in (2, 4, 6) for hz in (None, 4 * order + 10)]
+    for A in dynamics_matrices(u, r, tries):
+        if A is None:
+            continue
+        for f, z in continuous_modes(A, fs):
+            if all(abs(f - e) > MIN_SEPARATION * e for e in exclude_hz):
+                cands.append((f, z))
     best, best_ss = None, 0.0
     r0 = r - r.mean(0)
     tot = float(np.sum(r0 ** 2))

@@ -9,7 +9,7 @@ import pytest
 from scipy import signal
 
 from rigd.cli import main
-from rigd.ident.lti.subspace import continuous_modes, n4sid
+from rigd.ident.lti.subspace import continuous_modes, dynamics_matrices, n4sid
 
 
 def test_n4sid_recovers_two_modes_of_a_known_system():
@@ -29,6 +29,25 @@ def test_n4sid_recovers_two_modes_of_a_known_system():
     assert len(got) == 2
     for (f, z), (ft, zt) in zip(got, modes):
         assert abs(f - ft) < 0.01 * ft and abs(z - zt) < 0.3 * zt, got
+
+
+def test_dynamics_matrices_are_n4sids_a_from_one_decomposition_per_horizon():
+    """candidate_mode's subspace A's (one decomposition per horizon, no B/D/K/x0 steps) are
+    n4sid's own, bit for bit; an order the horizon cannot carry or a record too short for
+    the horizon gives None, as n4sid raises."""
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal((900, 2))
+    y = signal.lfilter([0.0, 0.4, 0.2], [1.0, -1.5, 0.8], u[:, 0])[:, None] + \
+        0.3 * np.roll(u[:, 1:], 2, axis=0) + 0.01 * rng.standard_normal((900, 1))
+    tries = [(order, hz) for order in (2, 4, 6) for hz in (None, 4 * order + 10)]
+    got = dynamics_matrices(u, y, tries)
+    for (order, hz), A in zip(tries, got):
+        np.testing.assert_array_equal(A, n4sid(u, y, order, horizon=hz).model.A)
+    # horizon 3 with one output carries at most 2 states; 80 block rows need more samples
+    assert dynamics_matrices(u, y, [(3, 3), (2, 80)]) == [None, None]
+    for order, hz in ((3, 3), (2, 80)):
+        with pytest.raises(ValueError):
+            n4sid(u, y, order, horizon=hz)
 
 
 def _csv(path, rec):

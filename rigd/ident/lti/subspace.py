@@ -163,6 +163,30 @@ def n4sid(u: np.ndarray, y: np.ndarray, order: int | str = "auto",
     return SubspaceResult(dec.model(nx), sv, nx, dec.i)
 
 
+def dynamics_matrices(u: np.ndarray, y: np.ndarray, requests) -> list[np.ndarray | None]:
+    """The discrete A of ``n4sid(u, y, order, horizon=horizon).model`` for each
+    ``(order, horizon)`` of ``requests`` (``horizon`` None: :func:`default_horizon` for that
+    order), the same matrices, from one decomposition per distinct horizon and without the
+    B, D, K, x0 steps; None where the record or horizon cannot support the order."""
+    u, y = as_2d(u), as_2d(y)
+    n, nu = u.shape
+    ny = y.shape[1]
+    decs: dict[int, _Decomposition | None] = {}
+    out: list[np.ndarray | None] = []
+    for order, horizon in requests:
+        i = int(horizon or default_horizon(n, nu, ny, int(order)))
+        if i not in decs:
+            try:
+                decs[i] = _Decomposition(u, y, int(order), i, None, True)
+            except (ValueError, np.linalg.LinAlgError):
+                decs[i] = None
+        try:
+            out.append(None if decs[i] is None else decs[i].dynamics(int(order))[1])
+        except (ValueError, np.linalg.LinAlgError):
+            out.append(None)
+    return out
+
+
 def clamp_poles(A: np.ndarray) -> np.ndarray:
     """``A`` with every eigenvalue outside the unit circle moved onto it (same angle); ``A``
     itself when none is (or it cannot be diagonalised)."""
@@ -200,10 +224,36 @@ class _Decomposition:
         L = R.T
         self.L22 = L[r1:r1 + r2, r1:r1 + r2]
         self.L32 = L[r1 + r2:, r1:r1 + r2]
-        self.L22p = np.linalg.pinv(self.L22, rcond=1e-10)
         self.U1, self.sv, _ = np.linalg.svd(self.L32, full_matrices=False)
-        self.Wp = _hankel_rows([(self.du, 0), (self.dy, 0)], i)(0, j)   # (j, r2) past data
         self.fs, self.feedthrough, self.r3 = fs, feedthrough, r3
+        # the state-sequence step's pseudo-inverse and past data: built on the first model()
+        # (the dynamics alone, :meth:`dynamics`, need neither)
+        self._L22p: np.ndarray | None = None
+        self._Wp: np.ndarray | None = None
+
+    @property
+    def L22p(self) -> np.ndarray:
+        """Pseudo-inverse of L₂₂ (built once)."""
+        if self._L22p is None:
+            self._L22p = np.linalg.pinv(self.L22, rcond=1e-10)
+        return self._L22p
+
+    @property
+    def Wp(self) -> np.ndarray:
+        """(j, r2) past data of the block-Hankel matrix (built once)."""
+        if self._Wp is None:
+            self._Wp = _hankel_rows([(self.du, 0), (self.dy, 0)], self.i)(0, self.j)
+        return self._Wp
+
+    def dynamics(self, nx: int) -> tuple[np.ndarray, np.ndarray]:
+        """(Γ, A) of order ``nx`` (scaled data): the extended observability matrix and the
+        discrete dynamics by its shift invariance — the A of :meth:`model` (``stabilise``
+        False) without the B, D, K, x0 steps."""
+        ny = self.dy.shape[1]
+        if not 1 <= nx < self.r3:
+            raise ValueError(f"order {nx} needs 1 <= order < horizon·outputs ({self.r3})")
+        Gam = self.U1[:, :nx] * np.sqrt(self.sv[:nx])   # extended observability
+        return Gam, np.linalg.lstsq(Gam[:-ny], Gam[ny:], rcond=None)[0]
 
     def model(self, nx: int, refine: bool = True, stabilise: bool = False) -> LinearModel:
         """The order-``nx`` model in the record's units (``refine``: step 4, B, D and x0 by
@@ -212,11 +262,7 @@ class _Decomposition:
         integrator's estimate just outside), so that step 4 applies)."""
         du, dy, i, j, fs = self.du, self.dy, self.i, self.j, self.fs
         nu, ny = du.shape[1], dy.shape[1]
-        if not 1 <= nx < self.r3:
-            raise ValueError(f"order {nx} needs 1 <= order < horizon·outputs ({self.r3})")
-        s_half = np.sqrt(self.sv[:nx])
-        Gam = self.U1[:, :nx] * s_half               # extended observability (scaled data)
-        A = np.linalg.lstsq(Gam[:-ny], Gam[ny:], rcond=None)[0]   # shift invariance
+        Gam, A = self.dynamics(nx)
         if stabilise:
             A = clamp_poles(A)
         C = Gam[:ny]
