@@ -142,3 +142,36 @@ def test_choose_base_is_not_below_the_arx_on_held_out_data():
         got = float(np.mean(fit_percent(d.y[val], c.structure.simulate(c.theta, d)[val])))
         arx = _linear_peer(_arx, d.u, d.y, est, val)["fit_percent"]
         assert got >= arx - MIN_GAIN, (d.output_names, got, arx)
+
+
+def test_a_carried_reference_beyond_max_states_is_never_refined(monkeypatch):
+    """A carried reference of more than MAX_STATES states competes as it is, even when its
+    BIC ranks it among the scan's points to refine (018c616 refined the 60-state carried ARX
+    of a 3-output record by output error there: over 10 CPU minutes); the scan's points and
+    a small reference are refined as before, and the large one can still be chosen."""
+    from types import SimpleNamespace
+
+    import rigd.ident.lti.order as order
+    from rigd.ident.lti.candidates import Candidate
+
+    def cand(states, bic, fit_val, delays=(0,)):
+        return Candidate("lti", states, SimpleNamespace(delays=list(delays)), np.zeros(1),
+                         bic, fit_val, fit_val, 10 * states)
+
+    big = cand(order.MAX_STATES + 30, -900.0, 61.0)
+    small_ref = cand(8, -800.0, 60.5, (1,))
+    scan = [cand(k, -700.0 + k, 59.0) for k in (2, 3, 4, 5, 6)]
+    refined = []
+
+    def fake_refine(c, *args):
+        refined.append(c)
+        return c
+
+    monkeypatch.setattr(order, "_refine", fake_refine)
+    d_est = SimpleNamespace(input_names=["u"])
+    choice = order._pick([big, small_ref, *scan], None, d_est, None, None, None,
+                         [big, small_ref])
+    assert all(c is not big for c in refined)
+    assert any(c is small_ref for c in refined)
+    assert sum(1 for c in refined if c in scan) == order.REFINED
+    assert choice.states == big.states   # it competes: the best held-out fit, lowest BIC

@@ -283,7 +283,10 @@ def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
             best_by_family.setdefault(c.family, c)
     # per model tried by the scan (delays, states) its best variant (with or without an
     # integrator), admissible or not: the scores before the refit are not the final ones
-    per_point = _best_per_point([c for c in cands if c.family == "lti" and np.isfinite(c.bic)])
+    # (a carried reference of more than MAX_STATES states is never one of them, whatever its
+    # BIC: it competes as it is, below)
+    per_point = _best_per_point([c for c in cands if c.family == "lti" and np.isfinite(c.bic)
+                                 and c.states <= MAX_STATES])
     lti_ok = per_point[:REFINED + 1]
     # the references' carried models are refined too when their held-out fit before the
     # refit is near the scan's best, no scan candidate of as many states or fewer fits as
