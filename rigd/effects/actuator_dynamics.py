@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from rigd.effects import numbers as N
+from rigd.effects._linear import lag_block, series_inputs
 from rigd.effects._signals import derivative, lag1
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import Context
@@ -88,6 +89,11 @@ class ActuatorDynamics(Effect):
         tmax = TAU_MAX_SAMPLES / ctx.fs
         taus = np.maximum(-np.asarray(sig.beta, float), 0.05 / ctx.fs)
         return np.repeat(np.minimum(taus / 2, tmax / 2), 2)
+
+    def linear(self, G, theta_e, base, fs):
+        """1/((τ₁ s + 1)(τ₂ s + 1)) on each input."""
+        t = np.asarray(theta_e, float).reshape(G.ninputs, 2)
+        return series_inputs(G, [lag_block(t[j]) for j in range(G.ninputs)])
 
     def simulate_with(self, sim, theta_e, data, base):
         u = np.asarray(data.inputs, float)

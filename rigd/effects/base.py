@@ -134,6 +134,24 @@ class ExtendedStructure:
     def ss(self, theta: np.ndarray):
         return self.base.ss(np.asarray(theta, float)[:self.nb])
 
+    def linear_ss(self, theta: np.ndarray, fs: float, G0: Any = None):
+        """(G, included, left_out): the base's linear part (continuous python-control
+        StateSpace; ``G0`` in its place, e.g. a range model of the same base; ``fs`` the
+        rate, Hz, of the record the parameters were fitted on) with each
+        effect's small-signal linear block applied in the simulation's order
+        (:meth:`Effect.linear`: an input block in series before the base, an output block in
+        parallel); ``included`` the effects applied, ``left_out`` {name: why not}."""
+        theta = np.asarray(theta, float)
+        tb, te = theta[:self.nb], theta[self.nb:]
+        if isinstance(self.base, ExtendedStructure):
+            G, included, left_out = self.base.linear_ss(tb, fs, G0)
+        else:
+            G, included, left_out = (self.base.ss(tb) if G0 is None else G0), [], {}
+        Gx = self.effect.linear(G, te, self.base, fs)
+        if Gx is None:
+            return G, included, {**left_out, self.effect.name: self.effect.linear_note}
+        return Gx, included + [self.effect.name], left_out
+
     def continuous(self, theta: np.ndarray):
         return self.base.continuous(np.asarray(theta, float)[:self.nb])
 
@@ -279,6 +297,17 @@ class Effect:
         """Output of the extended model, given ``sim(data) -> (n, ny)`` of the base
         (input- and output-level effects)."""
         raise NotImplementedError
+
+    #: why :meth:`linear` has no block for this effect (a linear design model leaves it out)
+    linear_note: str = "nonlinear: no small-signal linear block"
+
+    def linear(self, G: Any, theta_e: np.ndarray, base: Any, fs: float) -> Any:
+        """The continuous model ``G`` (python-control StateSpace of what lies below this
+        effect; ``fs`` the record's rate, Hz, for parameters in samples) with the effect's
+        small-signal linear block applied, or None when it has
+        none (:attr:`linear_note` says why): what a linear design model (H∞,
+        ``ModelFile.plant``) carries of the effect."""
+        return None
 
     def apply_hooks(self, theta_e: np.ndarray, hooks: Any, data: Any) -> None:
         """State-level effects: edit ``hooks`` (rigd.ident.simulate.Hooks) in place."""

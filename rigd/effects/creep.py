@@ -119,6 +119,8 @@ class Creep(Effect):
     level = "input"
     submodels = ("actuator", "generic")
     physics = "slow creep after steps (piezo valves)"
+    linear_note = ("acts on the recorded valve drives inside the valve loops, not on the "
+                   "model inputs")
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
         taus = tau_grid(ctx.n, ctx.fs)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigd.effects._linear import mechanical_shift
 from rigd.effects._signals import derivative
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
@@ -86,6 +87,15 @@ class CrossCoupling(Effect):
         for v, (j, i) in zip(theta_e[len(pairs):], pairs):
             Dc[j, i] = v
         return Kc, Dc
+
+    #: why :meth:`linear` may have no block (a base not in mechanical form)
+    linear_note = "the base is not a mechanical model in states [p, ṗ]"
+
+    def linear(self, G, theta_e, base, fs):
+        """K + K_c, D + D_c in the mechanical base (states [p, ṗ])."""
+        n = G.noutputs
+        Kc, Dc = self._F(np.asarray(theta_e, float), n)
+        return mechanical_shift(G, Kc, Dc)
 
     def apply_hooks(self, theta_e, hooks, data):
         n = np.asarray(data.outputs).shape[1]

@@ -33,6 +33,7 @@ class CubicStiffness(Effect):
     domains = STRUCTURAL  # a restoring force
     submodels = ("bearing", "generic")
     physics = "stiffness that grows with amplitude (cubic, Duffing)"
+    linear_note = ("k₃p³ has no first-order term at the equilibrium p = 0")
 
     def regressors(self, ctx):
         p = ctx.yhat - ctx.yhat[ctx.est].mean(axis=0)

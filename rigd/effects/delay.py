@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from rigd.effects import numbers as N
+from rigd.effects._linear import delay_block, pade_order, series_inputs
 from rigd.effects._signals import band_power_share, shift
 from rigd.effects.base import Effect
 from rigd.effects.context import CannotReveal, Context, Finding
@@ -141,6 +142,12 @@ class Delay(Effect):
     def warm_start(self, ctx, sig):
         d = sig.extra.get("delay_samples", 0.0) * float(sig.beta[0] if sig.beta.size else 1.0)
         return np.array([max(0.0, d)])
+
+    def linear(self, G, theta_e, base, fs):
+        """e^{−s d/fs} on every input, a Padé approximant (rigd.effects._linear)."""
+        d = max(0.0, float(theta_e[0]))
+        block = delay_block(d / fs, pade_order(d))
+        return series_inputs(G, [block] * G.ninputs)
 
     def simulate_with(self, sim, theta_e, data, base):
         d = max(0.0, float(theta_e[0]))

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigd.effects._linear import parallel
 from rigd.effects._signals import lag1
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
@@ -127,6 +128,13 @@ class ExtraDynamics(Effect):
 
     def warm_start(self, ctx, sig):
         return np.concatenate([[sig.extra["tau_s"]], np.asarray(sig.beta, float)])
+
+    def linear(self, G, theta_e, base, fs):
+        """The parallel lag: y += Σ_j g_j u_j/(τ s + 1)."""
+        nu, ny = G.ninputs, G.noutputs
+        th = np.asarray(theta_e, float)
+        tau, g = max(th[0], 1e-12), th[1:].reshape(nu, ny)
+        return parallel(G, -np.eye(nu) / tau, np.eye(nu) / tau, g.T)
 
     def simulate_with(self, sim, theta_e, data, base):
         y = np.asarray(sim(data), float)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
+from rigd.effects._linear import parallel
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import Context
 from rigd.effects.scales import pow2_ceil, pow2_floor
@@ -174,6 +175,22 @@ class ExtraMode(Effect):
             return None
         b = np.asarray(sig.beta, float).reshape(ctx.nu, 2, ctx.ny)
         return np.concatenate([[pk[0], pk[1]], b[:, 0, :].ravel(), b[:, 1, :].ravel()])
+
+    def linear(self, G, theta_e, base, fs):
+        """The parallel mode: per input j, q̈ + 2ζω q̇ + ω² q = ω² u_j, y += g_j q + h_j q̇/ω
+        (the continuous system ``simulate_with`` discretises)."""
+        nu, ny = G.ninputs, G.noutputs
+        th = np.asarray(theta_e, float)
+        w, zeta = 2 * np.pi * th[0], th[1]
+        g = th[2:2 + nu * ny].reshape(nu, ny)
+        h = th[2 + nu * ny:].reshape(nu, ny)
+        A, B, C = np.zeros((2 * nu, 2 * nu)), np.zeros((2 * nu, nu)), np.zeros((ny, 2 * nu))
+        for j in range(nu):
+            A[2 * j:2 * j + 2, 2 * j:2 * j + 2] = [[0.0, 1.0], [-w * w, -2 * zeta * w]]
+            B[2 * j + 1, j] = w * w
+            C[:, 2 * j] = g[j]
+            C[:, 2 * j + 1] = h[j] / w
+        return parallel(G, A, B, C)
 
     def simulate_with(self, sim, theta_e, data, base):
         y = sim(data)

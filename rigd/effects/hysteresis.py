@@ -99,6 +99,9 @@ class Hysteresis(Effect):
     level = "input"
     submodels = ("actuator", "generic")
     physics = "hysteresis (piezo valves): the response depends on the direction of motion"
+    linear_note = ("rate-independent (Bouc–Wen on the valve drives): no small-signal "
+                   "transfer function; its first-order part, a gain change, is in the "
+                   "refitted base")
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
         pairs = valve_pairs(ctx.data)

@@ -84,6 +84,7 @@ class Integrator(Effect):
     site = "output"
     submodels = ("generic",)
     physics = "a pole at zero (an integrating plant) the model lacks"
+    linear_note = ("an integrating path (a pole at zero) is left out of the design model")
 
     def _regs(self, ctx: Context) -> list[np.ndarray]:
         iu = integral(ctx.u - ctx.u[ctx.est].mean(axis=0), ctx.fs)

@@ -39,6 +39,7 @@ class Runout(Effect):
     domains = STRUCTURAL  # a shaft that may turn: not a process plant
     submodels = ("bearing", "generic")
     physics = "mass unbalance or surface run-out locked to the shaft angle"
+    linear_note = ("exogenous (harmonics of the shaft angle): no path from the inputs")
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
         phi = ctx.phi

@@ -128,6 +128,17 @@ class Submodel:
             st = st.base
         return st.ss(np.asarray(self.theta)[:len(st.names)])
 
+    def linear_ss(self, fs: float, G0=None):
+        """(G, included, left_out): the sub-model as a linear design model — its base's
+        linear part (or ``G0`` in its place: a range model of the same base) with the
+        small-signal linear block of each effect that has one (a delay as a Padé
+        approximant, an extra mode, lags; ``Effect.linear``), ``included`` their names and
+        ``left_out`` {name: why} of the others (hysteresis, run-out, …). ``fs``: the rate
+        of the fit, Hz (effect parameters in samples)."""
+        if hasattr(self.structure, "linear_ss"):
+            return self.structure.linear_ss(np.asarray(self.theta, float), fs, G0)
+        return (self.ss() if G0 is None else G0), [], {}
+
 
 @dataclass
 class ModelFile:
@@ -142,16 +153,29 @@ class ModelFile:
     created: str | None = None
     source: str = "<memory>"
 
-    def ss(self, name: str):
-        """StateSpace of sub-model ``name``; InputError if the file has no such sub-model."""
+    def ss(self, name: str, effects: bool = False):
+        """Continuous StateSpace of sub-model ``name``: its base's linear part, or with
+        ``effects`` the linear blocks of its effects too (:meth:`Submodel.linear_ss`);
+        InputError if the file has no such sub-model."""
         if name not in self.submodels:
             raise InputError(f"model has no {name!r} sub-model (has: "
                              f"{', '.join(self.submodels)})", self.source)
-        return self.submodels[name].ss()
+        sm = self.submodels[name]
+        return sm.linear_ss(self.fs)[0] if effects else sm.ss()
 
-    def plant(self):
-        """G_p(s) = G_bear(s)·G_act(s): r = [r_x, r_y] -> p = [e_x, e_y] (needs both)."""
-        return self.ss("bearing") * self.ss("actuator")
+    def plant(self, effects: bool = False):
+        """G_p(s) = G_bear(s)·G_act(s): r = [r_x, r_y] -> p = [e_x, e_y] (needs both): the
+        base parts, or with ``effects`` the linear blocks of the sub-models' effects too."""
+        return self.ss("bearing", effects) * self.ss("actuator", effects)
+
+    def linear_effects(self) -> dict[str, dict[str, Any]]:
+        """Sub-model -> {``included``: effects whose linear block :meth:`plant` carries,
+        ``left_out``: {effect: why not}}."""
+        out = {}
+        for name, sm in self.submodels.items():
+            _, inc, left = sm.linear_ss(self.fs)
+            out[name] = {"included": inc, "left_out": left}
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         subs = {}
