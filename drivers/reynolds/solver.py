@@ -10,10 +10,25 @@ from __future__ import annotations
 
 import numba
 
+# The block size as a type: passed as ``mtag``, a tuple of that length makes the size a
+# compile-time constant (``len(mtag)``), so the compiler unrolls the m-loops; an empty tuple
+# leaves it to the arrays' shape. The default grid (n_z = 8) has m = 4: the copy compiled for
+# it runs the same operations in the same order, ≈ 2× faster.
+M4 = (0, 0, 0, 0)
+
 
 @numba.njit(cache=True, nogil=True)
 def inv_small(a, out, m):
     """out = a⁻¹ (m × m, Gauss–Jordan with partial pivoting; a is overwritten)."""
+    _inv(a, out, m, ())
+
+
+@numba.njit(cache=True, nogil=True)
+def _inv(a, out, m, mtag):
+    """:func:`inv_small` with the size a compile-time constant when ``mtag`` is not empty
+    (``len(mtag)``, see :data:`M4`)."""
+    if len(mtag) > 0:
+        m = len(mtag)
     for r in range(m):
         for s in range(m):
             out[r, s] = 1.0 if r == s else 0.0
@@ -47,16 +62,27 @@ def inv_small(a, out, m):
 
 @numba.njit(cache=True, nogil=True)
 def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
+    """Solve the periodic block-tridiagonal system in place: ``d`` ← x (see :func:`_solve`);
+    the default grid's 4 × 4 blocks by a copy compiled for that size."""
+    if jB.shape[1] == 4:
+        _solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g, M4)
+    else:
+        _solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g, ())
+
+
+@numba.njit(cache=True, nogil=True)
+def _solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g, mtag):
     """Solve the periodic block-tridiagonal system in place: ``d`` ← x.
 
     Row i: A_i x_{i−1} + B_i x_i + C_i x_{i+1} = d_i (indices mod n), A_i and C_i diagonal
     (``jA``, ``jC``: (n, m) diagonals), B_i dense (``jB``: (n, m, m), overwritten). ``d`` has
     shape (n, m, ≥nrhs); work arrays: Dinv, E (n, m, m), T1, T2, Fb, G (m, m), g (m, ≥nrhs).
     Periodic block Thomas: forward elimination carrying the spike column E_i (coupling to
-    x_{n−1}), the bottom row reduced alongside, back substitution.
+    x_{n−1}), the bottom row reduced alongside, back substitution. ``mtag``: the block size
+    as a compile-time constant, or ``()`` (:data:`M4`).
     """
     n = jB.shape[0]
-    m = jB.shape[1]
+    m = len(mtag) if len(mtag) > 0 else jB.shape[1]
     for i in range(n - 1):
         if i == 0:
             for a in range(m):
@@ -87,7 +113,7 @@ def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
         for a in range(m):
             for b in range(m):
                 T2[a, b] = jB[i, a, b]
-        inv_small(T2, Dinv[i], m)
+        _inv(T2, Dinv[i], m, mtag)
     # bottom row: Fb x_j + G x_{n−1} = g
     for a in range(m):
         for b in range(m):
@@ -121,7 +147,7 @@ def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
             for a in range(m):
                 for b in range(m):
                     Fb[a, b] = -T1[a, b] * jC[j, b]
-    inv_small(G, T2, m)
+    _inv(G, T2, m, mtag)
     for a in range(m):
         for r in range(nrhs):
             s = 0.0
@@ -147,16 +173,26 @@ def block_cyclic_solve(jA, jB, jC, d, nrhs, Dinv, E, T1, T2, Fb, G, g):
 
 @numba.njit(cache=True, nogil=True)
 def block_cyclic_resolve(jA, jC, d, Dinv, E, Ginv, g):
+    """Solve again with the factors of the last solve (see :func:`_resolve`); 4 × 4 blocks by
+    a copy compiled for that size."""
+    if Dinv.shape[1] == 4:
+        _resolve(jA, jC, d, Dinv, E, Ginv, g, M4)
+    else:
+        _resolve(jA, jC, d, Dinv, E, Ginv, g, ())
+
+
+@numba.njit(cache=True, nogil=True)
+def _resolve(jA, jC, d, Dinv, E, Ginv, g, mtag):
     """Solve again, for the first right-hand side column of ``d`` only (in place), with the
     factors a :func:`block_cyclic_solve` call left: ``Dinv`` and ``E`` (per block) and
     ``Ginv`` (the reduced bottom block's inverse, its ``T2``); ``jA`` and ``jC`` unchanged.
 
     O(n m²) instead of O(n m³): the bottom row's multipliers F_j D_j⁻¹ are applied by Horner's
     rule backwards (F_{j+1} = −F_j D_j⁻¹ diag(C_j)) instead of being formed. ``g``: work
-    (m, ≥ 3).
+    (m, ≥ 3). ``mtag`` as in :func:`_solve`.
     """
     n = Dinv.shape[0]
-    m = Dinv.shape[1]
+    m = len(mtag) if len(mtag) > 0 else Dinv.shape[1]
     # forward elimination: d_i −= diag(A_i) D_{i−1}⁻¹ d_{i−1}
     for i in range(1, n - 1):
         for a in range(m):
