@@ -137,22 +137,40 @@ class _Lease:
 
 
 class _Feed:
-    """One daemon subscription and the browsers' queues it fans out to."""
+    """One daemon subscription and the browsers' queues it fans out to.
+
+    :meth:`close` (the last browser left) cancels the task *and* sets :attr:`closed`, which
+    the task checks after every event: ``asyncio.wait_for`` before Python 3.12 swallows a
+    cancellation that arrives as its awaitable completes (the relay's ``readline`` with a line
+    ready: always, on a busy stream), and the subscription then ran on for ever with no
+    browser, holding one of the daemon's client slots (seen under ``bench hostile``: one slot
+    more after each hostile window)."""
 
     def __init__(self, hub: StreamHub, key: tuple, subscribe: dict[str, Any]) -> None:
         self.hub, self.key = hub, key
         self.queues: set[asyncio.Queue] = set()
         self.head: bytes | None = None          # the "subscribed" event, for late joiners
+        self.closed = False
         self.task = asyncio.get_running_loop().create_task(self._run(subscribe))
 
+    def close(self) -> None:
+        """End the subscription (its connection is closed by the task, at once or after the
+        event it is waiting for)."""
+        self.closed = True
+        self.task.cancel()
+
     async def _run(self, subscribe: dict[str, Any]) -> None:
+        events = relay(self.hub.socket_path, subscribe, self.hub.timeout)
         try:
-            async for chunk in relay(self.hub.socket_path, subscribe, self.hub.timeout):
+            async for chunk in events:
+                if self.closed:
+                    break
                 if chunk.startswith(b"event: subscribed"):
                     self.head = chunk
                 for q in self.queues:
                     _put(q, chunk)
         finally:
+            await events.aclose()                   # closes the daemon connection
             if self.hub.feeds.get(self.key) is self:
                 del self.hub.feeds[self.key]
             for q in self.queues:
@@ -240,6 +258,6 @@ class StreamHub:
             if feed is not None:
                 feed.queues.discard(q)
                 if not feed.queues and not feed.task.done():
-                    feed.task.cancel()      # the last browser left: close the subscription
+                    feed.close()            # the last browser left: close the subscription
                     if self.feeds.get(key) is feed:
                         del self.feeds[key]

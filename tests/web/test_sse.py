@@ -121,3 +121,100 @@ def test_bad_stream_query_is_400(tmp_path):
     with TestClient(app, headers=auth()) as client:
         r = client.get("/api/stream?rate_hz=fast")
     assert r.status_code == 400 and "bad query" in r.json()["error"]
+
+
+class FloodServer:
+    """Answers every ``stream.subscribe`` and pushes lines as fast as it can until the client
+    closes; counts the connections still open."""
+
+    def __init__(self, path):
+        self.srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.srv.bind(str(path))
+        self.srv.listen(64)
+        self.open = 0
+        self.accepted = 0
+        self.conns = []
+        self.lock = threading.Lock()
+        self.all_closed = threading.Event()
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self):
+        while True:
+            try:
+                conn, _ = self.srv.accept()
+            except OSError:
+                return
+            with self.lock:
+                self.open += 1
+                self.accepted += 1
+                self.conns.append(conn)
+                self.all_closed.clear()
+            threading.Thread(target=self._push, args=(conn,), daemon=True).start()
+
+    def _push(self, conn):
+        line = (json.dumps({"stream": {"seq": 1, "t": [0.0] * 50}}) + "\n").encode()
+        try:
+            req = json.loads(conn.makefile("rb").readline())
+            conn.sendall((json.dumps({"id": req["id"], "ok": True, "result": {}})
+                          + "\n").encode())
+            while True:
+                conn.sendall(line)
+        except (OSError, ValueError):
+            pass
+        finally:
+            conn.close()
+            with self.lock:
+                self.open -= 1
+                if not self.open:
+                    self.all_closed.set()
+
+    def close(self):
+        """Stop listening and end every connection still open from this side."""
+        self.srv.close()
+        with self.lock:
+            for c in self.conns:
+                try:
+                    c.shutdown(socket.SHUT_RDWR)
+                except OSError:
+                    pass
+
+
+def test_the_last_browser_leaving_closes_the_daemon_subscription(tmp_path):
+    """Browsers come and go on a stream whose lines are always ready: each time the last one
+    leaves, the daemon connection closes (a cancellation swallowed by ``asyncio.wait_for``
+    left the subscription running for ever, one daemon slot per leak)."""
+    import asyncio
+
+    from rigd.web.sse import StreamHub
+
+    srv = FloodServer(tmp_path / "d.sock")
+    sub = {"rate_hz": 50.0, "points": 200, "channels": None}
+
+    async def come_and_go(rounds: int) -> int:
+        hub = StreamHub(str(tmp_path / "d.sock"), 30.0, 16)
+        for _ in range(rounds):
+            gens = []
+            for _ in range(3):
+                lease, key = hub.acquire(sub)
+                gens.append(hub.events(lease, key, sub))
+            for g in gens:                       # each browser reads a few events
+                for _ in range(3):
+                    await g.__anext__()
+            for g in gens:                       # and leaves
+                await g.aclose()
+            assert not hub.feeds and hub.active == 0
+        # every subscription closed by the daemon's count (a hang bound, not a timing)
+        for _ in range(3000):
+            if srv.all_closed.is_set():
+                break
+            await asyncio.sleep(0.01)
+        leaked = srv.open
+        srv.close()                              # the daemon ends the leaked ones itself
+        return leaked
+
+    try:
+        leaked = asyncio.run(come_and_go(40))
+        assert srv.accepted == 40
+        assert leaked == 0, f"{leaked} of 40 subscriptions still open with no browser"
+    finally:
+        srv.close()
