@@ -220,17 +220,23 @@ def start_daemon(tmp: Path, *extra: str, wait_s: float = 120.0
                                  *extra], stdout=subprocess.DEVNULL, stderr=err, env=env,
                                 cwd=str(tmp))
     end = time.monotonic() + wait_s
+    last = "no socket yet (starting: a first start after an edit compiles the numba kernels)"
     while time.monotonic() < end:
         if proc.poll() is not None:
             raise RuntimeError(f"daemon exited: {(tmp / 'daemon.err').read_text()[-2000:]}")
         try:
-            if _call(sock, "status")["seq"] > 5000:
+            seq = _call(sock, "status")["seq"]
+            if seq > 5000:
                 return proc, sock
-        except (OSError, KeyError, ValueError):
+            last = f"status answered, cycle {seq} (not yet 5000)"
+        except FileNotFoundError:
             pass
+        except (OSError, KeyError, ValueError, RuntimeError) as exc:
+            last = f"status: {type(exc).__name__}: {exc}"
         time.sleep(0.2)
     proc.kill()
-    raise RuntimeError("daemon did not come up")
+    raise RuntimeError(f"daemon did not come up within {wait_s:g} s ({last}); its log ends: "
+                       f"{(tmp / 'daemon.err').read_text()[-1000:]}")
 
 
 def stop_daemon(proc: subprocess.Popen) -> int:

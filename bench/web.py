@@ -106,12 +106,14 @@ def _client_main(url: str, token: str, go, stop, out) -> None:
                  "error": f"{type(exc).__name__}: {exc}"})
 
 
-def _start_web(tmp: Path, sock: str, wait_s: float = 60.0) -> tuple[subprocess.Popen, str]:
+def _start_web(tmp: Path, sock: str, wait_s: float = 60.0, *extra: str
+               ) -> tuple[subprocess.Popen, str]:
+    """``rigd web`` (with ``extra`` arguments) in front of ``sock``: (process, its URL)."""
     (tmp / "runs").mkdir(exist_ok=True)
     err = open(tmp / "web.err", "w+")  # noqa: SIM115 - closed with the process
     proc = subprocess.Popen([RIGD, "web", "--socket", sock, "--listen", "127.0.0.1:0",
                              "--runs-dir", str(tmp / "runs"), "--config-dir",
-                             str(ROOT / "config"), "--token-file", str(tmp / "token")],
+                             str(ROOT / "config"), "--token-file", str(tmp / "token"), *extra],
                             stdout=subprocess.DEVNULL, stderr=err, cwd=str(tmp))
     proc.err = err
     end = time.monotonic() + wait_s
@@ -123,9 +125,11 @@ def _start_web(tmp: Path, sock: str, wait_s: float = 60.0) -> tuple[subprocess.P
         if proc.poll() is not None:
             break
         time.sleep(0.1)
+    alive = proc.poll() is None
     proc.kill()
     err.seek(0)
-    raise RuntimeError(f"rigd web did not start: {err.read()[-2000:]}")
+    why = f"not serving after {wait_s:g} s" if alive else "exited"
+    raise RuntimeError(f"rigd web did not start ({why}): {err.read()[-2000:]}")
 
 
 def _window(sock: str, seconds: float) -> float:
