@@ -46,7 +46,7 @@ def find_chromium() -> tuple[str | None, str | None, str | None]:
 
 def make_driver():
     """``(driver, service)``: a headless Chromium (1400x1000 window, console log kept, WebGL
-    on the software rasterizer: the console's traces are ``scattergl``). Stop with
+    on the software rasterizer). Stop with
     ``driver.quit(); service.stop()``."""
     from selenium import webdriver
     from selenium.webdriver.chrome.options import Options

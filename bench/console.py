@@ -6,19 +6,21 @@ Figures (keys of :func:`run`, part of ``python -m bench web``):
 
 * ``console_tab_cpu_percent``: CPU of the tab's renderer process (utime + stime from
   ``/proc/<pid>/stat``) over ``seconds`` of the Live tab streaming (50 updates/s) and drawing,
-  as a percentage of one core (target <= 15), with the page choosing its trace type as it does
-  for a user. Beside it, over the same window: ``console_gpu_process_cpu_percent`` (Chromium's
-  GPU process: it composites and rasterises the tab's pixels — on the CPU here, no GPU) and
+  as a percentage of one core (target <= 15), the page as a user gets it (its fast lines on
+  its own canvas over Plotly's frame: rigd/web/static/canvas.js).
+  Beside it, over the same window: ``console_gpu_process_cpu_percent`` (Chromium's GPU
+  process: it composites and rasterises the tab's pixels — on the CPU here, no GPU) and
   ``console_browser_process_cpu_percent``; ``console_chromium_cpu_percent`` is the sum of the
-  three, all the CPU the open tab costs; ``console_trace_type`` the type the page chose.
+  three, all the CPU the open tab costs.
 * ``console_tab_where``: where the renderer's main thread spends its time, in % of the
   window's wall time — Chrome's own counters (CDP ``Performance.getMetrics``: ``task`` every
-  task, of which ``script``, ``layout``, ``style``) and the page's ``draw`` (its Plotly calls,
+  task, of which ``script``, ``layout``, ``style``) and the page's ``draw`` (its drawing,
   ``window.rigd.drawMs``; per plot job in ``draw_by_plot``: ``window.rigd.jobMs``) — with the
   stream ``updates_per_s`` and the redraws per second of the time traces and the orbit.
-* ``console_by_trace_type``: the same renderer / GPU-process / sum figures for the page forced
-  to SVG (``?gl=0``, ``scatter``) and to WebGL (``?gl=1``, ``scattergl``): the measurement
-  behind the page's choice (docs/web.md "Cheap to draw").
+* ``console_tab_profile``: a CDP sampling profile (``Profiler``) of the renderer's main thread
+  over another ``seconds`` of the Live tab: ``self`` the functions with the most self time
+  and ``page`` the page's own functions (rigd/web/static/*.js) with their inclusive time, in %
+  of the samples (``(idle)`` and ``(program)`` among them: the share spent outside scripts).
 * ``safe_click_latency_ms`` {p50, p99, max, n}: per click on the page's SAFE button (a real
   pointer click through WebDriver) with the Live tab drawing, the cycle at which the daemon
   latched ``operator_safe`` (its fault ``seq``) minus the cycle the loop was at when the page
@@ -29,8 +31,8 @@ Figures (keys of :func:`run`, part of ``python -m bench web``):
   ``CLICK_GAP_S`` apart (the page sends one SAFE per 0.5 s at most).
 
 Bounded time: the whole section stops with an error naming the step once ``budget_s`` (default
-600 s) has passed; on an idle 2-core machine it takes about 3 × ``seconds`` + 2 s per click +
-3 page loads, ≈ 1 min with the defaults.
+600 s) has passed; on an idle 2-core machine it takes about 2 × ``seconds`` + 2 s per click +
+1 page load, ≈ 45 s with the defaults.
 """
 
 from __future__ import annotations
@@ -143,7 +145,7 @@ def _metrics(driver) -> dict[str, float]:
 def _page_counters(driver) -> dict[str, float]:
     return driver.execute_script(
         "const r = window.rigd; return {draw_ms: r.drawMs, updates: r.updates, "
-        "traces: r.renders, orbit: r.orbitRenders, type: r.traceType, jobs: r.jobMs || {}};")
+        "traces: r.renders, orbit: r.orbitRenders, jobs: r.jobMs || {}};")
 
 
 def _get(driver, url: str) -> None:
@@ -183,7 +185,7 @@ def _window(driver, service, seconds: float) -> dict:
         return round(max(vals), 1) if vals else None
 
     out = {"renderer": busiest("renderer"), "gpu": busiest("gpu"),
-           "browser": busiest("browser"), "type": j1["type"]}
+           "browser": busiest("browser")}
     out["sum"] = round(sum(v for v in (out["renderer"], out["gpu"], out["browser"]) if v), 1)
     where = {k: round(100.0 * (m1[k] - m0[k]) / dt, 1) for k in METRICS}
     where["draw"] = round(100.0 * (j1["draw_ms"] - j0["draw_ms"]) / 1e3 / dt, 1)
@@ -196,6 +198,46 @@ def _window(driver, service, seconds: float) -> dict:
                              for k, v in j1["jobs"].items() if not k.endswith("_n")}
     out["where"] = where
     return out
+
+
+def _profile(driver, seconds: float, top: int = 12) -> dict:
+    """The renderer main thread's CPU profile over ``seconds`` (module docstring)."""
+    _cdp(driver, "Profiler.enable")
+    _cdp(driver, "Profiler.setSamplingInterval", {"interval": 500})     # µs
+    _cdp(driver, "Profiler.start")
+    time.sleep(seconds)
+    prof = _cdp(driver, "Profiler.stop")["profile"]
+    _cdp(driver, "Profiler.disable")
+    nodes = {n["id"]: n for n in prof["nodes"]}
+    parent = {c: n["id"] for n in prof["nodes"] for c in n.get("children", [])}
+    counts: dict[int, int] = {}
+    for s in prof.get("samples", []):
+        counts[s] = counts.get(s, 0) + 1
+    total = max(sum(counts.values()), 1)
+
+    def name(n: dict) -> tuple[str, str]:
+        cf = n["callFrame"]
+        return cf["functionName"] or "(anonymous)", cf["url"].rsplit("/", 1)[-1]
+
+    own: dict[str, int] = {}
+    page: dict[str, int] = {}
+    for nid, c in counts.items():
+        f, url = name(nodes[nid])
+        key = f"{f} {url}:{nodes[nid]['callFrame']['lineNumber'] + 1}" if url else f
+        own[key] = own.get(key, 0) + c
+        seen, x = set(), nid
+        while x is not None:                       # inclusive: once per sample and function
+            f, url = name(nodes[x])
+            if url.endswith(".js") and not url.startswith("plotly") and (f, url) not in seen:
+                seen.add((f, url))
+                page[f"{f} {url}"] = page.get(f"{f} {url}", 0) + c
+            x = parent.get(x)
+
+    def pct(d: dict[str, int]) -> dict[str, float]:
+        best = sorted(d.items(), key=lambda kv: -kv[1])[:top]
+        return {k: round(100.0 * v / total, 1) for k, v in best}
+
+    return {"self": pct(own), "page": pct(page), "samples": total}
 
 
 def _clicks(driver, sock: str, clicks: int, budget: Budget) -> list[float]:
@@ -244,19 +286,13 @@ def run(base: str, token: str, sock: str, seconds: float = 10.0, clicks: int = 1
             lat = _clicks(driver, sock, clicks, budget)
         except (RuntimeError, OSError) as exc:      # reported; the other figures still count
             lat, errors["safe_click"] = [], f"{type(exc).__name__}: {exc}"
-        by_type = {}
-        for q, name in (("?gl=0", "scatter"), ("?gl=1", "scattergl")):
-            if budget.left() < seconds + 60:
-                by_type[name] = "not run: the bench's time budget is spent"
-                continue
+        if budget.left() < seconds + 60:
+            profile = "not run: the bench's time budget is spent"
+        else:
             try:
-                _open(driver, base, q, budget)
-                w = _window(driver, service, seconds)
+                profile = _profile(driver, seconds)
             except (RuntimeError, OSError) as exc:
-                by_type[name] = f"not measured: {type(exc).__name__}: {exc}"
-                continue
-            by_type[name] = {"renderer": w["renderer"], "gpu": w["gpu"], "sum": w["sum"],
-                             "draw": w["where"]["draw"]}
+                profile = f"not measured: {type(exc).__name__}: {exc}"
     finally:
         try:
             driver.quit()
@@ -268,9 +304,8 @@ def run(base: str, token: str, sock: str, seconds: float = 10.0, clicks: int = 1
         "console_gpu_process_cpu_percent": page["gpu"],
         "console_browser_process_cpu_percent": page["browser"],
         "console_chromium_cpu_percent": page["sum"],
-        "console_trace_type": page["type"],
         "console_tab_where": page["where"],
-        "console_by_trace_type": by_type,
+        "console_tab_profile": profile,
         "console_cpu_seconds": seconds,
         "safe_click_latency_ms": {"p50": round(float(np.percentile(la, 50)), 1),
                                   "p99": round(float(np.percentile(la, 99)), 1),

@@ -29,7 +29,7 @@ output k_x/k_y, valve positions y_p1..4 and references r_p1..4, k_on — with ``
 Then the console page itself in headless Chromium on the same daemon (bench/console.py):
 ``console_tab_cpu_percent`` (the tab's renderer process, /proc; target <= 15) with the GPU and
 browser processes beside it and where the tab spends it (``console_tab_where``, Chrome's
-``Performance.getMetrics``), the same for SVG and WebGL traces (``console_by_trace_type``),
+``Performance.getMetrics``; a CPU profile of it in ``console_tab_profile``),
 and ``safe_click_latency_ms`` {p50, p99, max, n} (page click -> latched, on the daemon's cycle
 counter, the Live tab drawing; target p99 <= 100), with the load average they were taken at.
 That part is bounded by its own budget (10 min; about 1 min idle).

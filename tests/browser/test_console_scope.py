@@ -179,6 +179,14 @@ def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, 
           what="stale state")
     stale = _text(browser, "stale-text")
     assert stale.startswith("disconnected — values are stale (last at ")
+    # from now on every fetch of the page is logged: while the daemon is down it polls only
+    # what the stale state needs (the status: the reason, the way back)
+    browser.execute_script("""
+        const r = window.rigd, f = window.fetch; r.fetchLog = [];
+        window.fetch = function (url, opts) {
+          r.fetchLog.push([String(url), performance.now()]);
+          return f.apply(this, arguments);
+        };""")
     # greyed: the header's values dimmed, the plots too
     assert float(_js(browser, "getComputedStyle(document.querySelector('header#top .item'))"
                               ".opacity")) < 1
@@ -211,6 +219,13 @@ def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, 
     browser.find_element(By.ID, "safe").click()       # the failed SAFE is the last message
     _wait(browser, lambda drv: _text(browser, "message").startswith("safe: "),
           what="failed SAFE shown again")
+    # over more than 6 s down (the histogram's period is 5 s, the experiment's 2 s): the status
+    # polled, never the timing nor the experiment (each a 503 in the console before)
+    polled = ("(() => { const s = window.rigd.fetchLog.filter(e => e[0] === '/api/status');"
+              " return s.length > 1 && s[s.length - 1][1] - s[0][1] > 6000; })()")
+    _wait(browser, lambda drv: _js(browser, polled), what="6 s of status polls while down")
+    down = {u for u, _ in json.loads(_js(browser, "JSON.stringify(window.rigd.fetchLog)"))}
+    assert not {u for u in down if u.startswith(("/api/timing", "/api/experiment"))}, down
     d = _restart_daemon(rig)
     new_pid = d.ctl_json("ping")["pid"]
     assert new_pid != old_pid
@@ -227,6 +242,10 @@ def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, 
     assert "error" not in browser.find_element(By.ID, "message").get_attribute("class")
     assert _js(browser, "window.rigd.restarts.length") >= 1
     assert "restarted" in _text(browser, "live-note")
+    # the daemon back: the timing and the experiment are read again
+    for path in ("/api/timing", "/api/experiment"):
+        _wait(browser, lambda drv, path=path: _js(
+            browser, f"window.rigd.fetchLog.some(e => e[0] === '{path}')"), what=f"{path} again")
     buf_t0 = _js(browser, "window.rigd.buf.t[0]")
     assert buf_t0 is not None and buf_t0 < old_t
     # nothing recursed or threw: the only console errors are the failed loads while it was down
@@ -295,22 +314,25 @@ def test_fault_banner_with_reset_and_a_refusal_that_clears_with_the_fault(browse
     assert all("409" in e for e in errors), errors
 
 
-def test_trace_type_and_server_side_decimation(browser, rig):
+def test_lines_on_the_page_canvas_and_server_side_decimation(browser, rig):
     d, web = rig["d"], rig["web"]
     _clear_fault(d)
     _open(browser, web)
     _wait(browser, lambda drv: _js(browser, "window.rigd.renders") > 1
           and _js(browser, "window.rigd.orbitRenders") > 1, what="traces and orbit drawn")
-    # the page's trace type: WebGL where the browser's WebGL has a GPU, SVG on SwiftShader
-    renderer = _js(browser, "(() => { const g = document.createElement('canvas')"
-                            ".getContext('webgl'); if (!g) return null; const i = g.getExtension("
-                            "'WEBGL_debug_renderer_info'); return i ? String(g.getParameter("
-                            "i.UNMASKED_RENDERER_WEBGL)) : ''; })()")
-    want = "scatter" if renderer is None or re.search(
-        "swiftshader|llvmpipe|software", renderer, re.I) else "scattergl"
+    # the fast lines are the page's own canvas strokes over Plotly's frame (canvas.js): the
+    # figures' traces are SVG scatter with their SVG lines hidden, the canvas has the lines
     for key in ("orbit", "traces"):
         types = _js(browser, f"document.getElementById('{key}').data.map(t => t.type)")
-        assert set(types) == {want}, (key, types, renderer)
+        assert set(types) == {"scatter"}, (key, types)
+        assert _js(browser, f"getComputedStyle(document.querySelector('#{key} .scatterlayer'))"
+                            ".display") == "none"
+        # pixels drawn on the overlay, inside the figure's plot area
+        inked = (f"(() => {{ const c = document.querySelector('#{key} canvas.lines-overlay');"
+                 " if (!c) return 0; const p = c.getContext('2d').getImageData(0, 0, c.width,"
+                 " c.height).data; let n = 0; for (let i = 3; i < p.length; i += 4) n += p[i] > 0;"
+                 " return n; })()")
+        _wait(browser, lambda drv, inked=inked: _js(browser, inked) > 50, what=f"{key} lines drawn")
     # the stream is decimated by the server: 4 min/max buckets per update at 50 updates/s,
     # each bucket covering many 5 kHz frames (the page never receives the raw frames)
     sub = _js(browser, "window.rigd.subscription")

@@ -250,6 +250,7 @@ function takeStatus(s, seqNow) {
  * own follow-up: its error is shown at least until the next read). */
 export async function refreshStatus(keepConn) {
   const r = await api("/api/status");
+  rigd.daemonUp = r.ok;
   if (r.ok) {
     if (rigd.mode !== "stream") takeStatus(statusFromCtl(r.body), r.body.seq);
     if (keepConn !== true) causeCleared("conn");
@@ -277,6 +278,7 @@ export function connectStream() {
   es = new EventSource("/api/stream?rate_hz=" + RATE_HZ + "&points=" + POINTS + "&channels=" + CHANNELS.join(","));
   es.addEventListener("subscribed", (e) => {
     rigd.mode = "stream";
+    rigd.daemonUp = true;
     rigd.subscription = JSON.parse(e.data);
     if (rigd.subscription.fs_hz) rigd.fs = rigd.subscription.fs_hz;
     $("stream-state").textContent = "live " + rigd.subscription.rate_hz + " Hz";
@@ -298,6 +300,7 @@ export function connectStream() {
     dirtyHook();
   };
   es.addEventListener("error", (e) => {
+    rigd.daemonUp = false;  // until a status read or a subscription answers again
     if (e.data) {           // the relay's one-line reason: the stream has ended
       es.close();
       startPolling(JSON.parse(e.data).error);
@@ -312,9 +315,12 @@ export function connectStream() {
   });
 }
 
-/** The slow things not in the stream's status, and the staleness watchdog. */
+/** The slow things not in the stream's status, and the staleness watchdog. While the daemon
+ * does not answer (rigd.daemonUp false) only the status is polled — what the stale state
+ * needs, its reason and the way back — not the experiment, nor the timing (plots.js). */
 export function startWatch() {
   setInterval(async () => {
+    if (!rigd.daemonUp) return;
     const e = await api("/api/experiment");
     if (e.ok) showExperiment(e.body);
   }, 2000);

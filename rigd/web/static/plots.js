@@ -1,8 +1,10 @@
-// rigd console, the Live tab's plots (Plotly, WebGL `scattergl` traces): the autoscaled orbit
-// with the film-gap circle, the time traces (one axis group per unit, pause/trigger views,
-// cursor readout), the trends of the last minutes, the cycle-time percentiles (log scale) and
-// histogram. Drawing is rationed: one plot per animation frame, never while input is
-// pending, and at most DUTY of the wall time. docs/web.md.
+// rigd console, the Live tab's plots: the autoscaled orbit with the film-gap circle and the
+// time traces (one axis group per unit, pause/trigger views, cursor readout) — their lines on
+// a canvas of our own over a Plotly frame (canvas.js) — the trends of the last minutes, the
+// cycle-time percentiles (log scale) and histogram (Plotly). Drawing is rationed: one plot
+// per animation frame, never while input is pending, and at most DUTY of the wall time.
+// docs/web.md.
+import {paintLines, setLines} from "./canvas.js";
 import {$, PLOT_CONFIG, api, band, colours, fmt, layoutBase, rigd, stackedAxes} from "./core.js";
 import {CHANNELS, ORBIT_S, TRACE_S, identity, trend} from "./live.js";
 
@@ -30,33 +32,14 @@ const NAMES = {k_x: "K∞ k_x", k_y: "K∞ k_y"};
 // distinct over the whole plot (its one legend names every trace by colour)
 const COLOURS = colours(GROUPS.flatMap((g) => g.chans));
 
-// WebGL traces (`scattergl`) where WebGL runs on a GPU; SVG traces where it would be emulated on
-// the CPU (Chromium's SwiftShader: there each WebGL redraw costs more CPU than the SVG one and
-// stalls the page on pixel read-backs). `?gl=1` / `?gl=0` in the page's address force either.
-function webglType() {
-  const force = new URLSearchParams(location.search).get("gl");
-  if (force !== null) return force === "1" ? "scattergl" : "scatter";
-  try {
-    const g = document.createElement("canvas").getContext("webgl");
-    if (!g) return "scatter";
-    const info = g.getExtension("WEBGL_debug_renderer_info");
-    const r = info ? String(g.getParameter(info.UNMASKED_RENDERER_WEBGL)) : "";
-    const lose = g.getExtension("WEBGL_lose_context");
-    if (lose) lose.loseContext();
-    return /swiftshader|llvmpipe|software/i.test(r) ? "scatter" : "scattergl";
-  } catch (e) {
-    return "scatter";
-  }
-}
-const TRACE_TYPE = rigd.traceType = webglType();
+// The fast lines (orbit, time traces) are drawn on a canvas of our own (canvas.js): Plotly draws
+// their frame and is called only when it changes. The figures' traces are SVG `scatter` (their
+// own lines hidden); the slow plots are Plotly's SVG throughout.
+rigd.traceType = "scatter";
 
-function gl(x, y, name, colour, extra) {
-  return Object.assign({x, y, name, type: TRACE_TYPE, mode: "lines", hoverinfo: "none",
+function line(x, y, name, colour, extra) {
+  return Object.assign({x, y, name, type: "scatter", mode: "lines", hoverinfo: "none",
     line: {width: 1, color: colour}}, extra || {});
-}
-
-function svg(x, y, name, colour, extra) {
-  return Object.assign(gl(x, y, name, colour, extra), {type: "scatter"});
 }
 
 // ---------------------------------------------------------------- orbit
@@ -84,7 +67,8 @@ function orbitLayout(r, maxAbs) {
     annotations: [{xref: "paper", yref: "paper", x: 0, y: 1, xanchor: "left", yanchor: "top",
       showarrow: false, font: {size: 10, color: "#c62828"},
       text: "film gap " + gap + " µm (dotted)" + ratio}],
-    showlegend: false, dragmode: "zoom", uirevision: "orbit",
+    // no Plotly hover: its lines are ours (canvas.js), it would search stale points
+    showlegend: false, dragmode: "zoom", uirevision: "orbit", hovermode: false,
   });
 }
 
@@ -99,8 +83,8 @@ function drawOrbit(force) {
     m = Math.max(m, Math.abs(ex), Math.abs(ey));
   }
   const el = $("orbit");
-  const data = [gl(x, y, "orbit", "#1f77b4", {meta: {daemon: rigd.daemon && rigd.daemon.pid, t: rigd.lastT}}),
-    gl(x.slice(-1), y.slice(-1), "now", "#c62828", {mode: "markers", marker: {size: 8, color: "#c62828"}})];
+  const data = [line(x, y, "orbit", "#1f77b4", {meta: {daemon: rigd.daemon && rigd.daemon.pid, t: rigd.lastT}}),
+    line(x.slice(-1), y.slice(-1), "now", "#c62828", {mode: "markers", marker: {size: 8, color: "#c62828"}})];
   let want = orbitRange;
   if (rigd.orbitScale === "gap") want = rigd.filmGap * 1.05;
   else if (rigd.orbitScale === "auto") {
@@ -116,9 +100,12 @@ function drawOrbit(force) {
     Plotly.react(el, data, lay, Object.assign({}, PLOT_CONFIG, {doubleClick: false}));
     if (!el.dataset.wired) {
       el.dataset.wired = "1";
+      // a zoom, a resize, a new frame: the lines follow the axes at once
+      el.on("plotly_afterplot", () => paintLines(el));
       el.on("plotly_relayout", (ev) => {
         if ("xaxis.range[0]" in ev && !rigd.orbitRelayout) { rigd.orbitScale = "user"; setButtons(); }
         else if (ev["xaxis.autorange"]) setOrbitScale("auto");
+        paintLines(el);
       });
       el.on("plotly_doubleclick", () => setOrbitScale("auto"));
       // and the browser's own double-click (its click count, not Plotly's 300 ms timer: a
@@ -132,8 +119,9 @@ function drawOrbit(force) {
       });
     }
   } else {
-    Plotly.restyle(el, {x: [x, x.slice(-1)], y: [y, y.slice(-1)], meta: [data[0].meta, null]});
+    setLines(el, data);
   }
+  paintLines(el);
   $("orbit-cap").textContent = identity(tmin, rigd.lastT || 0) + " · scale " + rigd.orbitScale;
   rigd.orbitRenders++;
 }
@@ -144,19 +132,59 @@ function setButtons() {
 
 // ---------------------------------------------------------------- time traces
 let tracesShape = "";
+let tracesRanges = null;
 
-function tracesLayout(xr, marker) {
+/** The y range of each axis group for buffer `b`, with hysteresis: a group keeps its range
+ * `old[gi]` while its lines stay inside it and span at least 40 % of it, else it gets their
+ * extent with 10 % either side (a flat line: a span of 2 % of its value, at least 0.001).
+ * Plotly's own autorange would redo the whole frame at every redraw. */
+function groupRanges(b, old) {
+  return GROUPS.map((g, gi) => {
+    let lo = Infinity, hi = -Infinity;
+    for (const c of g.chans) {
+      const l = b[c].lo, h = b[c].hi;
+      for (let i = 0; i < l.length; i++) {
+        if (l[i] !== null && l[i] < lo) lo = l[i];
+        if (h[i] !== null && h[i] > hi) hi = h[i];
+      }
+    }
+    const o = old && old[gi];
+    if (!(hi >= lo)) return o || [-1, 1];
+    const mid = (lo + hi) / 2, span = Math.max(hi - lo, 0.02 * Math.abs(mid), 1e-3);
+    if (o && lo >= o[0] && hi <= o[1] && span >= 0.4 * (o[1] - o[0])) return o;
+    return [mid - 0.6 * span, mid + 0.6 * span];
+  });
+}
+
+function tracesLayout(xr, marker, yr) {
   const st = stackedAxes(GROUPS);
+  st.ref.forEach((_, i) => { st.axes[i === 0 ? "yaxis" : "yaxis" + (i + 1)].range = yr[i]; });
   const lay = layoutBase("", Object.assign({
-    xaxis: {range: xr, title: {text: marker ? "t − t_trigger, s" : "t − now, s"}, showspikes: true,
-      spikemode: "across", spikethickness: 1, spikecolor: "#444", anchor: "y3"},
-    hovermode: "x", showlegend: true, margin: {l: 70, r: 10, t: 12, b: 84},
+    xaxis: {range: xr, title: {text: marker ? "t − t_trigger, s" : "t − now, s"}, anchor: "y3"},
+    // no Plotly hover (its lines are ours, canvas.js): the cursor readout is the page's own
+    hovermode: false, dragmode: false, showlegend: true, margin: {l: 70, r: 10, t: 12, b: 84},
     legend: {orientation: "h", y: -0.16, font: {size: 10}}, uirevision: "traces",
   }, st.axes));
   lay.shapes = marker ? [{type: "line", xref: "x", yref: "paper", x0: 0, x1: 0, y0: 0, y1: 1,
     line: {color: "#c62828", width: 1, dash: "dash"}}] : [];
   return lay;
 }
+
+/** The cursor's vertical line over the traces (canvas.js paintLines' `extra`). */
+function cursorLine(ctx, fl) {
+  const c = rigd.cursor, xa = fl.xaxis;
+  if (!c || c.x < xa.range[0] || c.x > xa.range[1]) return;
+  const px = xa._offset + xa.l2p(c.x);
+  ctx.strokeStyle = "#444";
+  ctx.lineWidth = 1;
+  ctx.setLineDash([]);
+  ctx.beginPath();
+  ctx.moveTo(px, fl._size.t);
+  ctx.lineTo(px, fl._size.t + fl._size.h);
+  ctx.stroke();
+}
+
+function paintTraces() { paintLines($("traces"), cursorLine); }
 
 function drawTraces() {
   const v = rigd.view, b = v ? v.buf : rigd.buf;
@@ -167,24 +195,37 @@ function drawTraces() {
   GROUPS.forEach((g, gi) => {
     for (const c of g.chans) {
       const e = band(b.t, b[c].lo, b[c].hi, t0);
-      data.push(gl(e.x, e.y, NAMES[c] || c, COLOURS[c], {yaxis: st.ref[gi], xaxis: "x",
+      data.push(line(e.x, e.y, NAMES[c] || c, COLOURS[c], {yaxis: st.ref[gi], xaxis: "x",
         meta: {daemon: rigd.daemon && rigd.daemon.pid, t0: t0, epoch: rigd.epoch},
         line: {width: 1, color: COLOURS[c], dash: /^(r_p|k_)/.test(c) ? "dot" : "solid"}}));
     }
   });
   const shape = v ? (trig ? "trig" : "pause") : "live";
+  const yr = groupRanges(b, shape === tracesShape ? tracesRanges : null);
   const el = $("traces");
-  if (shape !== tracesShape || !el.data) {
+  if (shape !== tracesShape || !el.data || yr.some((r, i) => r !== tracesRanges[i])) {
     tracesShape = shape;
+    tracesRanges = yr;
     const xr = trig ? [-TRACE_S / 2, TRACE_S / 2] : [-TRACE_S, 0];
-    Plotly.react(el, data, tracesLayout(xr, trig), PLOT_CONFIG);
+    Plotly.react(el, data, tracesLayout(xr, trig, yr), PLOT_CONFIG);
     if (!el.dataset.wired) {
       el.dataset.wired = "1";
-      el.on("plotly_hover", (ev) => cursorAt(ev.xvals ? ev.xvals[0] : ev.points[0].x));
+      el.on("plotly_afterplot", paintTraces);
+      // the legend shows/hides a channel: the canvas follows
+      el.on("plotly_restyle", paintTraces);
+      el.addEventListener("mousemove", (ev) => {
+        const fl = el._fullLayout, xa = fl && fl.xaxis;
+        if (!xa) return;
+        const r = el.getBoundingClientRect(), px = ev.clientX - r.left - xa._offset;
+        if (px < 0 || px > xa._length) return;
+        cursorAt(xa.p2l(px));
+        paintTraces();
+      });
     }
   } else {
-    Plotly.restyle(el, {x: data.map((d) => d.x), y: data.map((d) => d.y), meta: data.map((d) => d.meta)});
+    setLines(el, data);
   }
+  paintTraces();
   const t1 = b.t.length ? b.t[b.t.length - 1] : undefined;
   $("traces-cap").textContent = identity(b.t.length ? b.t[0] : undefined, t1) +
     (v ? " · " + v.label : " · live");
@@ -222,9 +263,9 @@ function drawTrends() {
   const fx = trend.faults.map((f) => f.wall), fy = trend.faults.map(() => 0);
   const data = [
     // a few hundred points once a second: SVG (no WebGL context to set up)
-    svg(trend.wall, trend.omega, "Ω", "#1f77b4", {yaxis: "y"}),
-    svg(trend.wall, trend.pinj, "P_I", "#ff7f0e", {yaxis: "y2"}),
-    svg(trend.wall, trend.missRate, "misses/s", "#7f7f7f", {yaxis: "y3", mode: "lines+markers", marker: {size: 3}}),
+    line(trend.wall, trend.omega, "Ω", "#1f77b4", {yaxis: "y"}),
+    line(trend.wall, trend.pinj, "P_I", "#ff7f0e", {yaxis: "y2"}),
+    line(trend.wall, trend.missRate, "misses/s", "#7f7f7f", {yaxis: "y3", mode: "lines+markers", marker: {size: 3}}),
     {x: fx, y: fy, yaxis: "y3", name: "fault", type: "scatter", mode: "markers+text",
       text: trend.faults.map((f) => f.name), textposition: "top left", textfont: {size: 9, color: "#c62828"},
       marker: {symbol: "x", size: 10, color: "#c62828"}, hovertext: trend.faults.map((f) => f.name + ": " + f.text)},
@@ -300,7 +341,8 @@ const JOBS = [
   {key: "orbit", every: ORBIT_MS, due: () => dirty.orbit, run: () => { dirty.orbit = false; drawOrbit(false); }},
   {key: "traces", every: TRACES_MS, due: () => dirty.traces, run: () => { dirty.traces = false; drawTraces(); }},
   {key: "trends", every: TREND_MS, due: () => true, run: () => { drawTrends(); drawTiming(); }},
-  {key: "hist", every: HIST_MS, due: () => true, run: () => { drawHistogram(); }},
+  // a fetch of /api/timing: not while the daemon does not answer (live.js startWatch)
+  {key: "hist", every: HIST_MS, due: () => rigd.daemonUp, run: () => { drawHistogram(); }},
 ];
 
 function drawOne(now) {

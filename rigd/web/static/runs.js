@@ -1,7 +1,7 @@
 // rigd console, the Runs tab: the runs folder (status with its reason), a record opened as
 // zoomable traces — one axis group per unit, distinct colours, min/max decimated server-side
 // and fetched again for the zoomed window — and the HTML pages of each run. docs/web.md.
-import {$, GROUP_ORDER, RECORD_CONFIG, api, band, colours, fmt, groupOf, layoutBase, rigd, say, stackedAxes,
+import {$, GROUP_ORDER, RECORD_CONFIG, api, band, colours, fmt, groupOf, layoutBase, say, stackedAxes,
   unitOf} from "./core.js";
 
 function cell(tr, text) {
@@ -126,7 +126,7 @@ export async function openRecord(run, file, t0, t1) {
     const data = hasData(d);
     if (!data) empty.push(c);
     traces.push({x, y, name: c + " [" + unit(c) + "]" + (data ? "" : " (no samples here)"), meta: c,
-      type: rigd.traceType || "scatter", mode: "lines", line: {width: 1, color: col[c]},
+      type: "scatter", mode: "lines", line: {width: 1, color: col[c]},
       // a channel with nothing to draw is never shown (an empty panel says nothing)
       visible: !data ? "legendonly" : before && c in before ? before[c] : (SHOWN.test(c) ? true : "legendonly"),
       legendgroup: g.key, groupLabel: g.label});
