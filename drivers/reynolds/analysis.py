@@ -227,6 +227,8 @@ def rest(pa: PlantArrays, drive_v: float) -> None:
     n = pa.n
     pa.state[o[L.T_P1]:o[L.T_P1] + n] = pa.p
     pa.state[o[L.T_PC1]:o[L.T_PC1] + NV] = pa.pc
+    pa.state[o[L.T_P2]:o[L.T_P2] + n] = pa.p
+    pa.state[o[L.T_PC2]:o[L.T_PC2] + NV] = pa.pc
     psi = psi_of(pa, pa.p, xb)
     pa.state[o[L.T_PSI]:o[L.T_PSI] + n] = psi
     pa.state[o[L.T_PSI1]:o[L.T_PSI1] + n] = psi

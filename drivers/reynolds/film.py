@@ -75,20 +75,22 @@ def orifice_flow(p_up, p_down, cda, rt, gam):
         pu = p_down
         pd = p_up
     r = pd / pu
-    rc = (2.0 / (gam + 1.0)) ** (gam / (gam - 1.0))
+    g1 = 1.0 / gam
     k_un = cda * pu * math.sqrt(2.0 * gam / ((gam - 1.0) * rt))
     r_lin = 0.995
-    if r <= rc:
+    r1 = r ** g1                      # r^(1/γ): every power of r below is a product of it
+    if r <= r1 * (2.0 / (gam + 1.0)):  # r^((γ−1)/γ) ≤ 2/(γ+1): at or below the critical ratio
         m = cda * pu * math.sqrt(gam / rt) * (2.0 / (gam + 1.0)) ** (
             (gam + 1.0) / (2.0 * (gam - 1.0)))
         dm_dr = 0.0
     elif r <= r_lin:
-        a = r ** (2.0 / gam) - r ** ((gam + 1.0) / gam)
+        a = r1 * r1 - r * r1          # r^(2/γ) − r^((γ+1)/γ)
         m = k_un * math.sqrt(a)
-        da = (2.0 / gam) * r ** (2.0 / gam - 1.0) - ((gam + 1.0) / gam) * r ** (1.0 / gam)
+        da = (2.0 * g1) * (r1 * r1 / r) - ((gam + 1.0) * g1) * r1
         dm_dr = k_un * 0.5 * da / math.sqrt(a)
     else:
-        a = r_lin ** (2.0 / gam) - r_lin ** ((gam + 1.0) / gam)
+        rl1 = r_lin ** g1
+        a = rl1 * rl1 - r_lin * rl1
         m0 = k_un * math.sqrt(a)
         m = m0 * (1.0 - r) / (1.0 - r_lin)
         dm_dr = -m0 / (1.0 - r_lin)

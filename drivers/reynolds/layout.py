@@ -33,7 +33,10 @@ _h += 13
 _h += 37
 # feed path (reynolds.feed): chamber pressures now and one sub-step ago (Pa), and work
 (T_PC, T_PC1, W_HC, W_FW, W_RC, W_GC, W_PM) = range(_h, _h + 7)
-N_HEADER = _h + 7
+_h += 7
+# film and chamber pressures two sub-steps ago (Pa): the Newton predictor's third point
+(T_P2, T_PC2) = range(_h, _h + 2)
+N_HEADER = _h + 2
 
 # scalars in the parameter block (relative to O_SC)
 SC_OMEGA_RAD = 0

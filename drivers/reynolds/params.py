@@ -139,6 +139,8 @@ def build_layout(nt: int, mz: int, m: int) -> Layout:
     stake(L.W_RC, NV)
     stake(L.W_GC, NV)
     stake(L.W_PM, NV)
+    stake(L.T_P2, n)
+    stake(L.T_PC2, NV)
     n_state = pos
     h = np.zeros(L.N_HEADER)
     act = L.N_HEADER

@@ -53,8 +53,10 @@ from rigd_drivers.reynolds.layout import (
     STATUS_DIVERGED,
     T_P,
     T_P1,
+    T_P2,
     T_PC,
     T_PC1,
+    T_PC2,
     T_PSI,
     T_PSI1,
     T_Q,
@@ -124,26 +126,33 @@ def substep(state, params, fdx, fdy):
         state[otmp + m + r] = acc
         xk0 += params[ophib + r] * acc
         xk1 += params[ophib + m + r] * acc
-    # film history and predictor
+    # film history and the Newton predictor: the quadratic through the last three time levels
+    # (p_{n+1} ≈ 3 p_n − 3 p_{n−1} + p_{n−2}), kept where it stays above half the present p
     op = int(params[T_P])
     op1 = int(params[T_P1])
     ops = int(params[T_PSI])
     ops1 = int(params[T_PSI1])
     oh = int(params[W_HIST])
+    op2 = int(params[T_P2])
     for k in range(n):
         state[oh + k] = (4.0 * state[ops + k] - state[ops1 + k]) * inv2
         pn = state[op + k]
-        pr = 2.0 * pn - state[op1 + k]
+        p1 = state[op1 + k]
+        pr = 3.0 * (pn - p1) + state[op2 + k]      # quadratic through the last three levels
+        state[op2 + k] = p1
         state[op1 + k] = pn
         if pr > 0.5 * pn:
             state[op + k] = pr
     opc = int(params[T_PC])
     opc1 = int(params[T_PC1])
+    opc2 = int(params[T_PC2])
     ohc = int(params[W_HC])
     for v in range(NV):
         pn = state[opc + v]
-        state[ohc + v] = (4.0 * pn - state[opc1 + v]) * inv2
-        pr = 2.0 * pn - state[opc1 + v]
+        p1 = state[opc1 + v]
+        state[ohc + v] = (4.0 * pn - p1) * inv2
+        pr = 3.0 * (pn - p1) + state[opc2 + v]
+        state[opc2 + v] = p1
         state[opc1 + v] = pn
         if pr > 0.5 * pn:
             state[opc + v] = pr
