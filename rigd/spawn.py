@@ -12,15 +12,29 @@ What comes back is pickled (keep it small: arrays and a few scalars).
 
 from __future__ import annotations
 
+import faulthandler
 import importlib
 import multiprocessing
+import signal
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 
+def dump_stacks_on_sigusr2() -> None:
+    """SIGUSR2 writes every thread's stack to stderr (:mod:`faulthandler`, in C: also while
+    the interpreter is stuck); for where a hang stands. Main thread only; silent if not."""
+    try:
+        faulthandler.register(signal.SIGUSR2, all_threads=True)
+    except (ValueError, RuntimeError, OSError, AttributeError):
+        pass
+
+
 def call(module: str, name: str, *args: Any) -> Any:
     """In the helper: import ``module`` and call its ``name(*args)`` (also the target of a
-    long-lived spawned :class:`multiprocessing.Process`, such as the socket process)."""
+    long-lived spawned :class:`multiprocessing.Process`, such as the socket process).
+
+    SIGUSR2 dumps the helper's threads to stderr (:func:`dump_stacks_on_sigusr2`)."""
+    dump_stacks_on_sigusr2()
     return getattr(importlib.import_module(module), name)(*args)
 
 

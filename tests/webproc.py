@@ -139,6 +139,14 @@ def daemon_and_web(tmp: Path, daemon_args: tuple[str, ...] = (), **web_kwargs):
         d.stop()
 
 
+def hang_report(d: Daemon) -> str:
+    """The daemon's side of a hang (:meth:`Daemon.hang_report`), or why it could not be had."""
+    try:
+        return d.hang_report()
+    except Exception as exc:  # noqa: BLE001 - a report must not hide the failure it explains
+        return f"(no daemon report: {exc!r})"
+
+
 def wait_for(cond, timeout=30.0, interval=0.1, what="condition"):
     """Poll ``cond()`` until truthy (returned) or fail after ``timeout`` s; ``what`` names
     the condition in the failure (a callable is called then, to say the last state seen)."""

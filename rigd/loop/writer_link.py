@@ -46,7 +46,8 @@ class RecordingFailed(OSError):
         self.cause = cause
 
 
-def _how_ended(code: int | None) -> str:
+def how_ended(code: int | None) -> str:
+    """How a child process ended, from its exit code (None, a status, a negative signal)."""
     if code is None:
         return "its connection closed"
     if code < 0:
@@ -123,7 +124,7 @@ class WriterLink:
         end = time.monotonic() + timeout
         while not self.ready.wait(0.05):
             if self.gone.is_set() or time.monotonic() > end:
-                how = (_how_ended(self.proc.exitcode) if self.gone.is_set()
+                how = (how_ended(self.proc.exitcode) if self.gone.is_set()
                        else f"no answer within {timeout:g} s")
                 raise RecordingFailed(f"recording refused: the writer process did not start "
                                       f"({how})")
@@ -162,7 +163,7 @@ class WriterLink:
             return
         self._drop(slot)
         why = answer[0] if answer else (f"recording {sink.path} refused: the writer process "
-                                        f"ended ({_how_ended(self.proc.exitcode)})")
+                                        f"ended ({how_ended(self.proc.exitcode)})")
         raise RecordingFailed(why)
 
     def close(self, sink: FileSink) -> None:
@@ -234,7 +235,7 @@ class WriterLink:
         except (EOFError, OSError):
             pass
         self.proc.join(5.0)
-        how = _how_ended(self.proc.exitcode)
+        how = how_ended(self.proc.exitcode)
         with self._lock:
             left = list(self.sinks.values())
         for s in left:

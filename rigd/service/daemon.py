@@ -17,6 +17,8 @@
   stop the loop; ``rigd run`` then flushes and closes the recordings and exits 0;
 * **SIGUSR1**: SAFE (``operator_safe`` latched by the next cycle) through the loop's SAFE word
   — the same as ``rigd ctl safe``; the handler only writes the word;
+* **SIGUSR2**: every thread's stack to stderr (:mod:`faulthandler`), here and in every
+  process spawned by module name (:func:`rigd.spawn.call`): where a hang stands;
 * **SAFE word** (with ``--socket``): ``<socket>.safe``, the socket's permissions, mapped by
   the loop's cycle (:mod:`rigd.loop.safeword`): ``rigd ctl safe`` and ``rigd web`` write
   their SAFE into it directly — no client slot, no worker thread, nothing to wait behind;
@@ -52,6 +54,7 @@ from rigd.service.bridge import SocketFrontend, as_helper
 from rigd.service.experiment_host import ExperimentHost
 from rigd.service.notify import Notifier
 from rigd.service.protocol import Dispatcher, unpack_controller
+from rigd.spawn import dump_stacks_on_sigusr2
 
 #: the timing statistics in the socket's snapshot are refreshed this often, s
 TIMING_REFRESH_S = 0.2
@@ -153,6 +156,7 @@ class Daemon:
                          (signal.SIGHUP, self._on_hup),
                          (signal.SIGUSR1, self._on_safe_signal)):
                 self._old_handlers[s] = signal.signal(s, h)
+            dump_stacks_on_sigusr2()
         self._thread = threading.Thread(target=self._service_run, name="rigd-service",
                                         daemon=True)
         self._thread.start()
@@ -348,7 +352,9 @@ class Daemon:
                 self.log.warning("SAFE taken by the loop (operator_safe); experiment stopped, "
                                  "queued commands dropped", safe_requests=gen)
                 if self.experiments is not None:
-                    self.experiments.stop()
+                    # only one started before this SAFE: seen late (this thread polls), a
+                    # SAFE must not stop an experiment started after it (after the reset)
+                    self.experiments.stop(before_safe=gen)
                 if self.server is not None:
                     self.server.publish_now()
             try:

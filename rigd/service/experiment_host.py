@@ -11,6 +11,17 @@ answers its small, packed calls on the loop (docs/ARCHITECTURE.md, "The loop's p
   once by ``run_segment`` (into the padded array it plays); a hammer blow as
   ``("impact", axis, peak_n, pulse_s)``, called on the loop's simulated plant at its cycle;
 * ``status``, ``enable``, ``op`` (K∞ on/off, the operating point).
+
+Whatever the experiment process does, the state ends in ``complete``, ``interrupted`` or
+``failed`` (with a message): a process that ends without its final word, or that has said
+nothing :data:`START_LIMIT_S` after its spawn (killed then), gives ``failed`` naming how.
+
+A SAFE stops the experiment that was running when the cycle took it: the daemon sees the SAFE
+late (its service thread polls), so :meth:`ExperimentHost.stop` is given the SAFE's number
+(the loop's ``safe_generation``) and leaves alone an experiment started after that SAFE —
+one started after the fault's reset, before the late stop arrived, was found ``interrupted``
+at once ("stopped on request; 0 of 1 point(s) done"; tests/web/test_web_process.py hung
+waiting for it to complete).
 """
 
 from __future__ import annotations
@@ -19,17 +30,29 @@ import mmap
 import multiprocessing
 import os
 import threading
+import time
+from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any
 
 from rigd.bounded import confined
 from rigd.driver import data_source
 from rigd.errors import FaultError, InputError
+from rigd.loop.writer_link import how_ended
 from rigd.spawn import call
 
 #: how long ``start`` waits for the experiment process to make its run folder, s (the spawn
 #: and its imports take seconds on a loaded machine; a spec refused in it answers sooner)
 START_WAIT_S = 60.0
+
+#: longest silence of a new experiment process before its first word, s: then it is killed
+#: and the experiment failed, saying so. Only a hung start reaches it: the spawn and its
+#: imports (numpy, pydantic, the experiments' code) took 7 s at load 8 on the shared
+#: 2-core machine, "tens of seconds" at load 25
+START_LIMIT_S = 120.0
+
+#: the experiment process's entry point, by module name (tests point it elsewhere)
+ENTRY = ("rigd.experiments.process", "main")
 
 
 def _plant(loop: Any) -> Any | None:
@@ -60,7 +83,11 @@ class ExperimentHost:
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self._proc: Any = None
+        #: the running experiment's stop event and the SAFE generation it started in
         self._stop: Any = None
+        self._run: tuple[Any, int | None] = (None, None)
+        self.entry = ENTRY
+        self.start_limit_s = START_LIMIT_S
         self._state: dict[str, Any] = {"state": "idle"}
         #: set once the running experiment's process said it is done (or ended)
         self._over = threading.Event()
@@ -113,7 +140,9 @@ class ExperimentHost:
                                  "experiment.start")
             ctx = multiprocessing.get_context("spawn")
             ours, theirs = ctx.Pipe()
+            gen = getattr(self.loop, "safe_generation", None)
             self._stop = ctx.Event()
+            self._run = (self._stop, gen if isinstance(gen, int) else None)
             started = threading.Event()
             self._over = over = threading.Event()
             packed = experiment or {}
@@ -122,9 +151,10 @@ class ExperimentHost:
                            "run_dir": None, "message": ""}
             # not daemonic: an operator impact's window is cut in a helper it spawns
             self._proc = ctx.Process(target=call, name="rigd-experiment", args=(
-                "rigd.experiments.process", "main", theirs, self._stop, request, run_dir,
-                str(self.runs_root), self._facts()))
+                *self.entry, theirs, self._stop, request, run_dir, str(self.runs_root),
+                self._facts()))
             self._proc.start()
+            self._state["pid"] = self._proc.pid
             theirs.close()
             self._thread = threading.Thread(target=self._serve,
                                             args=(ours, self._proc, started, over),
@@ -137,16 +167,32 @@ class ExperimentHost:
 
     def status(self) -> dict[str, Any]:
         """State of the current/last experiment (``idle``, ``starting``, ``running``,
-        ``complete``, ``interrupted``, ``failed``) with ``done``/``total`` segments and the
-        run directory; ``fault`` (seq, code, name, text) when a latched fault ended it."""
+        ``complete``, ``interrupted``, ``failed``) with ``done``/``total`` segments, the
+        run directory and ``pid`` (its experiment process); ``fault`` (seq, code, name, text)
+        when a latched fault ended it."""
         return dict(self._state)
 
-    def stop(self) -> dict[str, Any]:
-        """Ask the running experiment to stop after the current segment."""
+    def stop(self, before_safe: int | None = None) -> dict[str, Any]:
+        """Ask the running experiment to stop after the current segment.
+
+        Parameters
+        ----------
+        before_safe : int, optional
+            A SAFE's stop, however late it comes: the loop's ``safe_generation`` once the
+            cycle took that SAFE. Only an experiment started before it is stopped.
+        """
         running = not self._over.is_set()
-        if self._stop is not None:
-            self._stop.set()
+        ev, gen = self._run          # one tuple: never one experiment's event with another's
+        if before_safe is not None and gen is not None and gen >= before_safe:
+            return {"stopping": False}          # started after that SAFE
+        if ev is not None:
+            ev.set()
         return {"stopping": running}
+
+    @property
+    def pid(self) -> int | None:
+        """The current (or last) experiment process's pid, or None."""
+        return getattr(self._proc, "pid", None)
 
     def join(self, timeout: float | None = None) -> None:
         """Wait up to ``timeout`` for the experiment to be over (tests, shutdown); its process
@@ -161,17 +207,46 @@ class ExperimentHost:
                 proc.join(5.0)
 
     # --- the experiment's thread: answers its process's calls -------------------------
+    def _fail(self, why: str) -> None:
+        """End a state still ``starting``/``running`` in ``failed`` with ``why``."""
+        if self._state.get("state") in ("starting", "running"):
+            self._state.update(state="failed", message=why)
+            if self.log is not None:
+                self.log.error("experiment failed", reason=why)
+
+    def _next(self, conn: Any, proc: Any, heard: bool, t0: float) -> Any:
+        """The process's next message; None when it ended or (before its first word) was
+        killed at :attr:`start_limit_s` — the state is then ``failed`` with the reason."""
+        while True:
+            left = None if heard else self.start_limit_s - (time.monotonic() - t0)
+            if left is not None and left <= 0:
+                proc.kill()
+                proc.join(5.0)
+                self._fail(f"the experiment process said nothing within "
+                           f"{self.start_limit_s:g} s of its start; killed")
+                return None
+            if not wait([conn, proc.sentinel], left):
+                continue
+            try:
+                if conn.poll():       # what it sent before it ended is read first
+                    return conn.recv()
+            except (EOFError, OSError):
+                pass
+            proc.join(5.0)
+            self._fail(f"the experiment process ended without its result "
+                       f"({how_ended(proc.exitcode)})")
+            return None
+
     def _serve(self, conn: Any, proc: Any, started: threading.Event,
                over: threading.Event) -> None:
+        t0 = time.monotonic()
+        heard = False
         try:
             while True:
-                try:
-                    msg = conn.recv()
-                except (EOFError, OSError):
-                    if self._state.get("state") in ("starting", "running"):
-                        self._state.update(state="failed", message="the experiment process "
-                                           f"ended (exit code {proc.exitcode})")
+                msg = self._next(conn, proc, heard, t0)
+                if msg is None:
                     return
+                heard = True
                 kind = msg[0]
                 if kind == "state":
                     self._state.update(msg[1])
@@ -181,8 +256,20 @@ class ExperimentHost:
                     self._state.update(msg[1])
                     return
                 elif kind == "call":
-                    conn.send(self._answer(conn, msg[1], msg[2:]))
+                    answer = self._answer(conn, msg[1], msg[2:])
+                    try:
+                        conn.send(answer)
+                    except OSError:           # it died while its call ran (a segment)
+                        proc.join(5.0)
+                        self._fail(f"the experiment process ended during its "
+                                   f"{msg[1]} call ({how_ended(proc.exitcode)})")
+                        return
+        except Exception as exc:  # noqa: BLE001 - a bug here must not leave it "running"
+            proc.kill()
+            self._fail(f"internal error serving the experiment process: {exc!r}")
         finally:
+            self._fail("the experiment process ended without its result")  # if still open
+            proc.join(5.0)            # reaped (it exits after its last word)
             over.set()
             started.set()
             conn.close()

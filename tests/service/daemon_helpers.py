@@ -2,6 +2,7 @@
 
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -131,6 +132,56 @@ class Daemon:
         if not self.stderr.closed:
             self.stderr.flush()
         return (self.tmp / "daemon.err").read_text()[-3000:]
+
+    def processes(self):
+        """The daemon and its descendants as ``(pid, name, state)`` (from /proc)."""
+        parent = {}
+        for d in Path("/proc").iterdir():
+            if d.name.isdigit():
+                try:
+                    stat = (d / "stat").read_text()
+                except OSError:
+                    continue
+                head, rest = stat.rsplit(")", 1)
+                fields = rest.split()
+                parent[int(d.name)] = (int(fields[1]), head.split("(", 1)[1], fields[0])
+        out, todo = [], [self.proc.pid]
+        while todo:
+            pid = todo.pop()
+            if pid in parent:
+                out.append((pid, parent[pid][1], parent[pid][2]))
+            todo += [p for p, (pp, _, _) in parent.items() if pp == pid]
+        return out
+
+    def hang_report(self, wait_s=2.0):
+        """What a hang bound says of the daemon: ``experiment`` and ``status`` as `rigd ctl`
+        sees them, its processes (pid, name, state) and the tail of its stderr after every
+        thread's stack of each of its Python processes was dumped there (SIGUSR2, sent only to
+        the processes that handle it: the daemon and the processes it spawned)."""
+        lines = []
+        for args in (("experiment",), ("status",)):
+            try:
+                r = subprocess.run([RIGD, "ctl", "--socket", self.sock, *args, "--json"],
+                                   capture_output=True, text=True, timeout=60)
+                lines.append(f"rigd ctl {args[0]}: {(r.stdout or r.stderr).strip()[:1500]}")
+            except subprocess.TimeoutExpired:
+                lines.append(f"rigd ctl {args[0]}: no answer in 60 s")
+        procs = self.processes()
+        lines.append(f"daemon processes: {procs}")
+        for pid, _, _ in procs:
+            try:
+                caught = next(x for x in Path(f"/proc/{pid}/status").read_text().splitlines()
+                              if x.startswith("SigCgt:"))
+                if int(caught.split()[1], 16) >> (signal.SIGUSR2 - 1) & 1:
+                    os.kill(pid, signal.SIGUSR2)
+            except (OSError, StopIteration, ValueError):
+                pass
+        time.sleep(wait_s)
+        if not self.stderr.closed:
+            self.stderr.flush()
+        lines.append("daemon stderr (tail):\n"
+                     + (self.tmp / "daemon.err").read_text(errors="replace")[-20000:])
+        return "\n".join(lines)
 
     def stop(self, sig=15, timeout=60):
         if self.proc.poll() is None:
