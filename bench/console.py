@@ -5,7 +5,8 @@ it draws.
 Figures (keys of :func:`run`, part of ``python -m bench web``):
 
 * ``console_tab_cpu_percent``: CPU of the tab's renderer process (utime + stime from
-  ``/proc/<pid>/stat``) over ``seconds`` of the Live tab streaming (50 updates/s) and drawing,
+  ``/proc/<pid>/stat``) over ``seconds`` of the Live tab streaming (the page's subscription:
+  10 updates/s of 20 buckets) and drawing,
   as a percentage of one core (target <= 15), the page as a user gets it (its fast lines on
   its own canvas over Plotly's frame: rigd/web/static/canvas.js).
   Beside it, over the same window: ``console_gpu_process_cpu_percent`` (Chromium's GPU

@@ -21,10 +21,11 @@ Figures (keys of ``run()``):
   100 ms); ``web_stream_events_per_s`` per client, ``web_stream_dropped_frames`` (sum of the
   updates' ``dropped``), ``web_stream_bytes_per_event``.
 
-The clients ask for exactly what the console page asks for (``POINTS`` and ``CHANNELS``
-copied from rigd/web/static/live.js: today 17 channels — orbit e_x/e_y, u_x/u_y, r_x/r_y, K∞
-output k_x/k_y, valve positions y_p1..4 and references r_p1..4, k_on — with ``points`` 4) at
-``rate_hz`` 50.
+The clients ask for exactly what the console page asks for (``RATE_HZ``, ``POINTS`` and
+``CHANNELS`` copied from rigd/web/static/live.js: today 17 channels — orbit e_x/e_y, u_x/u_y,
+r_x/r_y, K∞ output k_x/k_y, valve positions y_p1..4 and references r_p1..4, k_on — with
+``points`` 20 at ``rate_hz`` 10: 200 min/max buckets a second; 50 updates/s of 4 until
+2026-11-27).
 
 Then the console page itself in headless Chromium on the same daemon (bench/console.py):
 ``console_tab_cpu_percent`` (the tab's renderer process, /proc; target <= 15) with the GPU and
@@ -60,15 +61,17 @@ RIGD = str(Path(sys.executable).parent / "rigd")
 APP_JS = ROOT / "rigd" / "web" / "static" / "live.js"
 
 
-def page_subscription() -> tuple[int, list[str]]:
-    """``POINTS`` and ``CHANNELS`` of the console page (rigd/web/static/live.js): the bench's
-    clients ask for exactly what a browser showing the console asks for."""
+def page_subscription() -> tuple[float, int, list[str]]:
+    """``RATE_HZ``, ``POINTS`` and ``CHANNELS`` of the console page (rigd/web/static/live.js):
+    the bench's clients ask for exactly what a browser showing the console asks for."""
     js = APP_JS.read_text()
+    m_r = re.search(r"const RATE_HZ\s*=\s*(\d+(?:\.\d*)?)", js)
     m_p = re.search(r"const POINTS\s*=\s*(\d+)", js)
     m_c = re.search(r"const CHANNELS\s*=\s*\[([^\]]*)\]", js)
-    if not (m_p and m_c):
-        raise RuntimeError(f"{APP_JS}: no 'const POINTS' / 'const CHANNELS' to copy")
-    return int(m_p.group(1)), re.findall(r'"([a-z_0-9]+)"', m_c.group(1))
+    if not (m_r and m_p and m_c):
+        raise RuntimeError(f"{APP_JS}: no 'const RATE_HZ' / 'const POINTS' / 'const CHANNELS' "
+                           "to copy")
+    return float(m_r.group(1)), int(m_p.group(1)), re.findall(r'"([a-z_0-9]+)"', m_c.group(1))
 
 
 def _client_main(url: str, token: str, go, stop, out) -> None:
@@ -139,9 +142,11 @@ def _window(sock: str, seconds: float) -> float:
     return (o1 - o0) / max(c1 - c0, 1)
 
 
-def run(seconds: float = 8.0, clients: int = 5, rate_hz: float = 50.0) -> dict:
-    """Idle / clients / idle / clients / idle windows of ``seconds`` (module docstring)."""
-    points, channels = page_subscription()
+def run(seconds: float = 8.0, clients: int = 5, rate_hz: float | None = None) -> dict:
+    """Idle / clients / idle / clients / idle windows of ``seconds`` (module docstring);
+    ``rate_hz`` None: the page's."""
+    page_rate, points, channels = page_subscription()
+    rate_hz = page_rate if rate_hz is None else rate_hz
     ctx = multiprocessing.get_context("spawn")
     with tempfile.TemporaryDirectory(prefix="rigd-web-bench-") as d:
         tmp = Path(d)

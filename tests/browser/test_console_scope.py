@@ -74,6 +74,10 @@ def _open(browser, web, query=""):
         pass                    # timeout: the page goes on loading; the waits below bound it
     box = _wait(browser, lambda drv: (drv.find_elements(By.ID, "token") or [None])[0],
                 timeout=300, what="the page")
+    # the page's modules run (the token button wired) after the HTML: on a busy machine the
+    # box is there seconds before
+    _wait(browser, lambda drv: _js(browser, "!!window.rigd"), timeout=300,
+          what="the page's scripts")
     box.clear()
     box.send_keys(web.token)
     browser.find_element(By.ID, "token-save").click()
@@ -320,6 +324,11 @@ def test_lines_on_the_page_canvas_and_server_side_decimation(browser, rig):
     _open(browser, web)
     _wait(browser, lambda drv: _js(browser, "window.rigd.renders") > 1
           and _js(browser, "window.rigd.orbitRenders") > 1, what="traces and orbit drawn")
+    # under a policy that runs no string as code (no 'unsafe-eval': Plotly's SVG figures need
+    # none); a violation would be a console error, and the browser fixture fails on those
+    csp = browser.driver.execute_async_script(
+        "fetch('/').then(r => arguments[0](r.headers.get('content-security-policy')))")
+    assert "script-src 'self';" in csp and "unsafe-eval" not in csp, csp
     # the fast lines are the page's own canvas strokes over Plotly's frame (canvas.js): the
     # figures' traces are SVG scatter with their SVG lines hidden, the canvas has the lines
     for key in ("orbit", "traces"):
@@ -333,16 +342,16 @@ def test_lines_on_the_page_canvas_and_server_side_decimation(browser, rig):
                  " c.height).data; let n = 0; for (let i = 3; i < p.length; i += 4) n += p[i] > 0;"
                  " return n; })()")
         _wait(browser, lambda drv, inked=inked: _js(browser, inked) > 50, what=f"{key} lines drawn")
-    # the stream is decimated by the server: 4 min/max buckets per update at 50 updates/s,
+    # the stream is decimated by the server: 20 min/max buckets per update at 10 updates/s,
     # each bucket covering many 5 kHz frames (the page never receives the raw frames)
     sub = _js(browser, "window.rigd.subscription")
-    assert sub["points"] == 4 and sub["rate_hz"] == 50, sub
+    assert sub["points"] == 20 and sub["rate_hz"] == 10, sub
     u0 = _js(browser, "window.rigd.updates")
-    _wait(browser, lambda drv: _js(browser, "window.rigd.updates") > u0 + 50, what="50 updates")
-    assert 1 <= _js(browser, "window.rigd.maxBuckets") <= 4
+    _wait(browser, lambda drv: _js(browser, "window.rigd.updates") > u0 + 20, what="20 updates")
+    assert 1 <= _js(browser, "window.rigd.maxBuckets") <= 20
     t = _wait(browser, lambda drv: (lambda v: v if len(v) >= 10 else None)(
         _js(browser, "window.rigd.buf.t")), what="10 buckets in the buffer")
-    assert len(t) <= 4 * 50 * 2.5 + 4          # 2.5 s kept: ~1 bucket per pixel column
+    assert len(t) <= 20 * 10 * 2.5 + 20        # 2.5 s kept: ~1 bucket per pixel column
     assert (t[-1] - t[0]) / (len(t) - 1) >= 1 / 5000 * 10     # ≥ 10 frames per bucket
     assert browser.console_errors() == []
 

@@ -6,7 +6,8 @@
 import {$, api, rigd, say, token} from "./core.js";
 import {loadFiles, wireControls} from "./controls.js";
 import {connectStream, onDirty, refreshStatus, startWatch} from "./live.js";
-import {markDirty, startRendering} from "./plots.js";
+import {onHeaderPending} from "./header.js";
+import {markDirty, startRendering, wake} from "./plots.js";
 
 // Reads need the token too (docs/web.md, Security): every fetch sends it as the
 // Authorization header, and login() exchanges it (POST /api/login) for a read-only session
@@ -27,6 +28,7 @@ async function start() {
   if (started) return;
   started = true;
   onDirty(markDirty);
+  onHeaderPending(wake);
   const c = await api("/api/console");
   if (c.ok && c.body.film_gap_um) rigd.filmGap = c.body.film_gap_um;
   loadFiles();

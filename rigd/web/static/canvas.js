@@ -43,8 +43,18 @@ function axisOf(fl, ref, letter) {
   return fl[letter + "axis" + (!ref || ref === letter ? "" : ref.slice(1))];
 }
 
+/** Data value -> pixel in the figure for axis `ax`: on a linear axis its own scale (Plotly's
+ * `_b + _m v`, without the rounding of `l2p`: a call per point of every line), else `l2p`. */
+function toPixel(ax) {
+  const o = ax._offset, m = ax._m, b = ax._b;
+  if (ax.type === "linear" && Number.isFinite(m) && Number.isFinite(b) && !(ax.rangebreaks || []).length) {
+    return (v) => o + b + m * v;
+  }
+  return (v) => o + ax.l2p(v);
+}
+
 /** Draw the traces of figure `el` (its `el.data`: x, y, line colour/width/dash, `mode`
- * lines or markers, `visible`) on its canvas, each clipped to its axes' plot area, in the
+ * lines, markers (circles, or crosses for symbol "x") or text, `visible`) on its canvas, each clipped to its axes' plot area, in the
  * figure's current axis ranges; `extra(ctx, fullLayout)` draws more on top (a cursor). */
 export function paintLines(el, extra) {
   const ctx = overlay(el);
@@ -59,7 +69,7 @@ export function paintLines(el, extra) {
     ctx.beginPath();
     ctx.rect(xa._offset, ya._offset, xa._length, ya._length);
     ctx.clip();
-    const px = (v) => xa._offset + xa.l2p(v), py = (v) => ya._offset + ya.l2p(v);
+    const px = toPixel(xa), py = toPixel(ya);
     if (/lines/.test(tr.mode || "lines")) {
       const ln = tr.line || {};
       ctx.strokeStyle = ln.color || "#000";
@@ -77,12 +87,33 @@ export function paintLines(el, extra) {
     }
     if (/markers/.test(tr.mode || "")) {
       const mk = tr.marker || {}, r = (mk.size || 6) / 2;
-      ctx.fillStyle = mk.color || (tr.line || {}).color || "#000";
+      ctx.fillStyle = ctx.strokeStyle = mk.color || (tr.line || {}).color || "#000";
+      ctx.lineWidth = 2;
+      ctx.setLineDash([]);
       for (let i = 0; i < x.length; i++) {
         if (x[i] === null || y[i] === null) continue;
+        const cx = px(x[i]), cy = py(y[i]);
         ctx.beginPath();
-        ctx.arc(px(x[i]), py(y[i]), r, 0, 2 * Math.PI);
-        ctx.fill();
+        if (mk.symbol === "x") {       // a cross (the trends' fault events)
+          ctx.moveTo(cx - r, cy - r); ctx.lineTo(cx + r, cy + r);
+          ctx.moveTo(cx - r, cy + r); ctx.lineTo(cx + r, cy - r);
+          ctx.stroke();
+        } else {
+          ctx.arc(cx, cy, r, 0, 2 * Math.PI);
+          ctx.fill();
+        }
+      }
+    }
+    if (/text/.test(tr.mode || "") && tr.text) {
+      // each point's text above it, to its left (Plotly's textposition "top left")
+      const tf = tr.textfont || {};
+      ctx.fillStyle = tf.color || "#000";
+      ctx.font = (tf.size || 10) + "px sans-serif";
+      ctx.textAlign = "right";
+      ctx.textBaseline = "bottom";
+      for (let i = 0; i < x.length; i++) {
+        if (x[i] === null || y[i] === null || !tr.text[i]) continue;
+        ctx.fillText(tr.text[i], px(x[i]) - 2, py(y[i]) - 4);
       }
     }
     ctx.restore();
@@ -91,12 +122,48 @@ export function paintLines(el, extra) {
 }
 
 /** Set the traces' data of figure `el` in place (what the next paintLines draws, and what a
- * reader of `el.data` sees) without a Plotly call: `data[i]` {x, y, meta} for trace i. */
+ * reader of `el.data` sees) without a Plotly call: `data[i]` {x, y, meta, text, hovertext}
+ * for trace i. */
 export function setLines(el, data) {
   data.forEach((d, i) => {
     const tr = el.data[i];
     tr.x = d.x;
     tr.y = d.y;
-    if (d.meta !== undefined) tr.meta = d.meta;
+    for (const k of ["meta", "text", "hovertext"]) if (d[k] !== undefined) tr[k] = d[k];
   });
+}
+
+/** A line trace (SVG `scatter`: its own line hidden, canvas.js draws it) for a figure. */
+export function line(x, y, name, colour, extra) {
+  return Object.assign({x, y, name, type: "scatter", mode: "lines", hoverinfo: "none",
+    line: {width: 1, color: colour}}, extra || {});
+}
+
+/** [lo, hi] over the non-null values of the arrays `arrs` (`with`: a value always inside),
+ * or null when there is none. */
+export function extent(arrs, withValue) {
+  let lo = Infinity, hi = -Infinity;
+  for (const a of arrs) {
+    for (let i = 0; i < a.length; i++) {
+      const v = a[i];
+      if (v === null || v === undefined) continue;
+      if (v < lo) lo = v;
+      if (v > hi) hi = v;
+    }
+  }
+  if (withValue !== undefined && hi >= lo) { lo = Math.min(lo, withValue); hi = Math.max(hi, withValue); }
+  return hi >= lo ? [lo, hi] : null;
+}
+
+/** A y range for lines spanning `ext` ([lo, hi] or null) with hysteresis: the range `old` is
+ * kept while the lines stay inside it and span at least 40 % of it, else they get their
+ * extent with 10 % either side (a flat line: a span of 2 % of its value, at least `minSpan`,
+ * default 0.001).
+ * Plotly's own autorange would redo the whole frame at every redraw. */
+export function hystRange(ext, old, minSpan) {
+  if (!ext) return old || [-1, 1];
+  const [lo, hi] = ext;
+  const mid = (lo + hi) / 2, span = Math.max(hi - lo, 0.02 * Math.abs(mid), minSpan || 1e-3);
+  if (old && lo >= old[0] && hi <= old[1] && span >= 0.4 * (old[1] - old[0])) return old;
+  return [mid - 0.6 * span, mid + 0.6 * span];
 }

@@ -11,29 +11,34 @@ function setText(id, text) {
   if (e.textContent !== text) e.textContent = text;
 }
 
-/** The header is repainted at most this often, ms: the stream brings 50 statuses a second,
- * and writing the page's text 50 times a second costs a style and layout pass each. */
-export const HEADER_MS = 100;
-let pending = null, paintedAt = -1e9;
+/** The header is repainted at most this often, ms (plots.js paints it, in the frames of the
+ * orbit and the traces): the stream brings 10 statuses a second, and each text write costs a
+ * style and layout pass; 5 a second is what an eye reads of a changing number. */
+export const HEADER_MS = 200;
+let pending = null, pendingHook = () => {};
+
+/** `hook()` is called when a status waits to be shown (plots.js wake). */
+export function onHeaderPending(hook) { pendingHook = hook; }
 
 /** Take one status (the stream's `status` object, or one built from GET /api/status): kept at
- * once (rigd.lastStatus, the staleness clock), shown in the header at the next animation frame
- * at most every HEADER_MS (the newest status then; a latched fault stays latched in it). */
+ * once (rigd.lastStatus, the staleness clock), shown in the header by the next paintHeader
+ * (the newest status then; a latched fault stays latched in it). */
 export function showStatus(s) {
   rigd.lastStatus = s;
   rigd.lastGood = Date.now();
   if (rigd.stale) setStale(false);
   if (s.cycle !== undefined && s.cycle !== null) rigd.cycle = s.cycle;
   if (s.compute_us || s.lateness_us) rigd.timing = {compute_us: s.compute_us, lateness_us: s.lateness_us};
-  const scheduled = pending !== null;
   pending = s;
-  if (!scheduled) requestAnimationFrame(paintStatus);
+  pendingHook();
 }
 
-function paintStatus(now) {
-  if (now - paintedAt < HEADER_MS) { requestAnimationFrame(paintStatus); return; }
-  paintedAt = now;
+export function headerPending() { return pending !== null; }
+
+/** Show the newest status taken in the header (plots.js, in an animation frame). */
+export function paintHeader() {
   const s = pending;
+  if (s === null) return;
   pending = null;
   if (s.cycle !== undefined && s.cycle !== null) setText("cycle", String(s.cycle));
   setText("kinf", s.k_on ? "on" : (s.k_loaded === false ? "off (none loaded)" : "off"));

@@ -11,11 +11,14 @@ const KEEP_S = TRACE_S + 0.5; // kept in the buffers (a trigger's window is cent
 const GAP_S = 0.25;           // a jump of loop time this long between updates is a gap
 export const TREND_S = 300;   // trends: the last 5 minutes
 const TREND_MS = 500;         // one trend sample every 0.5 s
-// the subscription (bench/web.py asks for exactly this): 4 min/max buckets per update at 50
+// the subscription (bench/web.py asks for exactly this): 20 min/max buckets per update at 10
 // updates/s = 200 buckets/s, 400 over the 2 s traces — about one per pixel column of a plot,
-// so the server's decimation leaves nothing for the page to thin out
-export const RATE_HZ = 50;
-export const POINTS = 4;
+// so the server's decimation leaves nothing for the page to thin out. 10 updates/s: as often
+// as the header is repainted (header.js HEADER_MS) and twice the traces' redraws; at 50/s the
+// 40 extra messages a second (each a task of the renderer: IPC, event, JSON.parse) were
+// drawn by nobody
+export const RATE_HZ = 10;
+export const POINTS = 20;
 export const CHANNELS = ["e_x", "e_y", "u_x", "u_y", "r_x", "r_y", "k_x", "k_y",
   "y_p1", "y_p2", "y_p3", "y_p4", "r_p1", "r_p2", "r_p3", "r_p4", "k_on"];
 
@@ -109,7 +112,7 @@ let lastTrend = {wall: 0, misses: null, faultCode: 0};
 function sampleTrend(s) {
   const now = Date.now();
   const f = (s.fault || {}).code || 0;
-  if (f && !lastTrend.faultCode) trend.faults.push({wall: now, name: s.fault.name, text: s.fault.text});
+  if (f && !lastTrend.faultCode) trend.faults.push({wall: now, at: clock(now), name: s.fault.name, text: s.fault.text});
   lastTrend.faultCode = f;
   if (now - lastTrend.wall < TREND_MS) return;
   const dt = (now - lastTrend.wall) / 1000;

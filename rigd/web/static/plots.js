@@ -1,12 +1,14 @@
 // rigd console, the Live tab's plots: the autoscaled orbit with the film-gap circle and the
 // time traces (one axis group per unit, pause/trigger views, cursor readout) — their lines on
-// a canvas of our own over a Plotly frame (canvas.js) — the trends of the last minutes, the
-// cycle-time percentiles (log scale) and histogram (Plotly). Drawing is rationed: one plot
-// per animation frame, never while input is pending, and at most DUTY of the wall time.
+// a canvas of our own over a Plotly frame (canvas.js) — and the render loop that draws them,
+// the header, the trends and the cycle times (slowplots.js): frames only when something is
+// due, never while input is pending, and at most DUTY of the wall time.
 // docs/web.md.
-import {paintLines, setLines} from "./canvas.js";
-import {$, PLOT_CONFIG, api, band, colours, fmt, layoutBase, rigd, stackedAxes} from "./core.js";
-import {CHANNELS, ORBIT_S, TRACE_S, identity, trend} from "./live.js";
+import {extent, hystRange, line, paintLines, setLines} from "./canvas.js";
+import {$, PLOT_CONFIG, band, colours, fmt, layoutBase, rigd, stackedAxes} from "./core.js";
+import {HEADER_MS, headerPending, paintHeader} from "./header.js";
+import {ORBIT_S, TRACE_S, identity} from "./live.js";
+import {drawHistogram, drawTiming, drawTrends} from "./slowplots.js";
 
 // Where the tab's CPU went (bench/console.py, CDP sampling profile of the Live tab on
 // SwiftShader, 2026-11-26): ~80 % in Plotly calls — the once-a-second trends, percentiles and
@@ -15,9 +17,11 @@ import {CHANNELS, ORBIT_S, TRACE_S, identity, trend} from "./live.js";
 // 5/s, the slow plots every 2 s (the histogram every 5 s) and redrawn only when what they show
 // changed, and the duty cap honoured for long draws too.
 const ORBIT_MS = 200;      // orbit redrawn at most 5 times a second
-const TRACES_MS = 200;     // the time traces 5 times
-const TREND_MS = 2000;     // trends and cycle-time percentiles every 2 s (when changed)
+const TRACES_MS = 200;     // the time traces 5 times (the header too, header.js HEADER_MS)
+const TREND_MS = 2000;     // trends every 2 s (canvas strokes)
+const TIMING_MS = 5000;    // cycle-time percentiles every 5 s (when changed)
 const HIST_MS = 5000;      // the cycle-time histogram (a fetch) every 5 s (when changed)
+const SLACK_MS = 60;       // a job due this soon is drawn in the frame of one due now
 const DUTY = 0.1;          // drawing takes at most this fraction of the wall time
 const MAX_WAIT_MS = 1000;  // ... but the next draw waits no longer than this after a long one
 
@@ -37,10 +41,6 @@ const COLOURS = colours(GROUPS.flatMap((g) => g.chans));
 // own lines hidden); the slow plots are Plotly's SVG throughout.
 rigd.traceType = "scatter";
 
-function line(x, y, name, colour, extra) {
-  return Object.assign({x, y, name, type: "scatter", mode: "lines", hoverinfo: "none",
-    line: {width: 1, color: colour}}, extra || {});
-}
 
 // ---------------------------------------------------------------- orbit
 // rigd.orbitScale: "auto" (fits the orbit: a 0.1 µm orbit fills the plot), "gap" (the film
@@ -134,26 +134,11 @@ function setButtons() {
 let tracesShape = "";
 let tracesRanges = null;
 
-/** The y range of each axis group for buffer `b`, with hysteresis: a group keeps its range
- * `old[gi]` while its lines stay inside it and span at least 40 % of it, else it gets their
- * extent with 10 % either side (a flat line: a span of 2 % of its value, at least 0.001).
- * Plotly's own autorange would redo the whole frame at every redraw. */
+
+/** The y range of each axis group of the traces for buffer `b` (hystRange; `old[gi]`). */
 function groupRanges(b, old) {
-  return GROUPS.map((g, gi) => {
-    let lo = Infinity, hi = -Infinity;
-    for (const c of g.chans) {
-      const l = b[c].lo, h = b[c].hi;
-      for (let i = 0; i < l.length; i++) {
-        if (l[i] !== null && l[i] < lo) lo = l[i];
-        if (h[i] !== null && h[i] > hi) hi = h[i];
-      }
-    }
-    const o = old && old[gi];
-    if (!(hi >= lo)) return o || [-1, 1];
-    const mid = (lo + hi) / 2, span = Math.max(hi - lo, 0.02 * Math.abs(mid), 1e-3);
-    if (o && lo >= o[0] && hi <= o[1] && span >= 0.4 * (o[1] - o[0])) return o;
-    return [mid - 0.6 * span, mid + 0.6 * span];
-  });
+  return GROUPS.map((g, gi) => hystRange(extent(g.chans.flatMap((c) => [b[c].lo, b[c].hi])),
+    old && old[gi]));
 }
 
 function tracesLayout(xr, marker, yr) {
@@ -252,133 +237,111 @@ export function cursorAt(x) {
   $("cursor").textContent = "cursor: loop t " + b.t[k].toFixed(4) + " s (x " + x.toFixed(4) + " s): " + parts.join(", ");
 }
 
-// ---------------------------------------------------------------- trends
-function drawTrends() {
-  // only when a sample or a fault came in since the last draw (the x range alone moving is
-  // not worth a redraw of three axes)
-  const key = trend.wall.length + ":" + (trend.wall[trend.wall.length - 1] || 0) + ":" + trend.faults.length;
-  if (key === drawnKey.trends) return;
-  drawnKey.trends = key;
-  const st = stackedAxes([{label: "Ω, rpm"}, {label: "P_I, bar"}, {label: "misses/s"}]);
-  const fx = trend.faults.map((f) => f.wall), fy = trend.faults.map(() => 0);
-  const data = [
-    // a few hundred points once a second: SVG (no WebGL context to set up)
-    line(trend.wall, trend.omega, "Ω", "#1f77b4", {yaxis: "y"}),
-    line(trend.wall, trend.pinj, "P_I", "#ff7f0e", {yaxis: "y2"}),
-    line(trend.wall, trend.missRate, "misses/s", "#7f7f7f", {yaxis: "y3", mode: "lines+markers", marker: {size: 3}}),
-    {x: fx, y: fy, yaxis: "y3", name: "fault", type: "scatter", mode: "markers+text",
-      text: trend.faults.map((f) => f.name), textposition: "top left", textfont: {size: 9, color: "#c62828"},
-      marker: {symbol: "x", size: 10, color: "#c62828"}, hovertext: trend.faults.map((f) => f.name + ": " + f.text)},
-  ];
-  const now = Date.now();
-  const lay = layoutBase("trends, last 5 min (faults ✕)", Object.assign({
-    xaxis: {type: "date", range: [now - 300000, now], title: {text: "wall clock"}, anchor: "y3"},
-    showlegend: false, uirevision: "trends",
-    shapes: trend.faults.map((f) => ({type: "line", xref: "x", yref: "paper", x0: f.wall, x1: f.wall,
-      y0: 0, y1: 1, line: {color: "#c62828", width: 1, dash: "dot"}})),
-  }, st.axes));
-  Plotly.react("trends", data, lay, PLOT_CONFIG);
-  rigd.trendRenders++;
-}
-
-// ---------------------------------------------------------------- cycle times
-function drawTiming() {
-  const t = rigd.timing || {}, keys = ["p50", "p99", "p999", "max"];
-  const bars = [];
-  for (const [name, d, col] of [["compute", t.compute_us, "#1f77b4"], ["lateness", t.lateness_us, "#ff7f0e"]]) {
-    if (!d) continue;
-    bars.push({x: ["p50", "p99", "p99.9", "max"], y: keys.map((k) => d[k]), type: "bar",
-      name: name + " µs", marker: {color: col}});
-  }
-  const misses = rigd.lastStatus && rigd.lastStatus.misses;
-  // percentiles as shown (3 significant digits) and the title: unchanged, nothing is redrawn
-  const key = JSON.stringify([misses, bars.map((b) => [b.name, b.y.map((v) => (v === null || v === undefined) ? v : Number(v).toPrecision(3))])]);
-  if (key === drawnKey.timing) return;
-  drawnKey.timing = key;
-  Plotly.react("timing", bars, layoutBase("cycle time percentiles (misses: " +
-    (misses === undefined || misses === null ? "–" : misses) + ")", {barmode: "group",
-    yaxis: {type: "log", title: {text: "µs (log)"}}, xaxis: {title: {text: "percentile"}}}), PLOT_CONFIG);
-}
-
-// the cycle-time histogram: `timing`'s coarse histograms (the daemon's 100 ns bins summed to
-// at most 32 bars), fetched with the same period as the percentiles
-async function drawHistogram() {
-  const r = await api("/api/timing");
-  const h = r.ok && r.body && r.body.histogram_us;
-  if (!h) return;
-  const bars = [];
-  for (const [name, d, col] of [["compute", h.compute, "#1f77b4"], ["lateness", h.lateness, "#ff7f0e"]]) {
-    if (!d || !d.counts.length) continue;
-    const mid = d.counts.map((_, i) => 0.5 * (d.edges_us[i] + d.edges_us[i + 1]));
-    bars.push({x: mid, y: d.counts, type: "bar", name: name + (d.overflow ? " (+" +
-      d.overflow + " beyond)" : ""), opacity: 0.7, marker: {color: col}});
-  }
-  const key = JSON.stringify(bars.map((b) => [b.name, b.y]));
-  if (key === drawnKey.hist) return;
-  drawnKey.hist = key;
-  Plotly.react("timing-hist", bars, layoutBase("cycle-time histogram",
-    {barmode: "overlay", yaxis: {type: "log", title: {text: "cycles (log)"}},
-      xaxis: {title: {text: "µs"}}, legend: {orientation: "h", x: 0.99, xanchor: "right", y: 0.99,
-        yanchor: "top", bgcolor: "rgba(255,255,255,0.75)", font: {size: 10}}}), PLOT_CONFIG);
-  rigd.histRenders++;
-}
-
 // ---------------------------------------------------------------- the render loop
+// One timer, one frame: no animation frame is asked for unless something is due — the header
+// (a new status), a plot with new data, the slow plots' period — and a frame draws everything
+// due then or within SLACK_MS of it (the header, the orbit and the traces share their frames:
+// 5 a second). Why: each frame runs Chromium's whole frame pipeline (style, layout, paint of
+// the changed regions, layerizing a page of five SVG figures, compositing: "(program)" in the
+// tab's profile); a frame asked for at every vsync (60/s) to look at the clock, and the
+// header and each plot in frames of their own, cost more than the drawing itself.
 const dirty = {orbit: false, traces: false};
-const last = {orbit: 0, traces: 0, trends: 0, hist: 0};
-// what the slow plots show now (a redraw that would show the same is skipped)
-const drawnKey = {trends: null, timing: null, hist: null};
-let nextDraw = 0;
-export function markDirty() { dirty.orbit = dirty.traces = true; }
+const last = {header: 0, orbit: 0, traces: 0, trends: 0, timing: 0, hist: 0};
+let nextDraw = 0, timer = null, timerAt = 0, frameAsked = false;
+export function markDirty() {
+  dirty.orbit = dirty.traces = true;
+  wake();
+}
 
 function pendingInput() {
   const s = navigator.scheduling;
   return !!(s && s.isInputPending && s.isInputPending());
 }
 
-// the due plot that waited longest goes next (the orbit's 10 Hz never starves the traces)
+const liveShown = () => $("live").classList.contains("active");
+
+// `live`: drawn only while the Live tab is shown (the header always)
 const JOBS = [
-  {key: "orbit", every: ORBIT_MS, due: () => dirty.orbit, run: () => { dirty.orbit = false; drawOrbit(false); }},
-  {key: "traces", every: TRACES_MS, due: () => dirty.traces, run: () => { dirty.traces = false; drawTraces(); }},
-  {key: "trends", every: TREND_MS, due: () => true, run: () => { drawTrends(); drawTiming(); }},
+  {key: "header", every: HEADER_MS, due: headerPending, run: paintHeader},
+  {key: "orbit", every: ORBIT_MS, live: true, due: () => dirty.orbit, run: () => { dirty.orbit = false; drawOrbit(false); }},
+  {key: "traces", every: TRACES_MS, live: true, due: () => dirty.traces, run: () => { dirty.traces = false; drawTraces(); }},
+  {key: "trends", every: TREND_MS, live: true, due: () => true, run: () => { drawTrends(); }},
+  {key: "timing", every: TIMING_MS, live: true, due: () => true, run: () => { drawTiming(); }},
   // a fetch of /api/timing: not while the daemon does not answer (live.js startWatch)
-  {key: "hist", every: HIST_MS, due: () => rigd.daemonUp, run: () => { drawHistogram(); }},
+  {key: "hist", every: HIST_MS, live: true, due: () => rigd.daemonUp, run: () => { drawHistogram(); }},
 ];
 
-function drawOne(now) {
-  let job = null;
-  for (const j of JOBS) {
-    if (j.due() && now - last[j.key] >= j.every && (!job || last[j.key] < last[job.key])) job = j;
+/** The jobs that may run now (the Live tab's only while it is shown) and are due. */
+function dueJobs(shown) { return JOBS.filter((j) => (shown || !j.live) && j.due()); }
+
+/** Run every job due at `now` (or within SLACK_MS of it); returns the ms it took. */
+function drawDue(now, shown) {
+  const a = performance.now(), jm = rigd.jobMs || (rigd.jobMs = {});
+  let ran = false;
+  for (const j of dueJobs(shown)) {
+    if (now - last[j.key] < j.every - SLACK_MS) continue;
+    last[j.key] = now;
+    const b = performance.now();
+    try {
+      j.run();
+    } finally {
+      // per plot, ms (bench/console.py reports where the drawing goes)
+      jm[j.key] = (jm[j.key] || 0) + performance.now() - b;
+      jm[j.key + "_n"] = (jm[j.key + "_n"] || 0) + 1;
+    }
+    ran = true;
   }
-  if (!job) return false;
-  last[job.key] = now;
-  const a = performance.now();
-  job.run();
-  // per plot, ms (bench/console.py reports where the drawing goes)
-  const jm = rigd.jobMs || (rigd.jobMs = {});
-  jm[job.key] = (jm[job.key] || 0) + performance.now() - a;
-  jm[job.key + "_n"] = (jm[job.key + "_n"] || 0) + 1;
-  return true;
+  if (ran) rigd.frames = (rigd.frames || 0) + 1;
+  return performance.now() - a;
 }
 
-function renderLoop(now) {
-  // the next frame is asked for first: a draw that throws must not end the drawing for good
-  requestAnimationFrame(renderLoop);
-  if ($("live").classList.contains("active") && now >= nextDraw && !pendingInput()) {
-    const a = performance.now();
-    if (drawOne(now)) {
-      const d = performance.now() - a;
-      rigd.drawMs += d;
-      // at most DUTY of the time drawing (a plot's first draw, WebGL set-up, may take a
-      // second on a busy machine: that one-off holds the others back MAX_WAIT_MS at most)
+/** Ask for a frame when the next job is due (a timer until then); nothing due, nothing asked:
+ * new data (markDirty, markHeader) wakes it again. */
+export function wake() {
+  if (frameAsked) return;
+  let at = Infinity;
+  for (const j of dueJobs(liveShown())) at = Math.min(at, last[j.key] + j.every);
+  if (at === Infinity) return;
+  at = Math.max(at, nextDraw);
+  if (timer !== null && timerAt <= at) return;    // already waiting for that one (or sooner)
+  if (timer !== null) clearTimeout(timer);
+  timer = null;
+  const wait = at - performance.now();
+  if (wait <= 0) { frameAsked = true; requestAnimationFrame(renderFrame); return; }
+  timerAt = at;
+  timer = setTimeout(() => { timer = null; wake(); }, wait);
+}
+
+function renderFrame() {
+  // the clock of the timers (the frame's own timestamp is its start, earlier: a job due now
+  // would not be, and wait for another frame)
+  const now = performance.now();
+  frameAsked = false;
+  try {
+    if (pendingInput()) {
+      nextDraw = now + 16;                 // the operator's input first
+    } else if (now >= nextDraw) {
+      const shown = liveShown(), d = drawDue(now, shown);
+      if (shown) rigd.drawMs += d;
+      // at most DUTY of the time drawing (a plot's first draw may take a second on a busy
+      // machine: that one-off holds the others back MAX_WAIT_MS at most)
       nextDraw = now + Math.min(d / DUTY, MAX_WAIT_MS);
     }
+  } finally {
+    // a draw that throws must not end the drawing for good
+    wake();
   }
 }
 
 export function startRendering() {
-  requestAnimationFrame(renderLoop);
+  // the Live tab shown again: its plots are due at once
+  document.querySelector("nav").addEventListener("click", () => setTimeout(wake, 0));
+  wake();
 }
 
 /** Redraw the traces now (pause, trigger, resume: the operator sees the change at once). */
-export function redrawTraces() { dirty.traces = true; last.traces = 0; }
+export function redrawTraces() {
+  dirty.traces = true;
+  last.traces = 0;
+  wake();
+}
