@@ -168,6 +168,9 @@ def run_demo(out: str | Path, *, config: str = DEFAULT_CONFIG,
                         report=out / "design", plant_at=plant_at,
                         plant_at_label=rob_source).summary
     design["robustness_model"] = rob_source
+    if design.get("comparison_failed"):
+        _say(f"      WARNING no side-by-side with the truncated design: "
+             f"{design['comparison_failed']}")
     for w in design.get("model_warnings", []):
         _say(f"      WARNING model {w}")
     timings["design_s"] = time.perf_counter() - t0
@@ -219,6 +222,7 @@ def run_demo(out: str | Path, *, config: str = DEFAULT_CONFIG,
         "gamma_full_order": design["gamma_full_order"],
         "gamma_per_model": {r["label"]: r["gamma"] for r in design["design_set"]},
         "design_comparison": design.get("comparison"),
+        "design_comparison_failed": design.get("comparison_failed"),
         "design_tuning_s": design["tuning"].get("time_s"),
         "controller_order": design["controller_order"],
         "controller_order_full": design["order_full"],

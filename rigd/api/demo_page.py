@@ -153,6 +153,9 @@ def _design(rep: Report, out: Path, s: dict) -> None:
              f"{s['design_method']} controller of order {s['controller_order']} (full order "
              f"{s['controller_order_full']}), Tustin at the loop rate; robustness over "
              f"{rob['n_realizations']} random operating points of {s['robustness_model']}.")
+    if s.get("design_comparison_failed"):
+        rep.text("The side-by-side with the truncated full-order design FAILED: "
+                 f"{s['design_comparison_failed']}")
     rep.table(["quantity", "value"], [
         ["γ (worst over the design set)", f"{s['gamma']:.3f}"],
         ["all closed loops stable", str(rob["all_stable"])],

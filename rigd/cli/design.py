@@ -53,6 +53,9 @@ def run(args: argparse.Namespace) -> int:
               f"{s['controller_order']}; full order {s['order_full']}, gamma = {s['gamma']:.3f})")
         for w in s.get("model_warnings", []):
             print(f"WARNING model {w}")
+        if s.get("comparison_failed"):
+            print(f"WARNING no side-by-side with the truncated design: "
+                  f"{s['comparison_failed']}")
         if "robustness" in s:
             r = s["robustness"]
             print(f"robustness over {r['n_realizations']} operating points: stable="

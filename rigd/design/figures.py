@@ -81,7 +81,8 @@ def fig_controller(rep: Report, res) -> None:
         a.grid(True, which="both", alpha=0.3)
 
 
-def design_report(out, cfg, res, rob=None, title="rigd design", comparison=None) -> Report:
+def design_report(out, cfg, res, rob=None, title="rigd design", comparison=None,
+                  comparison_failed: str | None = None) -> Report:
     rep = Report(out, title)
     rep.heading("Design")
     rep.table(["method", "gamma", "full order (gamma)", "order", "band error",
@@ -92,6 +93,9 @@ def design_report(out, cfg, res, rob=None, title="rigd design", comparison=None)
         rep.table(["design-set model", "gamma", "closed-loop spectral radius", "stable"],
                   [[r["label"], f"{r['gamma']:.3f}", f"{r['rho']:.5f}", r["stable"]]
                    for r in res.design_set])
+    if comparison_failed:
+        rep.text(f"Side-by-side with the truncated full-order design: FAILED — "
+                 f"{comparison_failed}")
     if comparison:
         keys = [("controller_order", "{}"), ("gamma", "{:.3f}"), ("all_stable", "{}"),
                 ("sensitivity_peak_max", "{:.2f}"), ("sensitivity_lowfreq_max", "{:.3f}"),

@@ -52,6 +52,7 @@ class HinfResult:
     closed_loop_stable: bool
     K_tilde: object = None      # K̃ designed on G_p·H_hp (K = H_hp·K̃); K itself without H_hp
     H: object = None            # H_hp (2×2), None without a high-pass
+    conditioning: dict | None = None   # what rigd.design.condition did to the plant
 
 
 def _freq_scale(sys, w: float):

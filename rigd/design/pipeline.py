@@ -59,11 +59,16 @@ class DesignResult:
     gamma_full: float = float("nan")          # γ of the full-order H∞ controller
     design_set: list = field(default_factory=list)   # [{label, gamma, rho}] (structured)
     tuning: dict = field(default_factory=dict)       # starts, evaluations, time
+    comparison_failed: str | None = None             # why the side-by-side design failed
+    conditioning: dict = field(default_factory=dict)  # what the synthesis model dropped
 
     def summary(self) -> dict:
-        return {"method": self.method, "gamma": self.gamma, "gamma_full_order": self.gamma_full,
+        out = {} if self.comparison_failed is None else {
+            "comparison_failed": self.comparison_failed}
+        return {**out, "method": self.method, "gamma": self.gamma,
+                "gamma_full_order": self.gamma_full,
                 "order_full": self.order_full, "design_set": self.design_set,
-                "tuning": self.tuning,
+                "tuning": self.tuning, "synthesis_model": self.conditioning,
                 "order_requested": self.order_requested, "controller_order": self.order,
                 "closed_loop_stable": {"full": self.stable_full, "reduced": self.stable_reduced,
                                        "discrete": self.stable_discrete},
@@ -85,9 +90,17 @@ def band_error(K_ref, K_test, band_hz, n: int = 200) -> float:
 
 
 def _synthesize(G, cfg: DesignConfig):
+    """Full-order H∞ on ``G`` conditioned for the synthesis (:mod:`rigd.design.condition`:
+    poles far above the loop rate residualised, non-minimal states removed; what was done
+    in ``syn.conditioning``), its closed loop checked on ``G`` itself."""
+    from rigd.design.condition import condition
+
     if G.dt:
         raise InputError("the design model must be continuous (G_p(s))", "model")
-    syn = hinf.synthesize(G, cfg.weights, cfg.highpass)
+    Gc, info = condition(G, cfg.fs_hz)
+    syn = hinf.synthesize(Gc, cfg.weights, cfg.highpass)
+    syn.conditioning = info
+    syn.closed_loop_stable = hinf.closed_loop_stable(G, syn.K)
     if not syn.closed_loop_stable:
         raise InputError(f"H∞ controller does not stabilise the design model (γ = "
                          f"{syn.gamma:.3g}); check the weights", "design")
@@ -115,8 +128,8 @@ def design(G, cfg: DesignConfig, *, method: str | None = None, order: int | None
     if compare:
         try:
             cmp = design_controller(G, cfg, syn=syn)
-        except InputError:
-            cmp = None
+        except InputError as exc:
+            res.comparison_failed = f"truncate: {exc.message}"
     return res, cmp
 
 
@@ -141,7 +154,8 @@ def design_structured(G, cfg: DesignConfig, *, syn=None, plant_at=None) -> Desig
                         hsv=[float(v) for v in reduce.hankel_singular_values(syn.K_tilde)],
                         highpass=hp.model_dump() if hp.order else None,
                         lowfreq_gain_ratio=float(k_1hz / k_band), method="structured",
-                        gamma_full=syn.gamma, design_set=t["design_set"], tuning=t["tuning"])
+                        gamma_full=syn.gamma, design_set=t["design_set"], tuning=t["tuning"],
+                        conditioning=syn.conditioning)
 
 
 def design_controller(G, cfg: DesignConfig, *, max_band_error: float = 0.1,
@@ -175,9 +189,16 @@ def design_controller(G, cfg: DesignConfig, *, max_band_error: float = 0.1,
             break
         order = min(order + 2, Kf.nstates)
     if chosen is None:
+        why = "; ".join(
+            f"order {t['order']}: " + (", ".join(
+                [n for k, n in (("stable_reduced", "closed loop K(s) unstable"),
+                                ("stable_discrete", "closed loop K(z) unstable"),
+                                ("controller_stable", "K(z) itself unstable")) if not t[k]]
+                + ([f"band error {t['band_error']:.2g}"] if t["band_error"] > max_band_error
+                   else [])) or "ok") for t in tried)
         raise InputError("no reduced controller (up to the full order "
                          f"{Kf.nstates}) is stable in closed loop and matches the full one "
-                         f"within {max_band_error:.0%} in the band; tried: {tried}", "design")
+                         f"within {max_band_error:.0%} in the band; tried: {why}", "design")
     order, Kr, Kz, st_r, st_z, err = chosen
     f_band = np.linspace(band[0], band[1], 121)
     k_band = np.linalg.svd(freq_response(Kz, f_band), compute_uv=False)[:, 0].max()
@@ -188,7 +209,8 @@ def design_controller(G, cfg: DesignConfig, *, max_band_error: float = 0.1,
                         stable_discrete=st_z, band_error=err, fs_hz=fs, tried=tried,
                         hsv=[float(v) for v in reduce.hankel_singular_values(Kt)],
                         highpass=hp.model_dump() if hp.order else None,
-                        lowfreq_gain_ratio=float(k_1hz / k_band), gamma_full=syn.gamma)
+                        lowfreq_gain_ratio=float(k_1hz / k_band), gamma_full=syn.gamma,
+                        conditioning=syn.conditioning)
 
 
 def save_design(path, result: DesignResult, cfg: DesignConfig, *, model_hash: str | None = None,

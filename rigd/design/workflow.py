@@ -101,6 +101,7 @@ def design_from_model(mf, weights_path, out, *, shown: str = "model",
         from rigd.design.figures import design_report
 
         design_report(report, cfg, res, rob, title=f"rigd design: {Path(out).name}",
-                      comparison=summary.get("comparison"))
+                      comparison=summary.get("comparison"),
+                      comparison_failed=res.comparison_failed)
         summary["report"] = str(report)
     return res, summary

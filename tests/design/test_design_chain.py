@@ -1,6 +1,7 @@
 """Design chain on the simulated plant's truth: H∞, reduction, Tustin, robustness, file."""
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ from rigd.cli import main
 from rigd.controller import load_controller
 from rigd.design import pipeline, robustness
 from rigd.design.weights import ThreeLevel, load_design_config, magnitude
+from rigd.errors import InputError
 from rigd_drivers.sim import truth as simtruth
 
 CFG = "config/design.yaml"
@@ -152,3 +154,26 @@ def test_cli_design_bad_weights_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "design.yaml" in err and "f_low_hz" in err
     assert not out.exists()
+
+
+def test_truncation_failure_says_why_order_by_order(result):
+    cfg, _ = result
+    with pytest.raises(InputError) as e:       # no K(z) is within 1e-9 of K(s): Tustin
+        pipeline.design_controller(simtruth.plant_s(4000.0, 7.0), cfg, max_band_error=1e-9)
+    msg = e.value.message
+    assert re.search(r"order \d+: .*band error", msg) and "{" not in msg
+
+
+def test_failed_comparison_is_reported_not_dropped(tmp_path, capsys, monkeypatch):
+    """A structured design whose truncated side-by-side fails says so (summary, report)."""
+    real = pipeline.design_controller
+    monkeypatch.setattr(pipeline, "design_controller",
+                        lambda G, cfg, **kw: real(G, cfg, max_band_error=1e-9, **kw))
+    model = truth_model_file(tmp_path / "G_p.yaml")
+    rc = main(["design", "--model", str(model), "--weights", CFG, "-o",
+               str(tmp_path / "c.yaml"), "--json", "--report", str(tmp_path / "rep")])
+    assert rc == 0
+    s = json.loads(capsys.readouterr().out)
+    assert "comparison" not in s
+    assert s["comparison_failed"].startswith("truncate: no reduced controller")
+    assert "FAILED" in (tmp_path / "rep" / "index.html").read_text()
