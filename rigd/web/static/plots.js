@@ -280,6 +280,9 @@ function drawDue(now, shown) {
   let ran = false;
   for (const j of dueJobs(shown)) {
     if (now - last[j.key] < j.every - SLACK_MS) continue;
+    // an operator's press (SAFE) waits for no more than the job under way: the rest of the
+    // frame's jobs stay due for the next frame
+    if (ran && pendingInput()) break;
     last[j.key] = now;
     const b = performance.now();
     try {
