@@ -353,6 +353,12 @@ def test_lines_on_the_page_canvas_and_server_side_decimation(browser, rig):
         _js(browser, "window.rigd.buf.t")), what="10 buckets in the buffer")
     assert len(t) <= 20 * 10 * 2.5 + 20        # 2.5 s kept: ~1 bucket per pixel column
     assert (t[-1] - t[0]) / (len(t) - 1) >= 1 / 5000 * 10     # ≥ 10 frames per bucket
+    # another subscription asked in the page's address (bench/console.py's 50 updates/s); a
+    # value out of range or not a number is the default, never sent to the server as is
+    for query, want in (("?rate_hz=50&points=4", (50, 4)), ("?rate_hz=500&points=x", (10, 20))):
+        _open(browser, web, query)
+        sub = _js(browser, "window.rigd.subscription")
+        assert (sub["rate_hz"], sub["points"]) == want, (query, sub)
     assert browser.console_errors() == []
 
 

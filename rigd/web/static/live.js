@@ -19,6 +19,17 @@ const TREND_MS = 500;         // one trend sample every 0.5 s
 // drawn by nobody
 export const RATE_HZ = 10;
 export const POINTS = 20;
+// another subscription may be asked in the page's address, ?rate_hz=N (1–50 updates/s) and
+// ?points=N (1–200 buckets per update) — e.g. bench/console.py measures SAFE with the page
+// taking 50 updates/s; anything else (missing, not a number, out of range) is the default
+const QUERY = new URLSearchParams(location.search);
+function queryNumber(name, lo, hi, dflt) {
+  const raw = QUERY.get(name);
+  const v = raw === null || raw.trim() === "" ? NaN : Number(raw);
+  return Number.isFinite(v) && v >= lo && v <= hi ? v : dflt;
+}
+export const STREAM_RATE_HZ = queryNumber("rate_hz", 1, 50, RATE_HZ);
+export const STREAM_POINTS = Math.round(queryNumber("points", 1, 200, POINTS));
 export const CHANNELS = ["e_x", "e_y", "u_x", "u_y", "r_x", "r_y", "k_x", "k_y",
   "y_p1", "y_p2", "y_p3", "y_p4", "r_p1", "r_p2", "r_p3", "r_p4", "k_on"];
 
@@ -278,7 +289,8 @@ function startPolling(reason) {
 }
 
 export function connectStream() {
-  es = new EventSource("/api/stream?rate_hz=" + RATE_HZ + "&points=" + POINTS + "&channels=" + CHANNELS.join(","));
+  es = new EventSource("/api/stream?rate_hz=" + STREAM_RATE_HZ + "&points=" + STREAM_POINTS +
+    "&channels=" + CHANNELS.join(","));
   es.addEventListener("subscribed", (e) => {
     rigd.mode = "stream";
     rigd.daemonUp = true;
@@ -294,7 +306,7 @@ export function connectStream() {
   es.onmessage = (e) => {
     const u = JSON.parse(e.data);
     rigd.updates++;
-    // the server decimates: at most POINTS min/max buckets per update, whatever the frames
+    // the server decimates: at most STREAM_POINTS min/max buckets per update, whatever the frames
     rigd.maxBuckets = Math.max(rigd.maxBuckets || 0, (u.t || []).length);
     rigd.lastSeq = u.seq;
     rigd.lastWallNs = u.wall_ns;
