@@ -4,8 +4,8 @@ the log), and ``rigd run`` exits non-zero so systemd's Restart=on-failure restar
 
 The daemon is the real ``rigd run`` process with the real serial driver on a pty, fed by the
 front-end emulator; the only thing added is a start-up wrapper that makes the cycle raise once
-the process gets SIGUSR2 (a stand-in for any bug in the loop thread; SIGUSR1 is the
-daemon's SAFE signal).
+the process gets SIGRTMIN+1 (a stand-in for any bug in the loop thread; SIGUSR1 is the
+daemon's SAFE signal, SIGUSR2 its stack dump, which would replace the wrapper's handler).
 """
 
 import json
@@ -33,7 +33,7 @@ def rt_cycle(*args):
 
 if __name__ == "__main__":      # the socket process is spawned: it must not run the daemon
     C.rt_cycle = rt_cycle
-    signal.signal(signal.SIGUSR2, lambda *a: armed.append(1))
+    signal.signal(signal.SIGRTMIN + 1, lambda *a: armed.append(1))
     from rigd.cli import main
     sys.exit(main())
 """
@@ -71,7 +71,7 @@ def test_loop_death_in_the_daemon(tmp_path, monkeypatch, emulator):
         client = _Client(d.sock)                               # connected before the death
         st0 = client.status()
         assert st0["fault"]["code"] == 0, st0["fault"]
-        d.proc.send_signal(signal.SIGUSR2)
+        d.proc.send_signal(signal.SIGRTMIN + 1)
         # what `rigd ctl status` shows while the daemon lingers before exiting
         st = _poll(lambda: client.status(), lambda st: st["fault"]["name"] == "loop_died")
         assert st["running"] is False and "injected" in st["loop_error"], st
