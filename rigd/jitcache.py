@@ -9,9 +9,13 @@ sub-folder of ``NUMBA_CACHE_DIR`` named by a digest of the path, size and modifi
 every ``.py`` file of ``rigd`` and ``rigd_drivers``: any change to any of them starts a fresh
 cache (one compilation, ≈ 1 min), and nothing compiled from other source is ever loaded.
 
-Only when ``NUMBA_CACHE_DIR`` is set (``make``, the tests and ``systemd/rigd.service`` set
-it); numba's own default (``__pycache__`` beside each file) is left alone. Folders of older
-source stay until removed (≈ 11 MB each).
+``NUMBA_CACHE_DIR`` is the base (``make``, the tests and ``systemd/rigd.service`` set it);
+unset — a plain ``rigd`` or ``python -m bench`` from a shell — the base is :func:`default_base`
+(the virtual environment's ``numba-cache``, else ``~/.cache/rigd/numba``), never numba's own
+default (``__pycache__`` beside each file, where a stale caller survives a changed callee:
+``python -m bench reynolds`` ran the plant compiled before 1594f91 that way, 1.74 Newton
+iterations per sub-step instead of 1.57). Folders of older source stay until removed
+(≈ 11 MB each).
 """
 
 from __future__ import annotations
@@ -45,17 +49,24 @@ def source_digest(roots: list[Path]) -> str:
     return h.hexdigest()
 
 
-def configure(roots: list[Path] | None = None) -> str | None:
-    """Point numba's cache at ``$NUMBA_CACHE_DIR/src-<digest>``; returns that folder or None.
+def default_base() -> Path:
+    """The cache's base when ``NUMBA_CACHE_DIR`` is unset: ``<venv>/numba-cache`` inside a
+    virtual environment, else ``$XDG_CACHE_HOME/rigd/numba`` (``~/.cache/rigd/numba``)."""
+    if sys.prefix != sys.base_prefix:
+        return Path(sys.prefix) / "numba-cache"
+    xdg = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(xdg) / "rigd" / "numba"
+
+
+def configure(roots: list[Path] | None = None) -> str:
+    """Point numba's cache at ``<base>/src-<digest>`` (module docstring); returns that folder.
 
     Idempotent and inherited: a child process that finds the variable already naming a
     ``src-`` folder takes its parent as the base. Works before and after numba is imported.
     ``roots`` (default :func:`source_roots`): the source folders the digest covers.
     """
     base = os.environ.get(ENV)
-    if not base:
-        return None
-    path = Path(base)
+    path = Path(base) if base else default_base()
     if path.name.startswith(PREFIX):
         path = path.parent
     folder = str(path / (PREFIX + source_digest(roots if roots is not None else source_roots())))

@@ -89,3 +89,18 @@ def test_importing_rigd_keys_the_cache_once_and_children_inherit_it(tmp_path):
     again = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                            text=True, timeout=120, check=True).stdout.split()
     assert again == out
+
+
+def test_unset_cache_dir_is_keyed_too(tmp_path):
+    """A plain ``rigd`` from a shell (no ``NUMBA_CACHE_DIR``) gets a source-keyed folder as
+    well, under the virtual environment (or ``~/.cache/rigd/numba``), never numba's default
+    ``__pycache__`` beside each file, where a caller outlives its changed callee."""
+    code = ("import os, rigd, numba.core.config as c; "
+            "print(os.environ['NUMBA_CACHE_DIR']); print(c.CACHE_DIR)")
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env["XDG_CACHE_HOME"] = str(tmp_path)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         timeout=120, check=True).stdout.split()
+    assert out[0] == out[1]
+    assert Path(out[0]).name.startswith(jitcache.PREFIX)
+    assert Path(out[0]).parent == jitcache.default_base()
