@@ -164,21 +164,6 @@ def _std(sol, free: np.ndarray, scale: np.ndarray) -> np.ndarray:
     return std
 
 
-def solver_nfev(budget: int, nfree: int, bounded: bool) -> int:
-    """``max_nfev`` for ``least_squares`` so that every residual evaluation, the forward
-    differences of the Jacobian included, counts against ``budget``.
-
-    MINPACK's Levenberg-Marquardt (``lm``, unbounded) counts the difference evaluations
-    itself; trust-region reflective (``trf``, bounded) counts only the evaluations at trial
-    points, and each of its iterations adds ``nfree`` more for the Jacobian: its cap is the
-    budget over ``nfree + 1`` (at least 2, a start and one step), so that an output-error fit
-    of many parameters costs at most ≈ ``budget`` simulations on either solver.
-    """
-    if not bounded:
-        return int(budget)
-    return max(2, int(budget) // (int(nfree) + 1))
-
-
 def fit(structure: Structure, data: IdData, *, method: str = "pem",
         theta0: np.ndarray | None = None, ftol: float = 1e-4, max_nfev: int | None = None,
         fixed: list[str] | None = None, skip: int = 0) -> FitResult:
@@ -196,9 +181,7 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
     ftol : float
         Stop when the relative improvement of the cost is below this (paper: 1e-4).
     max_nfev : int, optional
-        Cap on residual evaluations, those of the finite-difference Jacobian included
-        (default 100 × number of free parameters: about 100 iterations;
-        :func:`solver_nfev`).
+        Cap on residual evaluations (default 100 × number of free parameters).
     fixed : list of str, optional
         Parameter names kept at their start values.
     skip : int
@@ -237,7 +220,7 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
     sol = least_squares(fun, z0, jac="2-point", bounds=(zlo, zhi) if bounded else
                         (-np.inf, np.inf), method="trf" if bounded else "lm",
                         ftol=ftol, xtol=1e-10, gtol=1e-10, x_scale="jac", diff_step=1e-6,
-                        max_nfev=solver_nfev(max_nfev or 100 * nfree, nfree, bounded))
+                        max_nfev=max_nfev or 100 * nfree)
     theta = th0.copy()
     theta[free] = sol.x * scale[free]
     std = _std(sol, free, scale)

@@ -98,27 +98,3 @@ def test_spec_round_trip_and_pem_predictor():
     assert again.names == m.names and again.delays == (1, 0)
     res = fit(m, d.slice(0, 1000), method="pem")
     assert res.method == "pem" and np.all(np.isfinite(res.theta))
-
-
-def test_bounded_fit_budget_counts_the_jacobians_simulations():
-    """max_nfev caps every simulation of an output-error fit, the finite-difference
-    Jacobian's included, also on the bounded solver (trust-region reflective, which counts
-    only its trial points): without that a fit of n parameters ran up to 100·n iterations
-    of n + 1 simulations each."""
-    d = modal_record([3.0, 11.0, 27.0], [0.05, 0.03, 0.08], [(1, 0.7), (2, -0.7), (3, 0.7)],
-                     n=1500)
-    m = StateSpaceModel(["u1", "u2"], ["y"], d.fs, n_complex=3, hold="zoh")
-    m.set_record(d.n)
-    lo, hi = m.bounds()
-    assert np.any(np.isfinite(lo) | np.isfinite(hi))      # the bounded solver is the one used
-    calls = []
-    simulate = m.simulate
-    m.simulate = lambda th, data, *a, **k: calls.append(1) or simulate(th, data, *a, **k)
-    th0 = m.theta0(d)
-    for k in range(3):            # modes 35 % too high and well damped: many steps to go
-        th0[m.names.index(f"p{k + 1}_lnf")] += 0.3
-        th0[m.names.index(f"p{k + 1}_zeta")] = 0.2
-    budget = 5 * len(m.names)
-    res = fit(m, d, method="oe", theta0=th0, max_nfev=budget)
-    # + 1: the simulation of the result, after the optimiser
-    assert len(res.theta) + 1 < len(calls) <= budget + 1
