@@ -84,7 +84,6 @@ class ExperimentHost:
         self._thread: threading.Thread | None = None
         self._proc: Any = None
         #: the running experiment's stop event and the SAFE generation it started in
-        self._stop: Any = None
         self._run: tuple[Any, int | None] = (None, None)
         self.entry = ENTRY
         self.start_limit_s = START_LIMIT_S
@@ -141,8 +140,8 @@ class ExperimentHost:
             ctx = multiprocessing.get_context("spawn")
             ours, theirs = ctx.Pipe()
             gen = getattr(self.loop, "safe_generation", None)
-            self._stop = ctx.Event()
-            self._run = (self._stop, gen if isinstance(gen, int) else None)
+            stop = ctx.Event()
+            self._run = (stop, gen if isinstance(gen, int) else None)
             started = threading.Event()
             self._over = over = threading.Event()
             packed = experiment or {}
@@ -151,7 +150,7 @@ class ExperimentHost:
                            "run_dir": None, "message": ""}
             # not daemonic: an operator impact's window is cut in a helper it spawns
             self._proc = ctx.Process(target=call, name="rigd-experiment", args=(
-                *self.entry, theirs, self._stop, request, run_dir, str(self.runs_root),
+                *self.entry, theirs, stop, request, run_dir, str(self.runs_root),
                 self._facts()))
             self._proc.start()
             self._state["pid"] = self._proc.pid
