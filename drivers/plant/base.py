@@ -4,7 +4,7 @@ operating-point swap, the impact hammer request and the open-loop batch.
 :class:`SimulatedPlantDriver` is the base of the ``sim`` (:mod:`rigd_drivers.sim.driver`) and
 ``sim_reynolds`` (:mod:`rigd_drivers.reynolds.driver`) drivers. Each subclass keeps its own
 physics: it builds its ``state``/``params`` arrays and the two views the base uses
-(``_frame_view``, ``_staged_view``), names its compiled kernel module (``_kmod``: ``plant_step``,
+(``_frame_view``, ``_stage_start``), names its compiled kernel module (``_kmod``: ``plant_step``,
 ``plant_sense``, ``run_batch``) and the module holding its ``params`` header indices (``_hdr``:
 ``H_STAGE_SEQ``, ``H_IMP_AXIS``, ``H_IMP_PEAK``, ``H_IMP_DUR``, ``H_IMP_SEQ``), and implements
 :meth:`_param_block`, :meth:`reset` and :meth:`describe`.
@@ -24,6 +24,7 @@ from rigd.driver import FastDriver
 from rigd.errors import InputError
 from rigd.frame import N_IN, N_OUT
 from rigd_drivers.plant import physics as phys
+from rigd_drivers.plant.seqlock import stage_block
 
 
 def _fmt_loc(loc: tuple) -> str:
@@ -83,7 +84,7 @@ class SimulatedPlantDriver(FastDriver):
     state: np.ndarray
     params: np.ndarray
     _frame_view: np.ndarray
-    _staged_view: np.ndarray
+    _stage_start: int               # index of the staged block in params
 
     def __init__(self, options: Any = None, fs: float = 5000.0):
         opts = validate_options(self.Options, options, self.options_where)
@@ -152,17 +153,14 @@ class SimulatedPlantDriver(FastDriver):
             raise InputError(str(exc), "set_operating_point") from None
         block = self._param_block(float(omega_rpm), float(p_inj_bar))
         point = (float(omega_rpm), float(p_inj_bar))
-        params, staged, lock = self.params, self._staged_view, self._stage_lock
+        params, start, lock = self.params, self._stage_start, self._stage_lock
         i_seq = self._hdr.H_STAGE_SEQ
 
         def swap() -> None:
             """Stage the prepared block. Runs in: loop thread — O(1), no allocation, no wait
             (the stage lock has no other holder while a loop owns the driver)."""
             with lock:
-                seq = params[i_seq]
-                params[i_seq] = seq + 1.0          # odd: writing
-                np.copyto(staged, block)
-                params[i_seq] = seq + 2.0          # even: complete
+                stage_block(params, i_seq, start, block)   # sequence word odd while copying
                 self._omega, self._p_inj = point
 
         return swap

@@ -50,8 +50,7 @@ class ReynoldsPlantDriver(SimulatedPlantDriver):
         self.state = self._arr.state
         o = self._arr.lay.st[L.T_FRAME]
         self._frame_view = self.state[o:o + N_IN]
-        stg = int(self.params[L.H_STG])
-        self._staged_view = self.params[stg:stg + int(self.params[L.H_NA])]
+        self._stage_start = int(self.params[L.H_STG])
         self.reset()
 
     # --- plant control ------------------------------------------------------------------

@@ -32,6 +32,7 @@ from rigd.frame import (
 )
 from rigd_drivers.plant.amplifier import amplifier_output as _amplifier_output
 from rigd_drivers.plant.noise import sensor_noise as _sensor_noise
+from rigd_drivers.plant.seqlock import load_acquire, read_staged
 from rigd_drivers.reynolds.film import NV
 from rigd_drivers.reynolds.layout import (
     H_ACT,
@@ -92,21 +93,10 @@ TWO_PI = 2.0 * math.pi
 
 @numba.njit(cache=True, nogil=True)
 def _apply_staged(state, params):
-    s1 = params[H_STAGE_SEQ]
     sc = int(params[T_SC])
-    if s1 == state[sc + ST_APPLIED] or (int(s1) & 1) == 1:
-        return
-    na = int(params[H_NA])
-    stg = int(params[H_STG])
-    scr = int(params[H_SCR])
-    act = int(params[H_ACT])
-    for i in range(na):
-        params[scr + i] = params[stg + i]
-    if params[H_STAGE_SEQ] != s1:
-        return
-    for i in range(na):
-        params[act + i] = params[scr + i]
-    state[sc + ST_APPLIED] = s1
+    state[sc + ST_APPLIED] = read_staged(params, H_STAGE_SEQ, state[sc + ST_APPLIED],
+                                         int(params[H_STG]), int(params[H_SCR]),
+                                         int(params[H_ACT]), int(params[H_NA]))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -195,8 +185,9 @@ def plant_step(state, params, drive, frame_in):
         cur -= rate
     state[ssc + ST_PSUP] = cur
     params[sc + SC_PSUP] = cur
-    if params[H_IMP_SEQ] != state[ssc + ST_IMP_SEEN]:
-        state[ssc + ST_IMP_SEEN] = params[H_IMP_SEQ]
+    imp_seq = load_acquire(params, H_IMP_SEQ)   # before the request's fields
+    if imp_seq != state[ssc + ST_IMP_SEEN]:
+        state[ssc + ST_IMP_SEEN] = imp_seq
         state[ssc + ST_IMP_ON] = 1.0
         state[ssc + ST_IMP_T] = 0.0
         state[ssc + ST_IMP_AXIS] = params[H_IMP_AXIS]

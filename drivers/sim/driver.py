@@ -55,7 +55,7 @@ class SimPlantDriver(SimulatedPlantDriver):
         self.params = np.zeros(k.N_PARAMS)
         self.state = np.zeros(k.N_STATE)
         self._frame_view = self.state[k.S_FRAME:k.S_FRAME + N_IN]
-        self._staged_view = self.params[k.STG:k.STG + k.NA]
+        self._stage_start = k.STG
         self._blocks = ParamBlocks(self.opts, self.fs)
         self.reset()
 

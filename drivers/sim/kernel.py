@@ -9,7 +9,8 @@ Array layouts (float64, offsets below):
   ``[STG, STG+NA)`` + scratch block. The Python side writes a new operating point into the
   staged block under a sequence lock (``H_STAGE_SEQ`` odd while writing); the kernel copies it
   to scratch, re-checks the sequence and only then to the active block, at the start of a step:
-  no torn parameter sets. Impact requests go through the header the same way (``H_IMP_SEQ``).
+  no torn parameter sets (ordered loads and stores: :mod:`rigd_drivers.plant.seqlock`).
+  Impact requests go through the header the same way (``H_IMP_SEQ``).
 * ``state``: bearing states, valve states, hysteresis and creep states, the delay line,
   time, encoder angle, counters and the last sensor frame.
 
@@ -41,6 +42,7 @@ from rigd.frame import (
 )
 from rigd_drivers.plant.amplifier import amplifier_output as _amplifier_output
 from rigd_drivers.plant.noise import sensor_noise as _sensor_noise
+from rigd_drivers.plant.seqlock import load_acquire, read_staged
 
 NX = 6          # bearing states: e_x, e_y, de_x, de_y, q, dq (q: extra mode)
 NW = 4          # FOH inputs: u_x, u_y (V), f_x, f_y (N)
@@ -131,16 +133,7 @@ N_STATE = _n
 
 @numba.njit(cache=True, nogil=True)
 def _apply_staged(state, params):
-    s1 = params[H_STAGE_SEQ]
-    if s1 == state[S_APPLIED] or (int(s1) & 1) == 1:
-        return
-    for i in range(NA):
-        params[SCR + i] = params[STG + i]
-    if params[H_STAGE_SEQ] != s1:      # writer came back meanwhile: try next step
-        return
-    for i in range(NA):
-        params[ACT + i] = params[SCR + i]
-    state[S_APPLIED] = s1
+    state[S_APPLIED] = read_staged(params, H_STAGE_SEQ, state[S_APPLIED], STG, SCR, ACT, NA)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -246,8 +239,9 @@ def plant_step(state, params, drive, frame_in):
     P = ACT
     T = params[P + A_T]
     # --- impact request (half-sine hammer pulse) ------------------------------------------
-    if params[H_IMP_SEQ] != state[S_IMP_SEEN]:
-        state[S_IMP_SEEN] = params[H_IMP_SEQ]
+    imp_seq = load_acquire(params, H_IMP_SEQ)   # before the request's fields
+    if imp_seq != state[S_IMP_SEEN]:
+        state[S_IMP_SEEN] = imp_seq
         state[S_IMP_ON] = 1.0
         state[S_IMP_T] = 0.0
         state[S_IMP_AXIS] = params[H_IMP_AXIS]
