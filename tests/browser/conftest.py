@@ -4,7 +4,7 @@
 Use::
 
     def test_page(browser, screenshot):
-        browser.get(url)
+        browser.load(url, "window.myPageReady")   # or browser.get(url) for a small page
         ...
         screenshot("console")          # -> test-artifacts/screenshots/console.png
         assert browser.console_errors() == []
@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import pytest
 from browserkit import screenshot_path, skip_reason
+from selenium.common.exceptions import TimeoutException
+from selenium.webdriver.support.ui import WebDriverWait
 
 from bench.chromium import make_driver
 
@@ -51,6 +53,20 @@ class Browser:
         """Messages of the ``SEVERE`` entries (console.error, uncaught exceptions, failed
         loads) so far."""
         return [e["message"] for e in self.console_log() if e.get("level") == "SEVERE"]
+
+    def load(self, url: str, ready: str, timeout: float = 300.0, what: str = "the page"):
+        """Navigate to ``url`` and wait until the script expression ``ready`` is truthy (a
+        marker the page sets once its scripts have run); returns its value. A page slower to
+        load than the driver's page-load timeout (parsing Plotly's 3.5 MB on a machine busy
+        with other jobs) is no error: it goes on loading, and ``timeout`` (s) bounds the wait
+        on ``ready`` — a page that never gets there fails the test saying ``what``, it never
+        hangs it."""
+        try:
+            self.driver.get(url)
+        except TimeoutException:
+            pass
+        return WebDriverWait(self.driver, timeout, poll_frequency=0.1).until(
+            lambda drv: drv.execute_script("return " + ready), message=f"{what} at {url}")
 
     def take_console_errors(self) -> list[str]:
         """Like ``console_errors`` and forget them (for tests that expect errors)."""

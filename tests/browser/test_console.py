@@ -7,7 +7,6 @@ test-artifacts/screenshots/ (console.png, K∞ on, is copied to docs/img/console
 import json
 
 import pytest
-from selenium.common.exceptions import TimeoutException
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select, WebDriverWait
 from webproc import daemon_and_web, wait_for
@@ -34,15 +33,17 @@ def _wait(browser, cond, timeout=60, what=""):
         lambda drv: cond(drv), message=what)
 
 
+def _load(browser, web):
+    """The console page loaded and its scripts run (``window.rigd``, set by core.js: its
+    buttons wired, main() started); a busy machine's slow load is waited for, bounded."""
+    browser.load(web.url + "/", "!!window.rigd", what="the console page's scripts")
+
+
 def _open(browser, web, token=None):
     """The console page, logged in with ``token`` (default: the control token) typed in its
     token box: every read needs a token (docs/web.md, Security)."""
-    try:
-        browser.get(web.url + "/")
-    except TimeoutException:    # a machine so busy that parsing Plotly outlasts the page-load
-        pass                    # timeout: the page goes on loading; the wait below bounds it
-    box = _wait(browser, lambda drv: (drv.find_elements(By.ID, "token") or [None])[0],
-                timeout=300, what="the page")
+    _load(browser, web)
+    box = browser.find_element(By.ID, "token")
     box.clear()
     box.send_keys(token or web.token)
     browser.find_element(By.ID, "token-save").click()
@@ -119,7 +120,7 @@ def test_enable_from_the_page_enables_kinf(browser, screenshot, rig):
 
 def test_page_without_a_token_shows_nothing_and_asks_for_it(browser, rig):
     _, web, _ = rig
-    browser.get(web.url + "/")
+    _load(browser, web)
     _wait(browser, lambda drv: "enter the token" in _message(browser)[0], what="token asked")
     assert _js(browser, "window.rigd.mode") == "connecting"
     assert _js(browser, "window.rigd.updates") == 0

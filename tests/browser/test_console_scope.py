@@ -68,16 +68,10 @@ def _js(browser, expr):
 
 
 def _open(browser, web, query=""):
-    try:
-        browser.get(web.url + "/" + query)
-    except TimeoutException:    # a machine so busy that parsing Plotly outlasts the page-load
-        pass                    # timeout: the page goes on loading; the waits below bound it
-    box = _wait(browser, lambda drv: (drv.find_elements(By.ID, "token") or [None])[0],
-                timeout=300, what="the page")
     # the page's modules run (the token button wired) after the HTML: on a busy machine the
     # box is there seconds before
-    _wait(browser, lambda drv: _js(browser, "!!window.rigd"), timeout=300,
-          what="the page's scripts")
+    browser.load(web.url + "/" + query, "!!window.rigd", what="the console page's scripts")
+    box = browser.find_element(By.ID, "token")
     box.clear()
     box.send_keys(web.token)
     browser.find_element(By.ID, "token-save").click()
@@ -329,13 +323,23 @@ def test_lines_on_the_page_canvas_and_server_side_decimation(browser, rig):
     csp = browser.driver.execute_async_script(
         "fetch('/').then(r => arguments[0](r.headers.get('content-security-policy')))")
     assert "script-src 'self';" in csp and "unsafe-eval" not in csp, csp
-    # the fast lines are the page's own canvas strokes over Plotly's frame (canvas.js): the
-    # figures' traces are SVG scatter with their SVG lines hidden, the canvas has the lines
-    for key in ("orbit", "traces"):
+    # every live plot's lines and bars are the page's own canvas strokes over Plotly's frame
+    # (canvas.js): the figures' traces are SVG scatter (bar: the cycle times) with their SVG
+    # lines and bars hidden, the canvas has them
+    _wait(browser, lambda drv: _js(browser, "window.rigd.trendRenders > 0 && "
+                                   "window.rigd.timingRenders > 0 && window.rigd.histRenders > 0"),
+          what="trends and cycle times drawn")
+    for key, kind in (("orbit", "scatter"), ("traces", "scatter"), ("trends", "scatter"),
+                      ("timing", "bar"), ("timing-hist", "bar")):
         types = _js(browser, f"document.getElementById('{key}').data.map(t => t.type)")
-        assert set(types) == {"scatter"}, (key, types)
-        assert _js(browser, f"getComputedStyle(document.querySelector('#{key} .scatterlayer'))"
+        assert set(types) == {kind}, (key, types)
+        layer = "scatterlayer" if kind == "scatter" else "barlayer"
+        assert _js(browser, f"getComputedStyle(document.querySelector('#{key} .{layer}'))"
                             ".display") == "none"
+        # Plotly was given no points to lay its frame out around (it computes paths even
+        # where they are hidden): its own copy of each trace holds one null point
+        assert _js(browser, f"document.getElementById('{key}')._fullData.every("
+                            "t => (t.x || []).length <= 1)"), key
         # pixels drawn on the overlay, inside the figure's plot area
         inked = (f"(() => {{ const c = document.querySelector('#{key} canvas.lines-overlay');"
                  " if (!c) return 0; const p = c.getContext('2d').getImageData(0, 0, c.width,"
@@ -359,6 +363,74 @@ def test_lines_on_the_page_canvas_and_server_side_decimation(browser, rig):
         _open(browser, web, query)
         sub = _js(browser, "window.rigd.subscription")
         assert (sub["rate_hz"], sub["points"]) == want, (query, sub)
+    assert browser.console_errors() == []
+
+
+# the page's own drawing of the cycle-time percentiles (slowplots.js drawTiming) for given
+# values, run synchronously in one task (the stream's updates cannot interleave): the frame
+# laid out (Plotly) or not, the log axis' range, and the canvas' alpha just below and just above
+# the top of the compute 'max' bar (x = 3, offset -0.4, width 0.4) at the pixel Plotly's own
+# axis gives for the value
+_TIMING_PROBE = """
+const [done, values] = [arguments[arguments.length - 1], arguments[0]];
+import('/static/slowplots.js').then((m) => {
+  const r = window.rigd, el = document.getElementById('timing'), out = [], keep = r.timing;
+  for (const v of values) {
+    r.timing = v;
+    const n0 = (r.frameLayouts || {}).timing || 0;
+    m.drawTiming();
+    const fl = el._fullLayout, xa = fl.xaxis, ya = fl.yaxis, cv = el.rigdCanvas;
+    const dpr = cv.width / fl.width, top = ya._offset + ya.l2p(Math.log10(v.compute_us.max));
+    const cx = xa._offset + xa.l2p(2.8), ctx = cv.getContext('2d');
+    const alpha = (y) => ctx.getImageData(Math.round(cx * dpr), Math.round(y * dpr), 1, 1)
+      .data[3];
+    out.push({laid: (r.frameLayouts.timing || 0) - n0, range: ya.range.slice(),
+              below: alpha(top + 3), above: alpha(top - 3), type: ya.type,
+              cap: document.getElementById('timing-cap').textContent});
+  }
+  r.timing = keep;
+  done(out);
+}, (e) => done(String(e)));
+"""
+
+
+def _pct(p50, p99, p999, mx):
+    return {"p50": p50, "p99": p99, "p999": p999, "max": mx}
+
+
+def test_cycle_times_are_canvas_bars_on_log_axes(browser, rig):
+    d, web = rig["d"], rig["web"]
+    _clear_fault(d)
+    _open(browser, web)
+    _wait(browser, lambda drv: _js(browser, "window.rigd.timingRenders > 0 && "
+                                   "window.rigd.histRenders > 0"), what="cycle times drawn")
+    late = _pct(1.0, 5.0, 30.0, 500.0)
+    got = browser.execute_async_script(_TIMING_PROBE, [
+        {"compute_us": _pct(10.0, 20.0, 50.0, 200.0), "lateness_us": late},
+        # new values within the same decades: the bars move, the frame stays
+        {"compute_us": _pct(12.0, 25.0, 60.0, 300.0), "lateness_us": late},
+        # a maximum beyond the top decade: the axis re-ranges (one frame laid out)
+        {"compute_us": _pct(12.0, 25.0, 60.0, 5000.0), "lateness_us": late},
+    ])
+    assert isinstance(got, list), got
+    first, same, wider = got
+    assert first["type"] == "log"
+    assert first["range"][0] <= 0 and first["range"][1] >= 3           # 0.1 … 500 µs inside
+    assert same["laid"] == 0 and same["range"] == first["range"], got
+    assert wider["laid"] == 1 and wider["range"][1] >= 3.7, got         # log10(5000) = 3.7
+    # the bar drawn up to its value on the log axis, nothing above it
+    for g in got:
+        assert g["below"] > 0 and g["above"] == 0, got
+    # the values themselves in the caption (3 significant digits), the misses with them
+    assert "compute p50 12 / p99 25 / p99.9 60 / max 5000 µs" in wider["cap"], wider["cap"]
+    assert "lateness p50 1 / p99 5 / p99.9 30 / max 500 µs" in wider["cap"]
+    assert "misses " in wider["cap"]
+    # the histogram: the daemon's bars, on the canvas, each series' cycles counted in the
+    # caption (the samples beyond the last bar too, when there are)
+    cap = _wait(browser, lambda drv: _text(browser, "timing-hist-cap"), what="histogram caption")
+    assert re.fullmatch(r"compute: \d+ cycles in bars of [\d.]+ µs(, \d+ beyond them)? · "
+                        r"lateness: \d+ cycles in bars of [\d.]+ µs(, \d+ beyond them)?", cap), cap
+    assert _js(browser, "document.getElementById('timing-hist').layout.yaxis.type") == "log"
     assert browser.console_errors() == []
 
 

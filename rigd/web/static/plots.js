@@ -4,7 +4,7 @@
 // the header, the trends and the cycle times (slowplots.js): frames only when something is
 // due, never while input is pending, and at most DUTY of the wall time.
 // docs/web.md.
-import {extent, hystRange, line, paintLines, setLines} from "./canvas.js";
+import {extent, hystRange, line, paintLines, plotFrame, setLines} from "./canvas.js";
 import {$, PLOT_CONFIG, band, colours, fmt, layoutBase, rigd, stackedAxes} from "./core.js";
 import {HEADER_MS, headerPending, paintHeader} from "./header.js";
 import {ORBIT_S, TRACE_S, identity} from "./live.js";
@@ -15,12 +15,14 @@ import {drawHistogram, drawTiming, drawTrends} from "./slowplots.js";
 // histogram (each a Plotly.react: a whole new layout, every text re-measured) ~40 %, the orbit
 // ~22 %, the traces ~20 %; forced layouts (Plotly measuring text) 13 %. Hence: the orbit at
 // 5/s, the slow plots every 2 s (the histogram every 5 s) and redrawn only when what they show
-// changed, and the duty cap honoured for long draws too.
+// changed, and the duty cap honoured for long draws too. Since then every plot's lines and
+// bars are canvas strokes (canvas.js), Plotly lays out a frame only when an axis re-ranges,
+// and without the points (plotFrame): the slow plots' periods stay, each now cheap.
 const ORBIT_MS = 200;      // orbit redrawn at most 5 times a second
 const TRACES_MS = 200;     // the time traces 5 times (the header too, header.js HEADER_MS)
 const TREND_MS = 2000;     // trends every 2 s (canvas strokes)
-const TIMING_MS = 5000;    // cycle-time percentiles every 5 s (when changed)
-const HIST_MS = 5000;      // the cycle-time histogram (a fetch) every 5 s (when changed)
+const TIMING_MS = 5000;    // cycle-time percentiles every 5 s (when changed; canvas bars)
+const HIST_MS = 5000;      // the cycle-time histogram (a fetch) every 5 s (when changed; canvas bars)
 const SLACK_MS = 60;       // a job due this soon is drawn in the frame of one due now
 const DUTY = 0.1;          // drawing takes at most this fraction of the wall time
 const MAX_WAIT_MS = 1000;  // ... but the next draw waits no longer than this after a long one
@@ -36,9 +38,10 @@ const NAMES = {k_x: "K∞ k_x", k_y: "K∞ k_y"};
 // distinct over the whole plot (its one legend names every trace by colour)
 const COLOURS = colours(GROUPS.flatMap((g) => g.chans));
 
-// The fast lines (orbit, time traces) are drawn on a canvas of our own (canvas.js): Plotly draws
-// their frame and is called only when it changes. The figures' traces are SVG `scatter` (their
-// own lines hidden); the slow plots are Plotly's SVG throughout.
+// The lines (orbit, time traces; the slow plots' lines and bars too, slowplots.js) are drawn on
+// a canvas of our own (canvas.js): Plotly draws their frame and is called only when it
+// changes. The figures' traces are SVG `scatter` (`bar` for the cycle times), their own SVG
+// lines and bars hidden.
 rigd.traceType = "scatter";
 
 
@@ -97,7 +100,7 @@ function drawOrbit(force) {
     const lay = orbitLayout(want || 1, m);
     if (rigd.orbitScale === "user" && el.layout) { lay.xaxis.range = el.layout.xaxis.range; lay.yaxis.range = el.layout.yaxis.range; }
     // double-click is ours (back to auto), not Plotly's reset to the first ranges drawn
-    Plotly.react(el, data, lay, Object.assign({}, PLOT_CONFIG, {doubleClick: false}));
+    plotFrame(el, data, lay, Object.assign({}, PLOT_CONFIG, {doubleClick: false}));
     if (!el.dataset.wired) {
       el.dataset.wired = "1";
       // a zoom, a resize, a new frame: the lines follow the axes at once
@@ -118,9 +121,8 @@ function drawOrbit(force) {
         }
       });
     }
-  } else {
-    setLines(el, data);
   }
+  setLines(el, data);
   paintLines(el);
   $("orbit-cap").textContent = identity(tmin, rigd.lastT || 0) + " · scale " + rigd.orbitScale;
   rigd.orbitRenders++;
@@ -192,7 +194,7 @@ function drawTraces() {
     tracesShape = shape;
     tracesRanges = yr;
     const xr = trig ? [-TRACE_S / 2, TRACE_S / 2] : [-TRACE_S, 0];
-    Plotly.react(el, data, tracesLayout(xr, trig, yr), PLOT_CONFIG);
+    plotFrame(el, data, tracesLayout(xr, trig, yr), PLOT_CONFIG);
     if (!el.dataset.wired) {
       el.dataset.wired = "1";
       el.on("plotly_afterplot", paintTraces);
@@ -207,9 +209,8 @@ function drawTraces() {
         paintTraces();
       });
     }
-  } else {
-    setLines(el, data);
   }
+  setLines(el, data);
   paintTraces();
   const t1 = b.t.length ? b.t[b.t.length - 1] : undefined;
   $("traces-cap").textContent = identity(b.t.length ? b.t[0] : undefined, t1) +
