@@ -267,7 +267,8 @@ const JOBS = [
   {key: "orbit", every: ORBIT_MS, live: true, due: () => dirty.orbit, run: () => { dirty.orbit = false; drawOrbit(false); }},
   {key: "traces", every: TRACES_MS, live: true, due: () => dirty.traces, run: () => { dirty.traces = false; drawTraces(); }},
   {key: "trends", every: TREND_MS, live: true, due: () => true, run: () => { drawTrends(); }},
-  {key: "timing", every: TIMING_MS, live: true, due: () => true, run: () => { drawTiming(); }},
+  // once the stream has brought percentiles (before, an empty frame would stand for 5 s)
+  {key: "timing", every: TIMING_MS, live: true, due: () => !!rigd.timing, run: () => { drawTiming(); }},
   // a fetch of /api/timing: not while the daemon does not answer (live.js startWatch)
   {key: "hist", every: HIST_MS, live: true, due: () => rigd.daemonUp, run: () => { drawHistogram(); }},
 ];
