@@ -292,6 +292,18 @@ def _clicks(driver, sock: str, clicks: int, budget: Budget) -> list[float]:
     return lat
 
 
+def _step_failures() -> tuple[type[BaseException], ...]:
+    """What a step of :func:`run` may fail with and still leave the others' figures: a bound
+    passed (RuntimeError), a socket error, or a WebDriver command that failed or outlasted
+    its own timeout (bench/chromium.py COMMAND_TIMEOUT_S: a click on a renderer starved for
+    5 min, seen at load average 20, raised urllib3's ReadTimeoutError and took the whole
+    section's JSON with it)."""
+    from selenium.common.exceptions import WebDriverException
+    from urllib3.exceptions import HTTPError
+
+    return (RuntimeError, OSError, WebDriverException, HTTPError)
+
+
 def _summary(lat: list[float]) -> dict | None:
     """p50 / p99 / max (ms, one decimal) and n of the click latencies; None without clicks."""
     if not lat:
@@ -319,14 +331,14 @@ def run(base: str, token: str, sock: str, seconds: float = 10.0, clicks: int = 1
         page = _window(driver, service, seconds)
         try:
             lat = _clicks(driver, sock, clicks, budget)
-        except (RuntimeError, OSError) as exc:      # reported; the other figures still count
+        except _step_failures() as exc:      # reported; the other figures still count
             lat, errors["safe_click"] = [], f"{type(exc).__name__}: {exc}"
         if budget.left() < seconds + 60:
             profile = "not run: the bench's time budget is spent"
         else:
             try:
                 profile = _profile(driver, seconds)
-            except (RuntimeError, OSError) as exc:
+            except _step_failures() as exc:
                 profile = f"not measured: {type(exc).__name__}: {exc}"
         # the same page taking the stream at 50 updates/s (its address asks it, live.js)
         fast, lat50 = None, []
@@ -338,7 +350,7 @@ def run(base: str, token: str, sock: str, seconds: float = 10.0, clicks: int = 1
                 _window(driver, service, SETTLE_S)
                 fast = _window(driver, service, seconds)
                 lat50 = _clicks(driver, sock, clicks, budget)
-            except (RuntimeError, OSError) as exc:
+            except _step_failures() as exc:
                 errors["fast"] = f"{type(exc).__name__}: {exc}"
     finally:
         try:

@@ -252,6 +252,57 @@ def test_restart_under_an_open_page_starts_the_traces_over(browser, screenshot, 
                for e in errors), errors
 
 
+# two updates handed to the page's own stream handler (live.js push) in one task, the stream's
+# real updates cannot interleave: one 100 s of loop time after the newest bucket (a gap), then
+# one saying the daemon dropped 3 frames; what the page keeps and says after each
+_GAP_PROBE = """
+const done = arguments[arguments.length - 1];
+import('/static/live.js').then((m) => {
+  const r = window.rigd, out = [], t = r.lastT;
+  const seen = () => ({restarts: r.restarts.length, epoch: r.epoch, buf: r.buf.t.slice(),
+    note: document.getElementById('live-note').textContent});
+  out.push(seen());
+  m.push({t: [t + 100.0, t + 100.002], min: {e_x: [0, 0]}, max: {e_x: [0.1, 0.1]}, dropped: 0});
+  out.push(seen());
+  m.push({t: [t + 100.004], min: {e_x: [0]}, max: {e_x: [0.1]}, dropped: 3});
+  out.push(seen());
+  done({t, out});
+}, (e) => done(String(e)));
+"""
+
+
+def test_a_gap_in_the_stream_starts_the_traces_over_visibly(browser, rig):
+    d, web = rig["d"], rig["web"]
+    _clear_fault(d)
+    _open(browser, web)
+    _wait(browser, lambda drv: _js(browser, "window.rigd.renders") > 1
+          and len(_js(browser, "window.rigd.buf.t")) > 2, what="traces drawn")
+    got = browser.execute_async_script(_GAP_PROBE)
+    assert isinstance(got, dict), got
+    before, gap, dropped = got["out"]
+    t = got["t"]
+    # a jump of 100 s of loop time: the old points are dropped, never joined to the new ones,
+    # and the note above the plots says why
+    assert gap["restarts"] == before["restarts"] + 1 and gap["epoch"] == before["epoch"] + 1
+    assert gap["buf"] == pytest.approx([t + 100.0, t + 100.002])
+    assert re.fullmatch(r"traces restarted at \S+: gap in the stream from [\d.]+ s to [\d.]+ s",
+                        gap["note"]), gap["note"]
+    # frames the daemon dropped: a gap too, however small the step of loop time
+    assert dropped["restarts"] == gap["restarts"] + 1
+    assert dropped["buf"] == pytest.approx([t + 100.004])
+    assert dropped["note"].endswith("(3 frames dropped)"), dropped["note"]
+    # the real stream goes on behind the made-up updates (its loop time "went back" from
+    # them): the page starts over once more, draws the daemon's traces of the new epoch and
+    # nothing threw
+    _wait(browser, lambda drv: _js(browser, "window.rigd.epoch") > dropped["epoch"]
+          and _js(browser, "window.rigd.lastT") < t + 100.0, what="the real stream again")
+    _wait(browser, lambda drv: _js(browser, "(document.getElementById('traces').data[0].meta"
+                                   " || {}).epoch === window.rigd.epoch && document"
+                                   ".getElementById('traces').data[0].x.length >= 2"),
+          what="traces of the new epoch drawn")
+    assert browser.console_errors() == []
+
+
 def test_fault_banner_with_reset_and_a_refusal_that_clears_with_the_fault(browser, screenshot,
                                                                          rig):
     d, web = rig["d"], rig["web"]
