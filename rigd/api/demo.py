@@ -11,9 +11,11 @@ modelling step has something to find:
    of the identification record, each sub-model refitted with the effects named for it, both
    compared on the held-out record (the error falling); the reassembled bearing model
    G_bear(Ω, P_I) from the sweep;
-3. design (:func:`rigd.api.design`) on the improved model: H∞, reduction, Tustin,
-   robustness over 30 random operating points of the reassembled model cascaded with the
-   identified actuator;
+3. design (:func:`rigd.api.design`) on the improved model — its G_p carries the linear
+   block of each named effect that has one (a delay as a Padé approximant, an extra mode;
+   ``design_model_effects`` in the summary says which, and why the others are left out) —:
+   H∞, reduction, Tustin, robustness over 30 random operating points of the reassembled
+   model (with the design point's bearing effects) cascaded with the identified actuator;
 4. deploy: the controller file is loaded by the loop (validated, closed loop re-checked);
 5. proof: impacts K∞ off/on at Ω = 0, P_I = 4 and 7 bar, both axes
    (:func:`rigd.api.analyze_impact`);
@@ -80,7 +82,9 @@ def run_demo(out: str | Path, *, config: str = DEFAULT_CONFIG,
         ``summary.json``: γ, controller order, sensitivity figures over the operating range,
         damping ratios ζ open/closed per impact (keys ``P<bar>bar_W<rpm>rpm_<axis>``),
         identification fits (%) of the design's models, ``diagnosis`` (what was named per
-        sub-model, held-out fits before and after adding it), timings (s).
+        sub-model, held-out fits before and after adding it), ``design_model_effects`` (per
+        sub-model the effects whose linear block the design model carries and those left
+        out, with why), timings (s).
     """
     from rigd.api.demo_model import model_story
     from rigd.api.demo_page import write_index
@@ -171,6 +175,10 @@ def run_demo(out: str | Path, *, config: str = DEFAULT_CONFIG,
     if design.get("comparison_failed"):
         _say(f"      WARNING no side-by-side with the truncated design: "
              f"{design['comparison_failed']}")
+    for sub, eff in design["design_model_effects"].items():
+        if eff["included"] or eff["left_out"]:
+            _say(f"      {sub} design model: with {', '.join(eff['included']) or 'no effect'}"
+                 + "".join(f"; {n} left out ({why})" for n, why in eff["left_out"].items()))
     for w in design.get("model_warnings", []):
         _say(f"      WARNING model {w}")
     timings["design_s"] = time.perf_counter() - t0
@@ -235,6 +243,7 @@ def run_demo(out: str | Path, *, config: str = DEFAULT_CONFIG,
         "model_effects": list(dict.fromkeys(e for sm in model.submodels.values()
                                             for e in getattr(sm.structure, "effects", []))),
         "diagnosis": story.summary(),
+        "design_model_effects": design["design_model_effects"],
         "design_point": {"omega_rpm": om, "p_inj_bar": p},
         "plant": plant,
         "config": str(config),

@@ -156,6 +156,15 @@ def _design(rep: Report, out: Path, s: dict) -> None:
     if s.get("design_comparison_failed"):
         rep.text("The side-by-side with the truncated full-order design FAILED: "
                  f"{s['design_comparison_failed']}")
+    eff = s.get("design_model_effects") or {}
+    rows = [[sub, ", ".join(e["included"]) or "–",
+             "; ".join(f"{n}: {why}" for n, why in e["left_out"].items()) or "–"]
+            for sub, e in eff.items()]
+    if rows:
+        rep.text("What of the named effects the linear design model carries (a delay as a "
+                 "Padé approximant, an extra mode as a parallel mode, lags), and what it "
+                 "leaves out and why:")
+        rep.table(["sub-model", "in the design model", "left out"], rows)
     rep.table(["quantity", "value"], [
         ["γ (worst over the design set)", f"{s['gamma']:.3f}"],
         ["all closed loops stable", str(rob["all_stable"])],

@@ -63,7 +63,9 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
     ----------
     model : path, Identification or ModelFile
         Identified model with both ``actuator`` and ``bearing`` sub-models:
-        G_p = G_bear·G_act (r in V -> p in µm).
+        G_p = G_bear·G_act (r in V -> p in µm), each with the linear blocks of its effects
+        (``ModelFile.plant(effects=True)``: a delay as a Padé approximant, an extra mode, lags; the
+        summary's ``design_model_effects`` says which are in and why the others are not).
     weights : path
         Design YAML: weights W_p, W_u, reduction order, prewarp frequency, robustness set-up.
     out : path
@@ -71,7 +73,8 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
     range_model : path, optional
         Reassembled bearing model G_bear(Ω, P_I) (:func:`rigd.api.identify_sweep`) for the
         robustness check over ``robustness.n_realizations`` random operating points, cascaded
-        with the model's actuator.
+        with the model's actuator; the linear blocks of the model's bearing effects (fitted
+        at its operating point) are applied at every point.
     report : path, optional
         Write figures (weights, S_o, K(z)) into this directory.
     plant_at : callable(omega_rpm, p_inj_bar) -> StateSpace, optional
@@ -120,16 +123,25 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
         from rigd.ident.oprange import ReassembledBearing
 
         gb = ReassembledBearing.load(range_model)
-        Gact = mf.ss("actuator")
+        Gact = mf.ss("actuator", effects=True)
+        bear = mf.submodels.get("bearing")
 
         def plant_at(om, p):
-            return gb.at(om, p) * Gact
+            Gb = gb.at(om, p)
+            if bear is not None:   # the design point's bearing effects at every point
+                Gb = bear.linear_ss(mf.fs, Gb)[0]
+            return Gb * Gact
 
         plant_at_label = f"reassembled {range_model} x actuator of {shown}"
+        carried = mf.linear_effects().get("bearing", {}).get("included", [])
+        if carried:
+            plant_at_label += (f", with the bearing's {', '.join(carried)} of {shown} "
+                               "at every operating point")
     res, summary = design_from_model(mf, weights, out, shown=shown,
                                      model_hash=sha256_file(model_path) if model_path else None,
                                      report=report, plant_at=plant_at,
                                      plant_at_label=plant_at_label, method=method, order=order)
+    summary["design_model_effects"] = mf.linear_effects()
     if warnings:
         summary["model_warnings"] = warnings
     return Design(res.K_z, res.K_red, res.K_full, res, summary)

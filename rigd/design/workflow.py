@@ -41,9 +41,10 @@ def design_from_model(mf, weights_path, out, *, shown: str = "model",
 
     Parameters
     ----------
-    mf : object with ``plant()`` and ``operating_point``
+    mf : object with ``plant(effects=)`` and ``operating_point``
         The identified model (a ``ModelFile``, loaded by the caller: ``rigd.design`` reads no
-        model files) with G_p = G_bear·G_act.
+        model files) with G_p = G_bear·G_act, designed on with the linear blocks of its
+        sub-models' effects (``ModelFile.plant(effects=True)``).
     weights_path : path
         Design YAML (:class:`rigd.design.weights.DesignConfig`).
     out : path
@@ -62,7 +63,7 @@ def design_from_model(mf, weights_path, out, *, shown: str = "model",
     from rigd.errors import InputError
 
     cfg = load_design_config(weights_path)
-    G = mf.plant()
+    G = mf.plant(effects=True)   # with the linear blocks of the effects it names
     label = plant_at_label
     res, cmp = pipeline.design(G, cfg, method=method, order=order, plant_at=plant_at)
     pipeline.save_design(out, res, cfg,

@@ -71,4 +71,8 @@ def test_demo_page_shows_what_the_summary_says(browser, demo_out):
         assert name in text
     for sub, fit in s["diagnosis"]["fit_after"].items():
         assert f"{fit:.2f}" in text, sub
+    # the design section says which named effects the design model carries
+    for sub, eff in s["design_model_effects"].items():
+        for name in eff["included"] + list(eff["left_out"]):
+            assert name in text.split("H∞ design on the improved model")[1], (sub, name)
     assert browser.console_errors() == []

@@ -65,6 +65,36 @@ def test_diagnosis_names_effects_and_the_held_out_error_falls(demo):
         assert fits == sorted(fits)
 
 
+def test_the_design_model_is_the_improved_model_with_its_effects(demo):
+    """Design on the improved model (issue 23 item 5): the G_p the controller was tuned on
+    is the improved model file's G_p with the linear blocks of its named effects (the
+    design's own γ on it is recomputed from the deployed controller), not its base parts;
+    every named effect is either in it or listed as left out with why."""
+    from rigd.controller import load_controller
+    from rigd.design.structured_design import gamma_on_set
+    from rigd.design.weights import load_design_config
+    from rigd.effects import resolve
+    from rigd.ident.modelfile import load_model
+
+    out, s = demo
+    model = load_model(out / "G_p.yaml", resolve)
+    eff = s["design_model_effects"]
+    assert eff == model.linear_effects()
+    for sub, names in s["diagnosis"]["named_by_submodel"].items():
+        assert sorted(eff[sub]["included"] + list(eff[sub]["left_out"])) == sorted(names)
+        assert all(why for why in eff[sub]["left_out"].values())
+    ctl = load_controller(out / "controller.yaml")
+    import control
+
+    Kz = control.ss(ctl.A, ctl.B, ctl.C, ctl.D, 1.0 / ctl.fs_hz)
+    cfg = load_design_config("config/design.yaml")
+    g_with = gamma_on_set(model.plant(effects=True), cfg, Kz)[0]["gamma"]
+    assert g_with == pytest.approx(s["gamma_per_model"]["design model"], rel=1e-3)
+    if any(e["included"] for e in eff.values()):
+        g_base = gamma_on_set(model.plant(effects=False), cfg, Kz)[0]["gamma"]
+        assert g_base != pytest.approx(g_with, rel=1e-3)
+
+
 def test_open_loop_damping_matches_the_plant(demo):
     """Impacts with K∞ off ring down with the linearised plant's own damping (its first two
     modes, the journal on the film; ``linear_modes`` of the configured plant)."""
