@@ -15,14 +15,27 @@ runs on the augmented plant G_p·H_hp and returns K̃; the deployed controller i
 K∞ = H_hp·K̃, which has an m-fold zero at s = 0 whatever the synthesis does: no action at DC
 and little below ω_h (the paper's "controller not active at low frequencies", Fig. 5). The
 weights W_u and W_p see K̃ and the augmented loop (G_p H_hp K̃ = G_p K∞, so S is the same).
-Synthesis uses python-control ``hinfsyn`` (SLICOT SB10AD through slycot). The problem is
-solved in a frequency-scaled time unit (ω/ω_s) so that the Riccati equations are well
-conditioned, and the controller is scaled back.
+Synthesis uses SLICOT SB10AD through slycot (γ-iteration, as python-control ``hinfsyn``). The
+problem is solved in a frequency-scaled time unit (ω/ω_s) so that the Riccati equations are
+well conditioned, and the controller is scaled back.
+
+**A stable controller.** The central controller at the optimal γ can be unstable *by itself*
+while the closed loop is stable: near the optimum it places poles at (mirror images of) the
+plant's lightly damped right-half-plane zeros. A delay in series with a base model and a
+structural mode in parallel (the improved model of the demo: Padé of 1.27 samples, extra
+mode at 330 Hz) puts such a zero pair at 3.7 ± 286j Hz — the LHP pair −11.6 ± 283j Hz of
+base + mode moved across the axis by the delay's phase — and the optimal K̃ then has a pole
+pair at +1.9 ± 295j Hz. The loop loads no unstable K∞(z) (:mod:`rigd.controller`: it runs
+while its output is not applied), and truncation keeps the unstable part. So when the
+optimal K̃ is unstable, the central controller is recomputed at the relaxed levels
+γ_opt·:data:`RELAX_FACTORS` (SB10AD without iteration, ``job=4``) and the first one that is
+stable with a stable closed loop is kept; γ is then that level, ``gamma_optimal`` the
+optimum (on the demo's improved model: 1.68 → 2.02 at 1.2×).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -31,6 +44,8 @@ from rigd.errors import InputError
 
 #: Frequency scale of the synthesis (rad/s): 2π·100 Hz, the bearing modes' neighbourhood.
 OMEGA_SCALE = 2.0 * np.pi * 100.0
+#: Levels γ/γ_opt tried, in order, when the optimal central controller is not stable itself.
+RELAX_FACTORS = (1.05, 1.1, 1.2, 1.3, 1.5, 2.0, 3.0)
 
 
 @dataclass
@@ -53,6 +68,8 @@ class HinfResult:
     K_tilde: object = None      # K̃ designed on G_p·H_hp (K = H_hp·K̃); K itself without H_hp
     H: object = None            # H_hp (2×2), None without a high-pass
     conditioning: dict | None = None   # what rigd.design.condition did to the plant
+    gamma_optimal: float = float("nan")   # optimal γ (= gamma unless relaxed for a stable K̃)
+    relaxed: list = field(default_factory=list)   # [{factor, gamma, controller_stable}] tried
 
 
 def _freq_scale(sys, w: float):
@@ -129,14 +146,15 @@ def synthesize(G, weights: Weights, highpass: HighPass | None = None) -> HinfRes
     """Mixed-sensitivity H∞ controller for plant ``G`` with ``weights`` (γ-iteration by SLICOT).
 
     With ``highpass`` (order m > 0) the synthesis runs on G·H_hp and K = H_hp·K̃ is returned.
+    An optimal K̃ that is unstable itself is replaced by the first stable central controller
+    at a relaxed level γ_opt·:data:`RELAX_FACTORS` (module docstring; ``relaxed`` lists the
+    levels tried; none stable: the optimal one is returned and the caller's checks say so).
 
     Raises
     ------
     InputError
         When the problem has no solution (e.g. weights that make it infeasible or ill-posed).
     """
-    import control
-
     ny, nu = G.noutputs, G.ninputs
     if (ny, nu) != (2, 2):
         raise InputError(f"plant must be 2x2 (r_x, r_y -> e_x, e_y), got {ny}x{nu}", "model")
@@ -146,12 +164,49 @@ def synthesize(G, weights: Weights, highpass: HighPass | None = None) -> HinfRes
     Ga = G * H if H is not None else G
     w = OMEGA_SCALE
     P = generalized_plant(_freq_scale(Ga, w), _freq_scale(Wp, w), _freq_scale(Wu, w), weights.W_d)
+    gamma, Ks = _sb10ad(P, ny, nu)
+    g_opt, tried = gamma, []
+    if not _stable(Ks.A):
+        for f in RELAX_FACTORS:
+            try:
+                g, Kf = _sb10ad(P, ny, nu, g_opt * f)
+            except InputError:
+                continue
+            ok = _stable(Kf.A) and closed_loop_stable(
+                G, H * _unscale(Kf, w) if H is not None else _unscale(Kf, w))
+            tried.append({"factor": f, "gamma": g, "controller_stable": ok})
+            if ok:
+                gamma, Ks = g, Kf
+                break
+    Kt = _unscale(Ks, w)
+    K = H * Kt if H is not None else Kt
+    return HinfResult(K=K, gamma=float(gamma), closed_loop_stable=closed_loop_stable(G, K),
+                      K_tilde=Kt, H=H, gamma_optimal=float(g_opt), relaxed=tried)
+
+
+def _stable(A) -> bool:
+    """All eigenvalues of the continuous ``A`` in the open left half-plane."""
+    A = np.asarray(A, float)
+    return bool(A.size == 0 or np.max(np.linalg.eigvals(A).real) < 0.0)
+
+
+def _unscale(K, w: float):
+    import control
+
+    return control.ss(np.asarray(K.A) * w, np.asarray(K.B) * w, K.C, K.D)
+
+
+def _sb10ad(P, ny: int, nu: int, gamma: float | None = None):
+    """(γ, K) of SLICOT SB10AD on the generalized plant ``P``: the optimal γ by its
+    iteration (``gamma`` None), else the central controller at the level ``gamma``."""
+    import control
+    from slycot import sb10ad
+
+    n, m, p = P.A.shape[0], P.B.shape[1], P.C.shape[0]
+    args = (n, m, p, nu, ny, 1e100 if gamma is None else float(gamma), P.A, P.B, P.C, P.D)
     try:
-        Ks, _cl, gamma, _rcond = control.hinfsyn(P, ny, nu)
+        out = sb10ad(*args) if gamma is None else sb10ad(*args, job=4)
     except Exception as exc:  # slycot raises its own error types with the SLICOT info code
         raise InputError(f"H∞ synthesis failed ({type(exc).__name__}: {exc}); "
                          "check the weights and the plant model", "design") from None
-    Kt = control.ss(Ks.A * w, Ks.B * w, Ks.C, Ks.D)
-    K = H * Kt if H is not None else Kt
-    return HinfResult(K=K, gamma=float(gamma), closed_loop_stable=closed_loop_stable(G, K),
-                      K_tilde=Kt, H=H)
+    return float(out[0]), control.ss(out[1], out[2], out[3], out[4])

@@ -61,12 +61,16 @@ class DesignResult:
     tuning: dict = field(default_factory=dict)       # starts, evaluations, time
     comparison_failed: str | None = None             # why the side-by-side design failed
     conditioning: dict = field(default_factory=dict)  # what the synthesis model dropped
+    gamma_full_optimal: float = float("nan")  # optimal γ (gamma_full if not relaxed)
+    relaxed: list = field(default_factory=list)   # relaxed levels tried for a stable K̃
 
     def summary(self) -> dict:
         out = {} if self.comparison_failed is None else {
             "comparison_failed": self.comparison_failed}
         return {**out, "method": self.method, "gamma": self.gamma,
                 "gamma_full_order": self.gamma_full,
+                "gamma_full_order_optimal": self.gamma_full_optimal,
+                "full_order_relaxed": self.relaxed,
                 "order_full": self.order_full, "design_set": self.design_set,
                 "tuning": self.tuning, "synthesis_model": self.conditioning,
                 "order_requested": self.order_requested, "controller_order": self.order,
@@ -155,7 +159,8 @@ def design_structured(G, cfg: DesignConfig, *, syn=None, plant_at=None) -> Desig
                         highpass=hp.model_dump() if hp.order else None,
                         lowfreq_gain_ratio=float(k_1hz / k_band), method="structured",
                         gamma_full=syn.gamma, design_set=t["design_set"], tuning=t["tuning"],
-                        conditioning=syn.conditioning)
+                        conditioning=syn.conditioning, gamma_full_optimal=syn.gamma_optimal,
+                        relaxed=syn.relaxed)
 
 
 def design_controller(G, cfg: DesignConfig, *, max_band_error: float = 0.1,
@@ -210,7 +215,8 @@ def design_controller(G, cfg: DesignConfig, *, max_band_error: float = 0.1,
                         hsv=[float(v) for v in reduce.hankel_singular_values(Kt)],
                         highpass=hp.model_dump() if hp.order else None,
                         lowfreq_gain_ratio=float(k_1hz / k_band), gamma_full=syn.gamma,
-                        conditioning=syn.conditioning)
+                        conditioning=syn.conditioning, gamma_full_optimal=syn.gamma_optimal,
+                        relaxed=syn.relaxed)
 
 
 def save_design(path, result: DesignResult, cfg: DesignConfig, *, model_hash: str | None = None,

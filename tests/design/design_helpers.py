@@ -27,3 +27,16 @@ def truth_model_file(path, omega_rpm=4000.0, p_inj_bar=7.0, fs=5000.0):
                    operating_point={"omega_rpm": omega_rpm, "p_inj_bar": p_inj_bar})
     mf.save(path)
     return path
+
+
+def parallel_mode(G, f0, zeta, g):
+    """G + a parallel mode at f0 (Hz) on each input with output gain g (extra_mode's block)."""
+    from rigd.effects._linear import parallel
+
+    w = 2 * np.pi * f0
+    A, B, C = np.zeros((4, 4)), np.zeros((4, 2)), np.zeros((2, 4))
+    for j in range(2):
+        A[2 * j:2 * j + 2, 2 * j:2 * j + 2] = [[0.0, 1.0], [-w * w, -2 * zeta * w]]
+        B[2 * j + 1, j] = w * w
+        C[:, 2 * j] = g
+    return parallel(G, A, B, C)

@@ -3,25 +3,15 @@ loop rate residualised, non-minimal states removed, a change that matters refuse
 
 import numpy as np
 import pytest
+from design_helpers import parallel_mode
 
 from rigd.design.condition import condition
 from rigd.design.robustness import freq_response
-from rigd.effects._linear import lag_block, parallel, series_inputs
+from rigd.effects._linear import lag_block, series_inputs
 from rigd.errors import InputError
 from rigd_drivers.sim import truth as simtruth
 
 FS = 5000.0
-
-
-def _mode(G, f0, zeta, g):
-    """G + a parallel mode at f0 (Hz) on each input with output gain g (extra_mode's block)."""
-    w = 2 * np.pi * f0
-    A, B, C = np.zeros((4, 4)), np.zeros((4, 2)), np.zeros((2, 4))
-    for j in range(2):
-        A[2 * j:2 * j + 2, 2 * j:2 * j + 2] = [[0.0, 1.0], [-w * w, -2 * zeta * w]]
-        B[2 * j + 1, j] = w * w
-        C[:, 2 * j] = g
-    return parallel(G, A, B, C)
 
 
 @pytest.fixture(scope="module")
@@ -46,12 +36,12 @@ def test_slow_dynamics_are_kept_and_unreachable_ones_removed(plant):
     Gc, info = condition(G, FS)
     assert all(np.array_equal(getattr(Gc, k), getattr(G, k)) for k in "ABC")
     assert info["fast_poles_hz"] == [] and info["removed_nonminimal"] == 0
-    Gc, info = condition(_mode(plant, 150.0, 0.05, 0.0), FS)     # a mode nobody sees
+    Gc, info = condition(parallel_mode(plant, 150.0, 0.05, 0.0), FS)     # a mode nobody sees
     assert info["removed_nonminimal"] == 4 and Gc.nstates == plant.nstates
     assert info["change"] < 1e-3        # minreal's new realization: ≈ 5e-4
 
 
 def test_fast_dynamics_that_matter_are_refused(plant):
     with pytest.raises(InputError) as e:       # an 8 kHz mode carrying the whole DC gain
-        condition(_mode(plant, 8000.0, 0.05, 1.0), FS)
+        condition(parallel_mode(plant, 8000.0, 0.05, 1.0), FS)
     assert "500 Hz" in e.value.message and "8e+03" in e.value.message
