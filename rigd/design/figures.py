@@ -89,6 +89,11 @@ def design_report(out, cfg, res, rob=None, title="rigd design", comparison=None,
                "|K(1 Hz)| / max in band"],
               [[res.method, f"{res.gamma:.3f}", f"{res.order_full} ({res.gamma_full:.3f})",
                 res.order, f"{res.band_error:.3f}", f"{res.lowfreq_gain_ratio:.4f}"]])
+    if res.relaxed:
+        rep.text(f"The full-order H∞ controller at the optimal γ {res.gamma_full_optimal:.3f} is "
+                 "unstable by itself (its closed loop is stable): the central controller at "
+                 f"γ {res.gamma_full:.3f} ({res.relaxed[-1]['factor']:g}× the optimum), the "
+                 "first relaxed level at which it is stable, is used (docs/design.md).")
     if res.design_set:
         rep.table(["design-set model", "gamma", "closed-loop spectral radius", "stable"],
                   [[r["label"], f"{r['gamma']:.3f}", f"{r['rho']:.5f}", r["stable"]]

@@ -68,7 +68,7 @@ def test_plain_plant_keeps_the_optimal_controller(cfg, plant):
     assert _max_re(syn.K.A) < 0
 
 
-def test_truncation_finds_a_stable_order_on_such_a_plant(cfg, plant):
+def test_truncation_finds_a_stable_order_on_such_a_plant(cfg, plant, tmp_path):
     """The paper's route on that plant: with the stable full-order controller some order is
     stable in closed loop, stable itself and within 10 % in band (with the optimal one every
     order kept its unstable pair: 'K(z) itself unstable')."""
@@ -80,6 +80,11 @@ def test_truncation_finds_a_stable_order_on_such_a_plant(cfg, plant):
     s = res.summary()
     assert s["gamma_full_order_optimal"] == res.gamma_full_optimal
     assert s["full_order_relaxed"][-1]["controller_stable"] is True
+    from rigd.design.figures import design_report
+
+    design_report(tmp_path, cfg, res)                    # the design report says it
+    text = (tmp_path / "index.html").read_text()
+    assert "unstable by itself" in text and f"{res.gamma_full_optimal:.3f}" in text
 
 
 def test_reduction_at_resonance_counts_the_damping_band_only(cfg, plant):
