@@ -30,8 +30,10 @@ from rigd.frame import REC, RECORD_NAMES
 from rigd.loop.shared_ring import RingReader
 from rigd.plain import plain
 
-#: one update covers at most this much loop time; older frames are counted in ``dropped``
-MAX_BACK_S = 1.0
+#: one update covers at most this much loop time; older frames are counted in ``dropped``.
+#: Ten seconds (of a ring of tens of seconds) so that a socket process starved on a busy
+#: machine (it runs niced) catches up instead of dropping frames the ring still holds.
+MAX_BACK_S = 10.0
 #: sent minima are rounded down and maxima up to a multiple of this (in each channel's unit:
 #: 10 pm for µm, 10 µV for V): :func:`outward`
 QUANTUM = 1e-5
