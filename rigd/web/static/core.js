@@ -139,12 +139,14 @@ export function stackedAxes(groups, gap) {
 
 // min/max buckets drawn as a band: t0 min, t0 max, t1 max, t1 min, t2 min, t2 max, ...
 // (each bucket a vertical stroke from its min to its max, joined end to end: no peak lost,
-// no saw-tooth from joining one bucket's max to the next one's min)
-export function band(t, lo, hi, t0) {
-  const n = t.length, x = new Array(2 * n), y = new Array(2 * n), z = t0 || 0;
+// no saw-tooth from joining one bucket's max to the next one's min); the buckets from index
+// `from` on (default 0), x relative to `t0`
+export function band(t, lo, hi, t0, from) {
+  const f = from || 0, n = t.length - f, x = new Array(2 * n), y = new Array(2 * n), z = t0 || 0;
   for (let i = 0; i < n; i++) {
-    x[2 * i] = x[2 * i + 1] = t[i] - z;
-    if (i % 2 === 0) { y[2 * i] = lo[i]; y[2 * i + 1] = hi[i]; } else { y[2 * i] = hi[i]; y[2 * i + 1] = lo[i]; }
+    const k = i + f;
+    x[2 * i] = x[2 * i + 1] = t[k] - z;
+    if (i % 2 === 0) { y[2 * i] = lo[k]; y[2 * i + 1] = hi[k]; } else { y[2 * i] = hi[k]; y[2 * i + 1] = lo[k]; }
   }
   return {x, y};
 }

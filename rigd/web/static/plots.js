@@ -179,9 +179,17 @@ function drawTraces() {
   const trig = v && rigd.trigger && rigd.trigger.state === "done";
   const st = stackedAxes(GROUPS);
   const data = [];
+  // live, the buffers keep KEEP_S (a trigger's window) but the plot shows TRACE_S: the
+  // buckets before it (a fifth of them) are not handed to the canvas, from the last one
+  // before the left edge on (the line enters the plot from it)
+  let from = 0;
+  if (!v) {
+    while (from < b.t.length && b.t[from] < t0 - TRACE_S) from++;
+    from = Math.max(0, from - 1);
+  }
   GROUPS.forEach((g, gi) => {
     for (const c of g.chans) {
-      const e = band(b.t, b[c].lo, b[c].hi, t0);
+      const e = band(b.t, b[c].lo, b[c].hi, t0, from);
       data.push(line(e.x, e.y, NAMES[c] || c, COLOURS[c], {yaxis: st.ref[gi], xaxis: "x",
         meta: {daemon: rigd.daemon && rigd.daemon.pid, t0: t0, epoch: rigd.epoch},
         line: {width: 1, color: COLOURS[c], dash: /^(r_p|k_)/.test(c) ? "dot" : "solid"}}));
