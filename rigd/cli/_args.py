@@ -32,7 +32,7 @@ def add_range_argument(p: argparse.ArgumentParser) -> None:
 
 
 def parse_order(text: str) -> str | int:
-    """``auto`` or a number of modes ≥ 1 (argparse type of ``--order``)."""
+    """``auto`` or a number of states ≥ 1 (argparse type of ``--order``)."""
     if text == "auto":
         return text
     try:
@@ -40,17 +40,19 @@ def parse_order(text: str) -> str | int:
     except ValueError:
         v = 0
     if v < 1:
-        raise argparse.ArgumentTypeError(f"must be 'auto' or a number of modes >= 1, got "
+        raise argparse.ArgumentTypeError(f"must be 'auto' or a number of states >= 1, got "
                                          f"{text!r}")
     return v
 
 
 def add_order_argument(p: argparse.ArgumentParser) -> None:
-    """``--order auto|N``: modes of a generic record's base model (rigd.ident.order)."""
+    """``--order auto|N``: states of a generic record's base model
+    (rigd.ident.lti.order.choose_base)."""
     p.add_argument("--order", type=parse_order, default="auto", metavar="auto|N",
-                   help="generic records: number of modes of the base model, or auto (chosen "
-                        "from the data: subspace estimate + output-error refit, kept while a "
-                        "mode adds >= 0.5 validation points; default)")
+                   help="generic records: number of states of the base model (fitted exactly "
+                        "or refused with the reason; a mode is 2 states), or auto (default: "
+                        "family, delays and order chosen from the data — BIC on the "
+                        "estimation part, held-out check; printed and in --json)")
 
 
 def add_plain_csv_arguments(p: argparse.ArgumentParser) -> None:

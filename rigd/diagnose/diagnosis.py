@@ -112,6 +112,13 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                            order=order, init=init, options=options, runout=runout,
                            max_samples=max_samples)
     settings.check()
+    # effects asked by name that act on a mechanical state (a stiffness, a restoring force)
+    # keep the mechanical base, as rigd identify --add does (FitSettings.mechanical)
+    from rigd.effects import REGISTRY
+
+    settings.mechanical = any(
+        REGISTRY[nm].level == "state" or "mechanical" in REGISTRY[nm].requires
+        for nm in (effects or []) if nm in REGISTRY)
     notes: list[str] = []
     parts = [_diagnose_part(record, sub, settings, notes, effects=effects, refit=refit,
                             max_steps=max_steps, yardstick=yardstick) for sub in subs]

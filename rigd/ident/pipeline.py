@@ -50,7 +50,12 @@ class FitSettings:
     hold : {"auto", "zoh", "foh"}
         Inputs between samples (:func:`rigd.ident.hold.choose_hold`).
     order : "auto" or int
-        Generic records: modes of the base (:func:`rigd.ident.order.choose_order`).
+        Generic records: states of the base (:func:`rigd.ident.lti.order.choose_base`), or
+        modes with ``mechanical``.
+    mechanical : bool
+        Generic records: keep the mechanical n-DOF base (plus parallel modes,
+        :func:`rigd.ident.order.choose_order`) — for effects that act on a mechanical state
+        (``identify --add cubic_stiffness``).
     init : ModelFile, optional
         Start values of the base fit (``--init``).
     options : PrefilterOptions, optional
@@ -70,6 +75,7 @@ class FitSettings:
     options: Any = None
     runout: Any = None
     max_samples: int | None = MAX_SAMPLES
+    mechanical: bool = False
 
     def check(self) -> None:
         """InputError for settings no record can satisfy."""
@@ -155,6 +161,9 @@ class BaseFit:
         out["hold"] = self.hold.hold
         if self.order is not None:
             out["modes"] = int(self.order.modes)
+            for k in ("family", "states", "delays"):
+                if hasattr(self.order, k):
+                    out[k if k != "delays" else "delays_samples"] = getattr(self.order, k)
         return out
 
 
@@ -212,18 +221,48 @@ def fit_base(record, submodel: str, settings: FitSettings) -> BaseFit:
     res = fit(base, est_data, method=settings.method, theta0=th0)
     chosen = None
     if submodel == "generic":
+        base, res, chosen = _generic_base(base, res, data, es, vs, choice.hold, settings)
+    return BaseFit(submodel, data, es, vs, window, base, res, choice, rep, settings, chosen,
+                   n, notes)
+
+
+def _generic_base(mech, res, data, es: slice, vs: slice, hold: str, settings: FitSettings):
+    """(structure, FitResult, order choice) of a generic record's base.
+
+    The family, order and delays come from the data (:func:`rigd.ident.lti.order.
+    choose_base`: general LTI, process or the mechanical n-DOF model ``mech``, fitted as
+    ``res``). With ``settings.mechanical`` (an asked effect acts on a mechanical state: a
+    stiffness, a restoring force) the base stays mechanical, with the parallel modes the
+    data need (:func:`rigd.ident.order.choose_order`).
+    """
+    from rigd.ident.pem import fit
+
+    est_data = data.slice(es.start, es.stop)
+    if settings.mechanical:
         from rigd.ident.order import choose_order
 
         try:
-            chosen = choose_order(base, data, es, vs, settings.order,
+            chosen = choose_order(mech, data, es, vs, settings.order,
                                   base_theta=res.theta if res.method == "oe" else None)
         except ValueError as exc:
             raise InputError(str(exc), "--order") from None
-        if chosen.structure is not base:
-            base = chosen.structure
-            res = fit(base, est_data, method=settings.method, theta0=chosen.theta)
-    return BaseFit(submodel, data, es, vs, window, base, res, choice, rep, settings, chosen,
-                   n, notes)
+        if chosen.structure is not mech:
+            res = fit(chosen.structure, est_data, method=settings.method,
+                      theta0=chosen.theta)
+        return chosen.structure, res, chosen
+    from rigd.ident.lti.candidates import settle
+    from rigd.ident.lti.order import OrderRefused, choose_base
+
+    try:
+        chosen = choose_base(data, es, vs, settings.order, hold=hold, mechanical=mech,
+                             mechanical_theta=res.theta)
+    except OrderRefused as exc:
+        raise InputError(str(exc), "--order") from None
+    if chosen.structure is mech:   # fitted by the asked method already
+        return mech, res, chosen
+    res = fit(chosen.structure, est_data, method=settings.method, theta0=chosen.theta,
+              skip=settle(getattr(chosen.structure, "delays", [0])))
+    return chosen.structure, res, chosen
 
 
 def refit_with(structure, theta: np.ndarray, effects: Sequence[Any], data_est, method: str,

@@ -164,8 +164,9 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         How the inputs behave between samples; default/``"auto"``: declared by the record,
         known for rigd recordings, else chosen from the data (:mod:`rigd.ident.hold`).
     order : "auto" or int
-        Generic records: number of modes, or ``auto`` to choose it from the data
-        (:func:`rigd.ident.order.choose_order`, as ``rigd diagnose``).
+        Generic records: number of states, or ``auto`` to choose the family, order and
+        delays from the data (:func:`rigd.ident.lti.order.choose_base`, as ``rigd
+        diagnose``); with an effect on a mechanical state, modes of the mechanical base.
     """
     from rigd.ident.pipeline import FitSettings, effects_for, fit_base
 
@@ -176,6 +177,11 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                            options=options, runout=runout)
     settings.check()
     effects = list(effects or [])
+    # an asked effect that acts on a mechanical state (a stiffness, a restoring force)
+    # needs the mechanical base (rigd.ident.pipeline.FitSettings.mechanical)
+    settings.mechanical = any(getattr(e, "level", "") == "state" or
+                              "mechanical" in (getattr(e, "requires", None) or ())
+                              for e in effects_for(effects, "generic"))
     subs: dict[str, Submodel] = {}
     prefilter_reports = {}
     split_info = {}

@@ -71,7 +71,7 @@ def test_missing_modes_unexplained_at_the_mode_frequency(seed, fs):
         rec = Record(dict(rec.columns, t=np.arange(rec.n) / fs), fs, rec.meta, rec.source)
     names = [n for n, e in REGISTRY.items() if "generic" in e.submodels
              and getattr(e, "screened", True) and n != "extra_mode"]
-    d = diagnose_record(rec, order=1, effects=names)
+    d = diagnose_record(rec, order=2, effects=names)  # one mode: 2 states
     out = d.to_json()
     assert significant(d) == [], out["findings"][:3]
     _shares_checked(out)
@@ -103,7 +103,7 @@ def test_three_mode_structure_order_auto_finds_the_missing_modes():
 
 
 def test_three_mode_structure_with_one_mode_names_extra_mode():
-    d = diagnose_record(B.three_mode(seed=4), order=1)
+    d = diagnose_record(B.three_mode(seed=4), order=2)  # one mode: 2 states
     out = d.to_json()
     assert out["order"]["generic"]["modes"] == 1
     top = out["findings"][0]

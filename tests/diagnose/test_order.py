@@ -74,8 +74,10 @@ def test_identify_order_auto_model_file_and_compare(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["identify", str(tmp_path / "d.csv"), *opts, "--order", "0"])
     assert e.value.code == 2 and "--order" in capsys.readouterr().err
-    assert main(["identify", str(tmp_path / "d.csv"), *opts, "--order", "1", "--method", "oe",
+    # --order N is a number of states (2 per mode), fitted exactly
+    assert main(["identify", str(tmp_path / "d.csv"), *opts, "--order", "2", "--method", "oe",
                  "--json"]) == 0
     js1 = json.loads(capsys.readouterr().out)
-    assert js1["fit_percent_per_output"]["generic"]["order"]["modes"] == 1
+    o1 = js1["fit_percent_per_output"]["generic"]["order"]
+    assert o1["states"] == 2 and o1["modes"] == 1 and o1["asked"] == 2
     assert js1["fit_percent"] < js["fit_percent"] - 10

@@ -22,7 +22,7 @@ def duffing_models():
     out = {}
     for key, effects in (("linear", []), ("cubic", resolve(["cubic_stiffness"]))):
         sub = identify_record(rec, "generic", method="oe", effects=effects,
-                              order=1).submodels["generic"]
+                              order=2).submodels["generic"]
         out[key] = Context("generic", data, sub.structure, np.asarray(sub.theta, float),
                            np.zeros_like(data.outputs), slice(0, 2000), slice(2000, 3000))
     return data, out
@@ -98,7 +98,7 @@ def test_an_extension_that_cannot_be_simulated_on_the_model_gains_nothing_and_ne
     rec = B.duffing(seed=0, n=3000)
     data = from_record(rec, "generic")
     sub = identify_record(rec, "generic", method="oe", effects=resolve(["delay"]),
-                          order=1).submodels["generic"]
+                          order=2).submodels["generic"]
     th = np.asarray(sub.theta, float)
     yhat = np.asarray(sub.structure.simulate(th, data), float)
     ctx = Context("generic", data, sub.structure, th, yhat, slice(0, 2000), slice(2000, 3000))

@@ -357,6 +357,13 @@ def _exact(data, d_est, est, val, want, delays, hold, max_states, max_nfev) -> B
                f"the estimation part ({d_est.n} samples) supports at most {top} states "
                "(10 samples per parameter)")
         raise OrderRefused(f"order {n} refused: {why}")
+    from rigd.ident.lti.scan import ranked, scan_delays
+
+    # the delays checked at the asked order (the estimate alone can be far too long)
+    got = ranked(scan_delays(data, est, val, delays, n, MIN_GAIN, hold, orders=[n]),
+                 MIN_GAIN, 1)
+    if got:
+        delays = list(got[0].delays)
     cands = [c for c in lti_candidates(data, d_est, est, val, n, delays, hold)
              if np.isfinite(c.bic)]
     if not cands:

@@ -159,10 +159,10 @@ def _best(points: list[ScanPoint], margin: float) -> ScanPoint | None:
 
 
 def scan_delays(data, est: slice, val: slice, estimate, limit: int, margin: float,
-                hold: str = "foh") -> list[ScanPoint]:
+                hold: str = "foh", orders=None) -> list[ScanPoint]:
     """Every scan point tried (module docstring): delay vectors ``FRACTIONS`` × ``estimate``
-    over all orders, then per input ±1 sample at the best order while the criterion
-    improves."""
+    over all orders (or only ``orders``), then per input ±1 sample at the best order while
+    the criterion improves."""
     est_d = [int(d) for d in estimate]
     ft = hold == "foh"
     skip = max(est_d + [0]) + 2
@@ -170,7 +170,8 @@ def scan_delays(data, est: slice, val: slice, estimate, limit: int, margin: floa
     for f in FRACTIONS:
         dl = tuple(int(round(f * d)) for d in est_d)
         if dl not in tried:
-            tried[dl] = scan_orders(data, est, val, dl, limit, feedthrough=ft, skip=skip)
+            tried[dl] = scan_orders(data, est, val, dl, limit, feedthrough=ft, skip=skip,
+                                    orders=orders)
     points = [p for ps in tried.values() for p in ps]
     best = _best(points, margin)
     if best is None:
