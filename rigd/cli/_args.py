@@ -93,7 +93,11 @@ def order_text(o: dict) -> str:
     if "family" not in o:   # written before the model families
         fits = ", ".join(f"{k}: {v} %" for k, v in o["validation_fit_by_modes"].items())
         return f"{o['modes']} mode(s) (validation fit by number of modes: {fits}; {o['reason']})"
-    fits = ", ".join(f"{k}: {v} %" for k, v in o.get("validation_fit_by_states", {}).items())
+    by, what = o.get("validation_fit_by_states") or {}, "states"
+    if not by and o["family"] == "mechanical":   # the mechanical base: modes of 2 states
+        by, what = o.get("validation_fit_by_modes") or {}, "modes"
+    fits = ", ".join(f"{k}: {v} %" for k, v in by.items())
+    asked = "" if o.get("asked", "auto") == "auto" else f"--order {o['asked']}: "
     return (f"{o['family']}, {o['states']} state(s), {o['modes']} mode(s), input delays "
-            f"{o['delays_samples']} samples ({o['reason']}"
-            + (f"; held-out fit by number of states: {fits}" if fits else "") + ")")
+            f"{o['delays_samples']} samples ({asked}{o['reason']}"
+            + (f"; held-out fit by number of {what}: {fits}" if fits else "") + ")")

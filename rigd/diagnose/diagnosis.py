@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from rigd.diagnose.engine import MAX_STEPS, SubDiagnosis, diagnose_data
 from rigd.ident.pipeline import MAX_SAMPLES
 from rigd.ident.yardstick import measure
@@ -147,17 +149,37 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
     # measure of what is reachable for the unexplained structure)
     ys = (measure(bf.data.u, bf.data.y, bf.est, bf.val, float("nan"), bf.data.fs)
           if yardstick else None)
-    sd = diagnose_data(bf.data, sub, structure=bf.structure, est=bf.est, val=bf.val,
-                       effects=effects, refit=refit, max_steps=max_steps,
-                       base_theta=bf.theta, method=bf.settings.method,
-                       offsets=offsets, start=bf.window[0], yardstick=ys,
-                       record_meta=record.meta,
-                       # a hold chosen by the linear base is asked again with the effects
-                       other_hold=({"zoh": "foh", "foh": "zoh"}[bf.hold.hold]
-                                   if bf.hold.source == "fit" else None))
+
+    def run(structure, theta, ys):
+        return diagnose_data(bf.data, sub, structure=structure, est=bf.est, val=bf.val,
+                             effects=effects, refit=refit, max_steps=max_steps,
+                             base_theta=theta, method=bf.settings.method,
+                             offsets=offsets, start=bf.window[0], yardstick=ys,
+                             record_meta=record.meta,
+                             # a hold chosen by the linear base is asked again with the
+                             # effects
+                             other_hold=({"zoh": "foh", "foh": "zoh"}[bf.hold.hold]
+                                         if bf.hold.source == "fit" else None))
+
+    sd = run(bf.structure, bf.theta, ys)
+    on = None
+    mech = (mechanical_alternative(bf, record.meta)
+            if not effects and refit else None)
+    if mech is not None:
+        import copy
+
+        alt = run(mech.structure, mech.theta, copy.copy(ys))
+        sd, on, why = better_on_mechanical(sd, alt)
+        notes.append(f"{sub}: state-level effects screened on the mechanical n-DOF base as "
+                     f"well (the general LTI base is its modes plus real poles, no delay: "
+                     f"docs/diagnose.md): {why}")
     if bf.order is not None:
         sd.order = bf.order.to_json()
+        if on is not None:
+            sd.order["diagnosed_on"] = on
     sd.base = bf.to_json()
+    if on is not None:
+        sd.base["diagnosed_on"] = on
     notes += [f"{sub}: {n}" for n in sd.notes]
     for st, what in ((sd.steps[0], "base model"), (sd.final, "final model")):
         if what == "final model" and len(sd.steps) == 1:
@@ -168,6 +190,64 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
         notes.append(f"{sub}: base model: WARNING: {ys.warning()}")
     sd.window = bf.window
     return sd
+
+
+def mechanical_alternative(bf, meta: dict | None = None):
+    """The mechanical n-DOF candidate of a generic record's base choice on which the
+    state-level effects (which only a mechanical base carries) are screened as well, or None.
+
+    The rule (docs/diagnose.md, "Which base the state-level effects are screened on"):
+    the order was chosen from the data (``auto``), the chosen base is not the mechanical
+    model, the record is of the mechanical domain (a lightly damped pole pair,
+    :func:`rigd.diagnose.domain.decide`), and the chosen base is what the mechanical model
+    carries plus real poles only: no more oscillatory modes than outputs (the mechanical
+    model has one per output), no input delay and no integrator. A real pole is what the
+    linear shadow of a state-level nonlinearity looks like (a hysteretic restoring force
+    lags the motion), so the base choice alone cannot tell the two apart: the diagnosis
+    must, with the effect in.
+    """
+    from rigd.diagnose import domain as D
+
+    ch = bf.order
+    if ch is None or getattr(ch, "family", "mechanical") == "mechanical" or \
+            getattr(ch, "asked", "auto") != "auto":
+        return None
+    mech = [c for c in getattr(ch, "candidates", []) if c.family == "mechanical"
+            and np.isfinite(c.fit_val)]
+    if not mech:
+        return None
+    ny = len(bf.data.output_names)
+    if (any(int(d) != 0 for d in ch.delays) or getattr(bf.structure, "ni", 0)
+            or getattr(bf.structure, "integrator", False)
+            or not 1 <= ch.modes <= ny):
+        return None
+    if D.decide(bf.submodel, meta or {}, bf.structure, bf.theta).name != "mechanical":
+        return None
+    return mech[0]
+
+
+def better_on_mechanical(sd: SubDiagnosis, alt: SubDiagnosis):
+    """(diagnosis reported, ``diagnosed_on`` entry or None, why): the diagnosis ``alt`` on
+    the mechanical base replaces ``sd`` (on identify's base) when it added an effect that
+    ``sd``'s base cannot carry and its final held-out fit is at least ``MIN_FIT_GAIN``
+    points higher."""
+    from rigd.effects import REGISTRY
+    from rigd.ident.thresholds import MIN_FIT_GAIN
+
+    base0 = sd.steps[0].structure
+    only = [s.added for s in alt.steps[1:]
+            if s.added in REGISTRY and REGISTRY[s.added].not_offered(base0) is not None]
+    a, b = sd.final.fit_percent, alt.final.fit_percent
+    path = " -> ".join(f"{s.added or 'base'} {s.fit_percent:.2f} %" for s in alt.steps)
+    if only and b >= a + MIN_FIT_GAIN:
+        on = {"family": "mechanical", "fit_percent": round(float(alt.fit_percent), 3),
+              "identify_base_fit_percent": round(float(sd.fit_percent), 3),
+              "identify_base_final_fit_percent": round(float(a), 3),
+              "effects_not_on_identify_base": only}
+        return alt, on, (f"there {path}, on the general LTI base {a:.2f} % at best: the "
+                         f"diagnosis below is the mechanical base's (rigd identify --add "
+                         f"{' '.join(only)} fits it on that base)")
+    return sd, None, (f"there {path}; kept the general LTI base's diagnosis ({a:.2f} %)")
 
 
 def _describe_base(bf) -> str:

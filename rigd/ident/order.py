@@ -239,14 +239,26 @@ class OrderChoice:
     modes: int
     fits: dict[int, float] = field(default_factory=dict)
     reason: str = ""
+    #: ``--order`` as asked (a number of states, 2 per mode, or ``auto``)
+    asked: str | int = "auto"
+    #: per-input delays (samples): the mechanical model has none
+    delays: list[int] = field(default_factory=list)
+    family: str = "mechanical"
+
+    @property
+    def states(self) -> int:
+        """States of the model: 2 per mode (x = [p, ṗ] and each parallel mode's pair)."""
+        return 2 * int(self.modes)
 
     def describe(self) -> str:
         tried = ", ".join(f"{k}: {v:.2f} %" for k, v in sorted(self.fits.items()))
-        return (f"{self.modes} mode(s) (validation fit by number of modes: {tried}; "
-                f"{self.reason})")
+        return (f"mechanical n-DOF model, {self.states} states ({self.modes} mode(s); "
+                f"validation fit by number of modes: {tried}; {self.reason})")
 
     def to_json(self) -> dict[str, Any]:
-        return {"modes": self.modes, "validation_fit_by_modes":
+        return {"modes": self.modes, "family": self.family, "states": self.states,
+                "delays_samples": list(self.delays), "asked": self.asked,
+                "validation_fit_by_modes":
                 {str(k): round(v, 3) for k, v in sorted(self.fits.items())},
                 "reason": self.reason}
 

@@ -241,11 +241,18 @@ def _generic_base(mech, res, data, es: slice, vs: slice, hold: str, settings: Fi
     if settings.mechanical:
         from rigd.ident.order import choose_order
 
+        modes = mechanical_modes(settings.order, mech.n)
         try:
-            chosen = choose_order(mech, data, es, vs, settings.order,
+            chosen = choose_order(mech, data, es, vs, modes,
                                   base_theta=res.theta if res.method == "oe" else None)
         except ValueError as exc:
-            raise InputError(str(exc), "--order") from None
+            raise InputError(f"order {settings.order} refused: {exc}", "--order") from None
+        if modes != "auto" and chosen.modes != modes:
+            raise InputError(f"order {settings.order} refused: the mechanical base reached "
+                             f"{chosen.modes} mode(s) of the {modes} asked ({chosen.reason})",
+                             "--order")
+        chosen.asked = settings.order
+        chosen.delays = [0] * len(data.input_names)
         if chosen.structure is not mech:
             res = fit(chosen.structure, est_data, method=settings.method,
                       theta0=chosen.theta)
@@ -263,6 +270,20 @@ def _generic_base(mech, res, data, es: slice, vs: slice, hold: str, settings: Fi
     res = fit(chosen.structure, est_data, method=settings.method, theta0=chosen.theta,
               skip=settle(getattr(chosen.structure, "delays", [0])))
     return chosen.structure, res, chosen
+
+
+def mechanical_modes(order: str | int, dofs: int) -> str | int:
+    """Modes of the mechanical base (one per output, ``dofs``, plus parallel modes) for
+    ``--order`` (a number of states: 2 per mode); InputError when no mechanical model has
+    that many states."""
+    if order == "auto":
+        return order
+    n = int(order)
+    if n % 2 or n < 2 * dofs:
+        raise InputError(f"order {n} refused: the mechanical base (kept for an effect on a "
+                         f"mechanical state) has 2 states per mode and one mode per output: "
+                         f"an even number of states >= {2 * dofs} is needed", "--order")
+    return n // 2
 
 
 def refit_with(structure, theta: np.ndarray, effects: Sequence[Any], data_est, method: str,

@@ -40,7 +40,7 @@ def diagnose_report(tmp_path_factory):
     write_csv(d / "duffing.csv", B.duffing(seed=5, n=3000))
     out = d / "runs" / "diag_report"
     js = _cli_json(["diagnose", str(d / "duffing.csv"), "--effects", "cubic_stiffness,delay",
-                    "--order", "1", "--report", str(out), "--json"])
+                    "--order", "2", "--report", str(out), "--json"])
     return out, js
 
 

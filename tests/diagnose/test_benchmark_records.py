@@ -152,7 +152,7 @@ def _restoring_record(seed):
 
 
 def test_restoring_force_hysteresis_named_with_its_site():
-    d = diagnose_record(_restoring_record(1), order=1,
+    d = diagnose_record(_restoring_record(1), order=2,  # one mode: 2 states
                         effects=["hysteresis_restoring", "hysteresis", "cubic_stiffness",
                                  "extra_mode", "delay"])
     out = d.to_json()

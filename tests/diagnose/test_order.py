@@ -81,3 +81,30 @@ def test_identify_order_auto_model_file_and_compare(tmp_path, capsys):
     o1 = js1["fit_percent_per_output"]["generic"]["order"]
     assert o1["states"] == 2 and o1["modes"] == 1 and o1["asked"] == 2
     assert js1["fit_percent"] < js["fit_percent"] - 10
+
+
+def test_order_n_is_states_exact_or_refused_from_the_cli(tmp_path, capsys):
+    """--order N counts states on every base; what cannot be fitted exactly is refused in one
+    line naming --order (exit 2), nothing written; what is fitted says what was asked."""
+    rec = B.duffing(seed=0, n=3000)
+    opts = _csv(tmp_path / "d.csv", rec)
+    model = tmp_path / "m.yaml"
+    refused = [["--order", "31"],                                 # more than the LTI family
+               ["--order", "3", "--add", "cubic_stiffness"],      # the mechanical base: odd
+               ["--order", "1", "--add", "cubic_stiffness"]]      # below one mode per output
+    for extra in refused:
+        assert main(["identify", str(tmp_path / "d.csv"), *opts, "--method", "oe", *extra,
+                     "-o", str(model)]) == 2, extra
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--order" in err[0] and "refused" in err[0], err
+        assert not model.exists()
+    # on the mechanical base (asked for by an effect on a mechanical state): 2 states = 1 mode
+    assert main(["identify", str(tmp_path / "d.csv"), *opts, "--method", "oe", "--order", "2",
+                 "--add", "cubic_stiffness", "--json"]) == 0
+    o = json.loads(capsys.readouterr().out)["fit_percent_per_output"]["generic"]["order"]
+    assert (o["family"], o["states"], o["modes"], o["asked"]) == ("mechanical", 2, 1, 2), o
+    # the human output prints the states, the modes and what was asked
+    assert main(["identify", str(tmp_path / "d.csv"), *opts, "--method", "oe",
+                 "--order", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "base model: lti, 3 state(s)" in out and "--order 3" in out, out

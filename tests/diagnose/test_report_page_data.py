@@ -45,7 +45,7 @@ def embedded(index: Path) -> dict:
 @pytest.fixture(scope="module")
 def diagnosed(tmp_path_factory):
     out = tmp_path_factory.mktemp("diag")
-    res = api.diagnose(B.duffing(seed=3, n=3000), effects="cubic_stiffness,delay", order=1,
+    res = api.diagnose(B.duffing(seed=3, n=3000), effects="cubic_stiffness,delay", order=2,
                        report=out)
     return res, out
 
@@ -232,7 +232,7 @@ def test_a_bad_report_folder_is_one_line_exit_2_before_any_work(tmp_path, capsys
 
 
 def test_diagnose_page_without_refits_has_only_the_base_model(tmp_path):
-    res = api.diagnose(B.duffing(seed=2, n=1500), effects="cubic_stiffness", order=1,
+    res = api.diagnose(B.duffing(seed=2, n=1500), effects="cubic_stiffness", order=2,
                        refit=False, report=tmp_path / "rep")
     (part,) = embedded(tmp_path / "rep" / "index.html")["parts"]
     assert len(part["variants"]) == 1 and part["variants"][0]["effects"] == []

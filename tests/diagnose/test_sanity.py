@@ -57,7 +57,7 @@ def test_compare_cubic_model_on_metres_and_millimetres(tmp_path, capsys):
     for name, scale in (("m", 1e-3), ("mm", 1.0), ("km", 1e-6), ("um", 1e3)):
         opts = _csv(tmp_path / f"{name}.csv", rec, scale)
         assert main(["identify", str(tmp_path / f"{name}.csv"), *opts, "--method", "oe",
-                     "--order", "1", "--add", "cubic_stiffness",
+                     "--order", "2", "--add", "cubic_stiffness",
                      "-o", str(tmp_path / f"{name}.yaml")]) == 0
         capsys.readouterr()
         assert main(["compare", str(tmp_path / f"{name}.yaml"), str(tmp_path / f"{name}.csv"),

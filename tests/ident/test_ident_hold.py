@@ -102,13 +102,20 @@ def test_cli_hold_declared_in_csv_and_forced(tmp_path, capsys):
     assert js["fit_percent_per_output"]["generic"]["input_hold"] == {"hold": "foh",
                                                                    "source": "declared"}
     declared_fit = js["fit_percent"]
+    declared_states = js["fit_percent_per_output"]["generic"]["order"]["states"]
     assert main(["identify", str(tmp_path / "d.csv"), "--method", "oe", "--hold", "zoh",
-                 "-o", str(tmp_path / "m.yaml")]) == 0
-    out = capsys.readouterr().out
-    assert "inputs between samples: zoh" in out and "asked" in out
+                 "--json", "-o", str(tmp_path / "m.yaml")]) == 0
+    js = json.loads(capsys.readouterr().out)
+    assert js["fit_percent_per_output"]["generic"]["input_hold"] == {"hold": "zoh",
+                                                                   "source": "asked"}
+    # the wrong (declared) hold is paid for: the base chosen from the data (family, order,
+    # delays) needs more states to follow a held input read as linear — a fixed 1-DOF base
+    # paid in fit points instead (> 2 points before the general LTI base); the right hold
+    # fits at least as well with fewer states
+    assert js["fit_percent_per_output"]["generic"]["order"]["states"] < declared_states
     assert main(["compare", str(tmp_path / "m.yaml"), str(tmp_path / "d.csv"), "--json"]) == 0
     cmp = json.loads(capsys.readouterr().out)
-    assert cmp["fit_percent"] > declared_fit + 2.0
+    assert cmp["fit_percent"] >= declared_fit - 0.1
     with pytest.raises(SystemExit) as e:
         main(["identify", str(tmp_path / "d.csv"), "--hold", "cubic"])
     assert e.value.code == 2 and "--hold" in capsys.readouterr().err
