@@ -18,7 +18,12 @@ Resolution, the same for ``rigd identify`` and ``rigd diagnose`` (one convention
 4. otherwise — data this project did not make — chosen from the data: the base model is
    fitted by output error on the estimation part with each hold, and the hold with the better
    fit is kept; the sub-model's default wins unless the other is better by
-   :data:`MARGIN_POINTS`.
+   :data:`MARGIN_POINTS`. A generic record whose first response comes two or more samples
+   after the input (a transport delay, or a chain's relative degree) is compared per hold
+   with the better of the model without and with that hold's reading of the delay
+   (:func:`_hold_fit`) — without it, ZOH's half-sample lag stands in for part of a transport
+   delay and wins on data whose inputs were linear between samples; with it alone, a long
+   lag that is no delay (a 3-mass chain's 32 samples) would shift the input and decide.
 """
 
 from __future__ import annotations
@@ -131,13 +136,62 @@ def choose_hold(submodel: str, est: IdData, meta: dict[str, Any], asked: str | N
     default = DEFAULT_HOLD.get(submodel, "zoh")
     if meta.get("rigd_version") is not None:
         return HoldChoice(default, "rigd recording")
-    from rigd.ident.pem import fit, fit_percent
-
+    lags = _response_lags(submodel, est)
     fits: dict[str, float] = {}
     for h in (default, "zoh" if default == "foh" else "foh"):
-        s = structure_for(submodel, est, hold=h)
-        res = fit(s, est, method="oe")
-        fits[h] = float(np.mean(fit_percent(est.y, np.asarray(s.simulate(res.theta, est)))))
+        fits[h] = _hold_fit(submodel, est, h, lags)
     other = next(h for h in fits if h != default)
     best = other if fits[other] > fits[default] + MARGIN_POINTS else default
     return HoldChoice(best, "fit", fits)
+
+
+def _response_lags(submodel: str, est: IdData) -> list[int] | None:
+    """Per-input lag (samples) of the first response of a generic record
+    (:func:`rigd.ident.lti.delay.estimate_delays`), or None when no input's response comes
+    later than the hold's own sample (lag ≤ 1: no transport delay to carry)."""
+    if submodel != "generic":
+        return None
+    from rigd.ident.lti.delay import estimate_delays
+
+    nk = [int(e.nk) for e in estimate_delays(np.asarray(est.u, float),
+                                             np.asarray(est.y, float))]
+    return nk if max(nk + [0]) >= 2 else None
+
+
+def _shifted(est: IdData, d: list[int]) -> IdData:
+    """``est`` with input j delayed by ``d[j]`` samples (its first value held before)."""
+    u = np.asarray(est.u, float)
+    us = np.column_stack([np.r_[np.full(k, u[0, j]), u[:u.shape[0] - k, j]]
+                          for j, k in enumerate(d)])
+    return IdData(us, est.y, est.fs, list(est.input_names), list(est.output_names))
+
+
+def _hold_fit(submodel: str, est: IdData, hold: str, lags: list[int] | None) -> float:
+    """Estimation-part OE fit (%) of the sub-model's base structure with input ``hold``.
+
+    With ``lags`` (a first response two or more samples late, :func:`_response_lags`) the
+    fit counted is the best of the model without a delay and with the inputs delayed as the
+    hold reads that lag (ZOH: nk − 1 samples, FOH: nk) and by one sample either way, all
+    measured on the same samples (after the longest shift). The delay-free fit keeps a lag
+    that is no transport delay (a chain's relative degree) from deciding; the delayed ones
+    keep ZOH's half-sample lag from standing in for part of a real delay."""
+    from rigd.ident.pem import fit, fit_percent
+
+    s = structure_for(submodel, est, hold=hold)
+    if lags is None:
+        res = fit(s, est, method="oe")
+        return float(np.mean(fit_percent(est.y, np.asarray(s.simulate(res.theta, est)))))
+    base = [max(k - 1, 0) if hold == "zoh" else k for k in lags]
+    shifts = [[0] * len(base)] + [[max(b + step, 0) for b in base] for step in (-1, 0, 1)]
+    tail = max(max(d) for d in shifts)
+    best = -np.inf
+    for d in shifts:
+        data = _shifted(est, d) if any(d) else est
+        try:
+            res = fit(s, data, method="oe", skip=max(d))
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+        yh = np.asarray(s.simulate(res.theta, data))
+        if np.all(np.isfinite(yh[tail:])):
+            best = max(best, float(np.mean(fit_percent(est.y[tail:], yh[tail:]))))
+    return best
