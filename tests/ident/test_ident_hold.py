@@ -108,11 +108,12 @@ def test_cli_hold_declared_in_csv_and_forced(tmp_path, capsys):
     js = json.loads(capsys.readouterr().out)
     assert js["fit_percent_per_output"]["generic"]["input_hold"] == {"hold": "zoh",
                                                                    "source": "asked"}
-    # the wrong (declared) hold is paid for: the base chosen from the data (family, order,
-    # delays) needs more states to follow a held input read as linear — a fixed 1-DOF base
-    # paid in fit points instead (> 2 points before the general LTI base); the right hold
-    # fits at least as well with fewer states
-    assert js["fit_percent_per_output"]["generic"]["order"]["states"] < declared_states
+    # the base is chosen from the data (family, order, delays): a general LTI model of the
+    # declared (wrong) hold absorbs the half-sample shift in its free B and D (2 states, the
+    # same held-out fit to 1e-4 points on this record) — a fixed 1-DOF base paid > 2 points
+    # for it, an artefact of that base. The right hold needs no more states and fits at
+    # least as well
+    assert js["fit_percent_per_output"]["generic"]["order"]["states"] <= declared_states
     assert main(["compare", str(tmp_path / "m.yaml"), str(tmp_path / "d.csv"), "--json"]) == 0
     cmp = json.loads(capsys.readouterr().out)
     assert cmp["fit_percent"] >= declared_fit - 0.1
