@@ -30,8 +30,9 @@ not a rotor's (``generic``):
    when given) and the low-order process models (:mod:`rigd.ident.lti.process`) by the same
    criterion: among the *admissible* candidates (held-out fit within :data:`MIN_GAIN` of
    the best) the lowest BIC wins — unless a model with fewer parameters fits the held-out
-   part at least as well — and an admissible grey-box mechanical model is kept (its
-   parameters are physical and the state-level effects need it).
+   part at least as well — and an admissible grey-box mechanical model whose every DOF is
+   a mode (a complex pole pair) is kept (its parameters are physical and the state-level
+   effects need it; an overdamped one is a lag, not a structure).
 
 The first samples whose outputs depend, through the delays, on inputs before the record are
 left out of every criterion and fit (:func:`~rigd.ident.lti.candidates.settle`).
@@ -309,7 +310,7 @@ def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
                                             max_nfev)
     final = refined + list(best_by_family.values())
     ok = admissible(final)
-    mech = [c for c in ok if c.family == "mechanical"]
+    mech = [c for c in ok if c.family == "mechanical" and _oscillates(c)]
     if mech:
         pick, why = mech[0], (f"the mechanical n-DOF model's held-out fit is within {MIN_GAIN} "
                               "points of the best")
@@ -326,6 +327,16 @@ def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
     delays = list(getattr(pick.structure, "delays", [0] * len(d_est.input_names)))
     return BaseChoice(pick.structure, pick.theta, pick.family, pick.states, delays,
                       cands + [c for c in final if all(c is not x for x in cands)], why)
+
+
+def _oscillates(cand: Candidate) -> bool:
+    """Every DOF of a mechanical candidate is a mode (a complex pole pair): an overdamped
+    DOF is two real poles — a heater's lag fitted as a mass on a spring — which the LTI and
+    process families carry with fewer parameters and without a mechanical reading."""
+    from rigd.ident.readouts import modes
+
+    lp = cand.structure.linear_part(cand.theta)
+    return sum(1 for m in modes(lp) if "f_n_hz" in m) >= cand.structure.ny
 
 
 def _best_per_point(cands: list[Candidate]) -> list[Candidate]:
