@@ -150,10 +150,11 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
     ys = (measure(bf.data.u, bf.data.y, bf.est, bf.val, float("nan"), bf.data.fs)
           if yardstick else None)
 
-    def run(structure, theta, ys):
+    def run(structure, theta, ys, worth=None):
         return diagnose_data(bf.data, sub, structure=structure, est=bf.est, val=bf.val,
                              effects=effects, refit=refit, max_steps=max_steps,
                              base_theta=theta, method=bf.settings.method,
+                             carried_worth=worth,
                              offsets=offsets, start=bf.window[0], yardstick=ys,
                              record_meta=record.meta,
                              # a hold chosen by the linear base is asked again with the
@@ -161,7 +162,7 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
                              other_hold=({"zoh": "foh", "foh": "zoh"}[bf.hold.hold]
                                          if bf.hold.source == "fit" else None))
 
-    sd = run(bf.structure, bf.theta, ys)
+    sd = run(bf.structure, bf.theta, ys, _carried_worth(bf))
     on = None
     mech = (mechanical_alternative(bf, record.meta)
             if not effects and refit else None)
@@ -190,6 +191,17 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
         notes.append(f"{sub}: base model: WARNING: {ys.warning()}")
     sd.window = bf.window
     return sd
+
+
+def _carried_worth(bf) -> dict[str, float] | None:
+    """What the input delays of a generic record's base are worth on held-out data
+    (:func:`rigd.ident.lti.delay_worth.delay_worth`), for the ``delay`` it carries."""
+    if bf.order is None:
+        return None
+    from rigd.ident.lti.delay_worth import delay_worth
+
+    pts = delay_worth(bf.structure, bf.theta, bf.data, bf.est, bf.val)
+    return None if pts is None else {"delay": pts}
 
 
 def mechanical_alternative(bf, meta: dict | None = None):

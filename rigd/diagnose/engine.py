@@ -115,7 +115,8 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                   max_steps: int = MAX_STEPS, offsets: dict[str, float] | None = None,
                   start: int = 0, other_hold: str | None = None,
                   yardstick=None, record_meta: dict | None = None, method: str = "oe",
-                  base_theta: np.ndarray | None = None) -> SubDiagnosis:
+                  base_theta: np.ndarray | None = None,
+                  carried_worth: dict[str, float] | None = None) -> SubDiagnosis:
     """Diagnose one sub-model on identification data by forward selection.
 
     Like a stepwise regression: fit the base model; test every effect on its residual
@@ -152,6 +153,10 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         Fit method of the base (unless ``base_theta`` is given) and of every refit.
     base_theta : ndarray, optional
         The base already fitted on ``est`` (rigd.ident.pipeline.fit_base): not refitted.
+    carried_worth : dict, optional
+        Per effect the base carries, the held-out fit points it loses without it (a delay:
+        rigd.ident.lti.delay_worth); below ``MIN_FIT_GAIN`` the effect is not significant
+        (rigd.diagnose.selection.carried).
     offsets : dict, optional
         Prefilter offsets per channel (levels under ``unexplained`` in the record's units).
     start : int
@@ -203,7 +208,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     names = S.offered(effects, submodel, dom, structure, est, n, notes)
     # an effect the base model already carries (a pole slower than the record: an
     # integrator) is named from the base, not added (Effect.carried_by_base)
-    carried = S.carried(ctx0, names, dom)
+    carried = S.carried(ctx0, names, dom, carried_worth)
     names = [nm for nm in names if nm not in {f.effect for f in carried}]
     sel = S.Selection(ctx0, context, refit, data_est, max_nfev, method, max_steps,
                       other_hold, steps, notes)

@@ -223,10 +223,23 @@ def offered(effects: list[str] | None, submodel: str, dom, structure, est: slice
     return names
 
 
-def carried(ctx0: Context, names: list[str], dom) -> list[Finding]:
-    """Findings of the effects the base model already carries, worded for the domain."""
+def carried(ctx0: Context, names: list[str], dom,
+            worth: dict[str, float] | None = None) -> list[Finding]:
+    """Findings of the effects the base model already carries, worded for the domain.
+
+    ``worth``: per effect, the held-out fit points the base loses when refitted without it
+    (:func:`rigd.ident.lti.delay_worth.delay_worth` for ``delay``); one that costs less than
+    ``MIN_FIT_GAIN`` is listed but not significant (evidence code ``<code>_not_paid``): the
+    data do not pay for it, the base could do without it."""
     carried = [f for f in (REGISTRY[nm].carried_by_base(ctx0) for nm in names) if f is not None]
     for f in carried:
+        pts = (worth or {}).get(f.effect)
+        if pts is not None:
+            f.evidence["fit_points_lost"] = round(float(pts), 3)
+            f.evidence["min_points"] = MIN_FIT_GAIN
+            if pts < MIN_FIT_GAIN:
+                f.significant = False
+                f.evidence["code"] += "_not_paid"
         f.explanation = W.explanation(f.effect, f.evidence["code"],
                                       dict(f.evidence, share=0.0, fs=ctx0.fs), dom.name)
     return carried

@@ -74,12 +74,25 @@ def _lag(ev: dict[str, Any], where: str) -> str:
             f"positive lag; it {_explains(ev)}")
 
 
-def _base_lag(ev: dict[str, Any]) -> str:
+def _base_delays(ev: dict[str, Any]) -> str:
     d = ev["delay_samples"]
     return (f"the model delays {ev['input']} by {N.freqs([d])[0]} samples "
             f"({N.duration(d / ev['fs'])} at {ev['fs']:g} Hz; per input: "
-            f"{', '.join(str(v) for v in ev['delays_samples'])}), chosen from the data before "
-            f"the order: a transport delay or a sensor/computation latency")
+            f"{', '.join(str(v) for v in ev['delays_samples'])})")
+
+
+def _base_lag(ev: dict[str, Any]) -> str:
+    return (f"{_base_delays(ev)}, chosen from the data before the order: a transport delay or "
+            f"a sensor/computation latency"
+            + (f" (refitted without any delay it fits the held-out part "
+               f"{ev['fit_points_lost']:.2f} points worse)" if "fit_points_lost" in ev else ""))
+
+
+def _base_lag_not_paid(ev: dict[str, Any]) -> str:
+    return (f"{_base_delays(ev)}, but refitted without any delay it fits the held-out part "
+            f"only {max(ev['fit_points_lost'], 0.0):.2f} points worse (less than "
+            f"{ev['min_points']:g}): the delay stands in for a lag of the dynamics (a slow "
+            f"first response, e.g. lags in series), not a transport delay")
 
 
 def _short_lag(ev: dict[str, Any], domain: str) -> str:
@@ -106,6 +119,7 @@ TEMPLATES: dict[tuple[str, str], dict[str, Words]] = {
                                      for d in ("rotor", "mechanical", "process", "generic")},
     ("delay", "lead"): {"*": _lead},
     ("delay", "delay.in_base"): {"*": _base_lag},
+    ("delay", "delay.in_base_not_paid"): {"*": _base_lag_not_paid},
     ("delay", "lag"): {
         "rotor": lambda ev: _lag(ev, "valve to film force"),
         "*": lambda ev: _lag(ev, "input to response")},

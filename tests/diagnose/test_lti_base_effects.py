@@ -90,6 +90,27 @@ def test_a_delay_in_the_base_is_named_from_it():
     assert REGISTRY["delay"].carried_by_base(_ctx(d, m, th, y)) is None
 
 
+@pytest.mark.parametrize("lost,named", [(0.2, False), (-3.0, False), (0.5, True),
+                                        (12.0, True)])
+def test_a_delay_in_the_base_is_named_only_when_the_data_pay_for_it(lost, named):
+    """rigd.diagnose.selection.carried: a delay the base carries is significant only when
+    the base refitted without it loses at least MIN_FIT_GAIN held-out points; otherwise it
+    is listed with the reason (it stands in for a lag of the dynamics)."""
+    from rigd.diagnose import domain as D
+    from rigd.diagnose.selection import carried
+
+    d, m, th, y = _lti(delays=(0, 3))
+    dom = D.decide("generic", {}, m, th)
+    f, = carried(_ctx(d, m, th, y), ["delay"], dom, {"delay": lost})
+    assert f.significant is named and f.evidence["fit_points_lost"] == lost
+    assert f.evidence["code"] == ("delay.in_base" if named else "delay.in_base_not_paid")
+    assert ("not a transport delay" in f.explanation) is not named, f.explanation
+    assert "3 samples" in f.explanation and f"{max(lost, 0):.2f} points worse" in f.explanation
+    # without a measure of its worth the delay is named from the base as before
+    f, = carried(_ctx(d, m, th, y), ["delay"], dom)
+    assert f.significant and "fit_points_lost" not in f.evidence
+
+
 def test_an_integrator_in_an_lti_base_is_named_from_it():
     """rigd.effects.integrator reads the base's poles through ``continuous``: an LTI base
     with an explicit integrator is named an integrating plant."""
