@@ -370,12 +370,17 @@ def _exact(data, d_est, est, val, want, delays, hold, max_states, max_nfev) -> B
         raise OrderRefused(f"order {n} refused: {why}")
     from rigd.ident.lti.scan import ranked, scan_delays
 
-    # the delays checked at the asked order (the estimate alone can be far too long)
+    # the delays checked at the asked order (the estimate alone can be far too long), and
+    # the estimate kept as a candidate (the subspace scan's criterion at a low order can
+    # drift to ever longer delays: a record started far from rest), scored on the same
+    # samples
     got = ranked(scan_delays(data, est, val, delays, n, MIN_GAIN, hold, orders=[n]),
                  MIN_GAIN, 1)
-    if got:
-        delays = list(got[0].delays)
-    cands = [c for c in lti_candidates(data, d_est, est, val, n, delays, hold)
+    options = [list(delays)] + [list(g.delays) for g in got
+                                if list(g.delays) != list(delays)]
+    skip = max(settle(dl) for dl in options)
+    cands = [c for dl in options
+             for c in lti_candidates(data, d_est, est, val, n, dl, hold, skip=skip)
              if np.isfinite(c.bic)]
     if not cands:
         raise OrderRefused(f"order {n} refused: no {n}-state model could be estimated and "
