@@ -15,6 +15,7 @@ Each entry of :data:`TEMPLATES` is keyed by ``(effect, code)`` and maps a domain
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -151,7 +152,10 @@ def _friction(ev: dict[str, Any], domain: str) -> str:
 
 
 def _integrator(ev: dict[str, Any]) -> str:
-    if ev["in_base"]:
+    if ev["in_base"] and not math.isfinite(ev["time_constant_s"]):  # an explicit integrator
+        what = ("the model integrates: it has a pole at zero (an integrating plant), chosen "
+                f"from the {N.duration(ev['estimation_seconds'])} it was fitted on")
+    elif ev["in_base"]:
         what = (f"the model integrates: its slowest pole has a time constant of "
                 f"{N.duration(ev['time_constant_s'])}, longer than the "
                 f"{N.duration(ev['estimation_seconds'])} it was fitted on, so on this record "

@@ -42,6 +42,9 @@ def test_every_code_has_words_in_every_domain(key, domain):
         ev["in_base"] = False
     text = W.explanation(effect, code, ev, domain)
     assert text and "{" not in text
+    if effect == "integrator" and ev["in_base"]:  # an explicit integrator: τ = ∞
+        inf = W.explanation(effect, code, dict(ev, time_constant_s=float("inf")), domain)
+        assert "pole at zero" in inf and "inf" not in inf
     if domain == "process":
         assert not MECH.search(text), text
 
