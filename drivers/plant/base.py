@@ -3,9 +3,10 @@ operating-point swap, the impact hammer request and the open-loop batch.
 
 :class:`SimulatedPlantDriver` is the base of the ``sim`` (:mod:`rigd_drivers.sim.driver`) and
 ``sim_reynolds`` (:mod:`rigd_drivers.reynolds.driver`) drivers. Each subclass keeps its own
-physics: it builds its ``state``/``params`` arrays and the two views the base uses
-(``_frame_view``, ``_stage_start``), names its compiled kernel module (``_kmod``: ``plant_step``,
-``plant_sense``, ``run_batch``) and the module holding its ``params`` header indices (``_hdr``:
+physics: it builds its ``state``/``params`` arrays and what the base reads of them
+(``_frame_view``, the sensor frame; ``_stage_start``, the staged block's index), names its
+compiled kernel module (``_kmod``: ``plant_step``, ``plant_sense``, ``run_batch``) and the
+module holding its ``params`` header indices (``_hdr``:
 ``H_STAGE_SEQ``, ``H_IMP_AXIS``, ``H_IMP_PEAK``, ``H_IMP_DUR``, ``H_IMP_SEQ``), and implements
 :meth:`_param_block`, :meth:`reset` and :meth:`describe`.
 """
