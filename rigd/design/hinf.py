@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rigd.design.robustness import is_stable
 from rigd.design.weights import HighPass, Weights, highpass_ss, three_level
 from rigd.errors import InputError
 
@@ -127,21 +128,6 @@ def generalized_plant(G, Wp, Wu, wd: float):
                       np.block([[D11, D12], [D21, np.zeros((ny, nu))]]))
 
 
-def closed_loop_stable(G, K) -> bool:
-    """Is the negative-feedback loop (G, K) internally stable? (continuous or discrete)"""
-    import control
-
-    if G.dt != K.dt and not (G.dt in (None, 0) and K.dt in (None, 0)):
-        raise ValueError("G and K must both be continuous or share the sample time")
-    L = control.feedback(G * K, np.eye(G.noutputs), sign=-1)
-    poles = L.poles()
-    if len(poles) == 0:
-        return True
-    if G.dt:
-        return bool(np.max(np.abs(poles)) < 1.0)
-    return bool(np.max(poles.real) < 0.0)
-
-
 def synthesize(G, weights: Weights, highpass: HighPass | None = None) -> HinfResult:
     """Mixed-sensitivity H∞ controller for plant ``G`` with ``weights`` (γ-iteration by SLICOT).
 
@@ -166,21 +152,21 @@ def synthesize(G, weights: Weights, highpass: HighPass | None = None) -> HinfRes
     P = generalized_plant(_freq_scale(Ga, w), _freq_scale(Wp, w), _freq_scale(Wu, w), weights.W_d)
     gamma, Ks = _sb10ad(P, ny, nu)
     g_opt, tried = gamma, []
+    Kt = _unscale(Ks, w)
     if not _stable(Ks.A):
         for f in RELAX_FACTORS:
             try:
                 g, Kf = _sb10ad(P, ny, nu, g_opt * f)
             except InputError:
                 continue
-            ok = _stable(Kf.A) and closed_loop_stable(
-                G, H * _unscale(Kf, w) if H is not None else _unscale(Kf, w))
+            Kft = _unscale(Kf, w)
+            ok = _stable(Kf.A) and is_stable(G, H * Kft if H is not None else Kft)
             tried.append({"factor": f, "gamma": g, "controller_stable": ok})
             if ok:
-                gamma, Ks = g, Kf
+                gamma, Kt = g, Kft
                 break
-    Kt = _unscale(Ks, w)
     K = H * Kt if H is not None else Kt
-    return HinfResult(K=K, gamma=float(gamma), closed_loop_stable=closed_loop_stable(G, K),
+    return HinfResult(K=K, gamma=float(gamma), closed_loop_stable=is_stable(G, K),
                       K_tilde=Kt, H=H, gamma_optimal=float(g_opt), relaxed=tried)
 
 

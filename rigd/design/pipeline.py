@@ -104,7 +104,7 @@ def _synthesize(G, cfg: DesignConfig):
     Gc, info = condition(G, cfg.fs_hz)
     syn = hinf.synthesize(Gc, cfg.weights, cfg.highpass)
     syn.conditioning = info
-    syn.closed_loop_stable = hinf.closed_loop_stable(G, syn.K)
+    syn.closed_loop_stable = is_stable(G, syn.K)
     if not syn.closed_loop_stable:
         raise InputError(f"H∞ controller does not stabilise the design model (γ = "
                          f"{syn.gamma:.3g}); check the weights", "design")

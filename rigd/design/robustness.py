@@ -113,6 +113,11 @@ def closed_loop_poles(G, K) -> np.ndarray:
 
 
 def is_stable(G, K) -> bool:
+    """Is the negative-feedback loop (G, K) internally stable? Both continuous (poles in the
+    open left half-plane) or both discrete with one sample time (poles inside the unit
+    circle); anything else raises ValueError (:func:`match_domain` discretises G first)."""
+    if G.dt != K.dt and not (G.dt in (None, 0) and K.dt in (None, 0)):
+        raise ValueError("G and K must both be continuous or share the sample time")
     p = closed_loop_poles(G, K)
     if not len(p):
         return True
