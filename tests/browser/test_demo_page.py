@@ -11,7 +11,6 @@ from urllib.parse import unquote, urlparse
 
 import pytest
 from selenium.webdriver.common.by import By
-from selenium.webdriver.support.ui import WebDriverWait
 
 WAIT_S = 120
 
@@ -26,10 +25,7 @@ def demo_out(quick_demo):
 def test_demo_page_loads_every_figure_renders_every_link_resolves(browser, screenshot,
                                                                   demo_out):
     page = demo_out / "index.html"
-    browser.driver.set_page_load_timeout(WAIT_S)
-    browser.get(page.as_uri())
-    WebDriverWait(browser.driver, WAIT_S).until(
-        lambda d: d.execute_script("return document.readyState") == "complete")
+    browser.load(page.as_uri(), "document.readyState === 'complete'", WAIT_S, "the demo page")
     headings = [h.text for h in browser.find_elements(By.TAG_NAME, "h2")]
     assert [h.split(".")[0] for h in headings] == ["1", "2", "3", "4", "5", "6"], headings
     for word, k in (("Records", 0), ("measurement", 1), ("Diagnosis", 2), ("error falls", 3),
@@ -65,7 +61,8 @@ def test_demo_page_shows_what_the_summary_says(browser, demo_out):
     """The diagnosis section names what summary.json names; the error table shows its
     held-out fits."""
     s = json.loads((demo_out / "summary.json").read_text())
-    browser.get((demo_out / "index.html").as_uri())
+    browser.load((demo_out / "index.html").as_uri(), "document.readyState === 'complete'",
+                 WAIT_S, "the demo page")
     text = browser.find_element(By.TAG_NAME, "body").text
     for name in s["diagnosis"]["named"]:
         assert name in text

@@ -3,9 +3,6 @@ screenshot (file:// pages; no server needed)."""
 
 from pathlib import Path
 
-from selenium.webdriver.common.by import By
-from selenium.webdriver.support.ui import WebDriverWait
-
 PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>harness</title></head>
 <body><p id="out">static</p><script>
 document.getElementById('out').textContent = 'scripted ' + (6 * 7);
@@ -20,9 +17,8 @@ def _page(tmp_path: Path, script: str = "") -> str:
 
 
 def test_page_runs_its_script_and_screenshot_is_a_png(browser, screenshot, tmp_path):
-    browser.get(_page(tmp_path))
-    WebDriverWait(browser.driver, 30).until(
-        lambda d: d.find_element(By.ID, "out").text == "scripted 42")
+    browser.load(_page(tmp_path), "document.getElementById('out').textContent === 'scripted 42'",
+                 30, "the scripted page")
     path = screenshot("harness")
     data = path.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 1000
@@ -30,9 +26,9 @@ def test_page_runs_its_script_and_screenshot_is_a_png(browser, screenshot, tmp_p
 
 
 def test_console_errors_are_collected(browser, tmp_path):
-    browser.get(_page(tmp_path, "console.error('boom from the page'); undefinedCall();"))
-    WebDriverWait(browser.driver, 30).until(
-        lambda d: d.find_element(By.ID, "out").text == "scripted 42")
+    browser.load(_page(tmp_path, "console.error('boom from the page'); undefinedCall();"),
+                 "document.getElementById('out').textContent === 'scripted 42'", 30,
+                 "the scripted page")
     errors = browser.take_console_errors()
     assert any("boom from the page" in e for e in errors), errors
     assert any("undefinedCall" in e for e in errors), errors

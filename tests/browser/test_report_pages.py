@@ -69,10 +69,8 @@ def _cli_json(argv: list[str]) -> dict:
 
 
 def _open(browser, url: str) -> None:
-    browser.driver.set_page_load_timeout(WAIT_S)
-    browser.get(url)
-    WebDriverWait(browser.driver, WAIT_S).until(
-        lambda d: d.execute_script("return document.body.getAttribute('data-ready')") == "1")
+    browser.load(url, "document.body && document.body.getAttribute('data-ready') === '1'",
+                 WAIT_S, "the report page")
 
 
 def _fit_shown(browser, part: str = "generic") -> float:
@@ -177,7 +175,8 @@ def test_reports_work_served_by_rigd_web(browser, screenshot, diagnose_report, t
     try:
         WebDriverWait(browser.driver, WAIT_S).until(lambda d: server.started)
         # reads need the token: the console page's login exchange sets the session cookie
-        browser.get(f"http://127.0.0.1:{port}/")
+        browser.load(f"http://127.0.0.1:{port}/", "document.readyState === 'complete'",
+                     WAIT_S, "the console page")
         assert browser.execute_async_script(
             "const done = arguments[1]; fetch('/api/login', {method: 'POST', headers: "
             "{Authorization: 'Bearer ' + arguments[0]}}).then(r => done(r.status));",
