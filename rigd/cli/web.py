@@ -20,6 +20,7 @@ from pathlib import Path
 
 from rigd.errors import InputError
 from rigd.web.guard import HEADER_TIMEOUT_S, MAX_HEAD
+from rigd.web.priority import DEFAULT_PRIORITY, take_rt_priority
 
 #: connections accepted at a time
 BACKLOG = 64
@@ -56,6 +57,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="radial film gap drawn around the orbit, µm (default 25, the rig's)")
     p.add_argument("--timeout", type=float, default=10.0, metavar="S",
                    help="reply timeout of daemon requests, s (default 10)")
+    p.add_argument("--rt-priority", type=_rt_priority, default=DEFAULT_PRIORITY, metavar="N",
+                   help="SCHED_FIFO priority of the event loop that carries the console's SAFE "
+                   f"(1-98, below the daemon's loop; 0: normal priority; default "
+                   f"{DEFAULT_PRIORITY}; best effort: needs CAP_SYS_NICE or LimitRTPRIO)")
+
+
+def _rt_priority(text: str) -> int:
+    """``--rt-priority`` value: an integer 0-98 (argparse reports the error, exit 2)."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if not 0 <= n <= 98:
+        raise argparse.ArgumentTypeError(f"{n} is outside 0-98")
+    return n
 
 
 def parse_listen(text: str) -> tuple[str, int]:
@@ -189,6 +205,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"rigd web: read-only token from {args.read_token_file}", file=sys.stderr)
     url_host = f"[{host}]" if ":" in host else host
     scheme = "https" if tls else "http"
+    # this thread runs the event loop: the console's SAFE path (rigd.web.priority)
+    print(f"rigd web: event loop (the console's SAFE path) at "
+          f"{take_rt_priority(args.rt_priority)}", file=sys.stderr, flush=True)
     print(f"rigd web: serving {scheme}://{url_host}:{port}/ (daemon {args.socket}, "
           f"runs {runs_dir}, config {config_dir})", file=sys.stderr, flush=True)
     app = build_app(Settings(socket=args.socket, runs_dir=runs_dir.resolve(),
