@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from rigd.effects import detectability as DT
+from rigd.effects.compose import carries
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.scales import RecordScale
 from rigd.effects.signature import SignatureFit, signature_fit
@@ -185,10 +186,15 @@ class Effect:
         One line of physics for the report.
     min_score : float
         Minimum out-of-sample share of residual energy explained for significance.
+    sites : tuple of str
+        Where it acts in a composed model (:mod:`rigd.effects.compose`): ``input``
+        (:meth:`input_block`), ``output`` (:meth:`output_block`), ``state``
+        (:meth:`state_block`, a Lur'e feedback into the base's states).
     requires : tuple of str
-        What the base model must be to carry the effect (``mechanical``: a mechanical
-        state-space model, p̈ + D ṗ + K p = B u, that takes the simulator's hooks);
-        :meth:`not_offered` says why a base cannot.
+        What the base model must carry (:func:`rigd.effects.compose.carries`):
+        ``mechanical`` (a mechanical state-space model, p̈ + D ṗ + K p = B u, whose simulator
+        takes the feedback of state-level effects), ``rotation`` (a shaft angle in the
+        record); :meth:`not_offered` says why a base cannot.
     domains : tuple of str or None
         The record domains (rigd.diagnose.domain: ``rotor``, ``mechanical``, ``process``,
         ``generic``) whose physics the effect belongs to; None: every domain (the
@@ -197,6 +203,10 @@ class Effect:
 
     name: str = "effect"
     level: str = "input"  # "state" (mechanical model), "input" (pre-transform), "output"
+    #: where the effect acts in a composed model (rigd.effects.compose: ``input`` block before
+    #: the base, ``output`` block after it, ``state`` feedback into it); () : not yet moved
+    #: onto the composition (the older ``simulate_with`` / ``apply_hooks``)
+    sites: tuple[str, ...] = ()
     requires: tuple[str, ...] = ()
     domains: tuple[str, ...] | None = None
     submodels: tuple[str, ...] = ("actuator", "bearing", "generic")
@@ -204,13 +214,20 @@ class Effect:
     min_score: float = 0.05
 
     # --- diagnosis ----------------------------------------------------------------------
-    def not_offered(self, structure: Any) -> str | None:
-        """Why the base ``structure`` cannot carry this effect (None: it can)."""
+    def not_offered(self, structure: Any, data: Any = None) -> str | None:
+        """Why the base ``structure`` cannot carry this effect (None: it can): a
+        requirement (:attr:`requires`) the base, or the record ``data``, lacks
+        (:func:`rigd.effects.compose.carries`; ``rotation`` is checked only with
+        ``data``)."""
+        has = carries(structure, data)
         if ("mechanical" in self.requires or self.level == "state") and \
-                not is_mechanical(structure):
+                "mechanical" not in has:
             return (f"{self.name} acts on the positions and velocities of a mechanical "
                     f"model (p̈ + D ṗ + K p = B u); the base model "
                     f"({getattr(structure, 'kind', type(structure).__name__)}) is not one")
+        if "rotation" in self.requires and "rotation" not in has:
+            return (f"{self.name} is locked to a shaft angle; the record carries none (no "
+                    f"'phi' column)")
         return None
 
     def carried_by_base(self, ctx: Context) -> Any:
@@ -309,6 +326,22 @@ class Effect:
         ``ModelFile.plant``) carries of the effect."""
         return None
 
+    # --- blocks of the composition (rigd.effects.compose) -------------------------------
+    def input_block(self, u: np.ndarray, theta_e: np.ndarray, data: Any) -> np.ndarray:
+        """Site ``input``: the inputs (n, nu) the base (or the next input block) sees, from
+        the inputs ``u`` (n, nu) of ``data``; return ``u`` itself when unchanged."""
+        raise NotImplementedError
+
+    def output_block(self, y: np.ndarray, theta_e: np.ndarray, data: Any) -> np.ndarray:
+        """Site ``output``: the output (n, ny) from the base's (or the previous output
+        block's) ``y``; ``data`` carries the inputs this effect's input side received."""
+        raise NotImplementedError
+
+    def state_block(self, theta_e: np.ndarray, data: Any) -> Any:
+        """Site ``state``: the Lur'e feedback into a mechanical base
+        (:class:`rigd.ident.feedback.MechanicalFeedback`)."""
+        raise NotImplementedError
+
     def apply_hooks(self, theta_e: np.ndarray, hooks: Any, data: Any) -> None:
         """State-level effects: edit ``hooks`` (rigd.ident.simulate.Hooks) in place."""
         raise NotImplementedError
@@ -348,11 +381,7 @@ def is_mechanical(structure: Any) -> bool:
     ``mechanical = True``) whose simulator takes hooks (rigd.ident.mechanical and the modal
     structures built on it), wrapped or not. A general LTI model has ``continuous`` too, in
     modal states: not mechanical."""
-    base = structure
-    while isinstance(base, ExtendedStructure):
-        base = base.base
-    return (bool(getattr(base, "mechanical", False)) and accepts_hooks(structure)
-            and callable(getattr(structure, "continuous", None)))
+    return "mechanical" in carries(structure)
 
 
 def dims(base: Any) -> tuple[int, int]:

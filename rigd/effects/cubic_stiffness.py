@@ -14,6 +14,7 @@ import numpy as np
 
 from rigd.effects import numbers as N
 from rigd.effects.base import STRUCTURAL, Effect, dims
+from rigd.ident.feedback import MechanicalFeedback
 
 
 def amplitude_profile(ctx, nbins: int = 4) -> tuple[np.ndarray, np.ndarray]:
@@ -30,6 +31,8 @@ def amplitude_profile(ctx, nbins: int = 4) -> tuple[np.ndarray, np.ndarray]:
 class CubicStiffness(Effect):
     name = "cubic_stiffness"
     level = "state"
+    sites = ("state",)
+    requires = ("mechanical",)
     domains = STRUCTURAL  # a restoring force
     submodels = ("bearing", "generic")
     physics = "stiffness that grows with amplitude (cubic, Duffing)"
@@ -79,6 +82,12 @@ class CubicStiffness(Effect):
 
     def warm_start(self, ctx, sig):
         return -np.asarray(sig.beta, float)
+
+    def state_block(self, theta_e, data):
+        """The cubic force k3_i p_i³ (+ k3c_i (Σ_{j≠i} p_j²) p_i) fed back into the base."""
+        th = np.asarray(theta_e, float)
+        ny = th.size // 2 if th.size > 1 else 1
+        return MechanicalFeedback(k3=th[:ny], k3_cross=th[ny:] if th.size > ny else None)
 
     def apply_hooks(self, theta_e, hooks, data):
         th = np.asarray(theta_e, float)

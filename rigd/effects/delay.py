@@ -38,6 +38,7 @@ MIN_DELAY_SAMPLES = 0.5
 class Delay(Effect):
     name = "delay"
     level = "input"
+    sites = ("input",)
     physics = "a transport delay between input and response"
 
     def _grid(self, ctx: Context) -> np.ndarray:
@@ -148,6 +149,10 @@ class Delay(Effect):
         d = max(0.0, float(theta_e[0]))
         block = delay_block(d / fs, pade_order(d))
         return series_inputs(G, [block] * G.ninputs)
+
+    def input_block(self, u, theta_e, data):
+        """Every input delayed by d = θe[0] ≥ 0 samples (fractional: interpolated)."""
+        return _shifted(u, max(0.0, float(theta_e[0])))
 
     def simulate_with(self, sim, theta_e, data, base):
         d = max(0.0, float(theta_e[0]))

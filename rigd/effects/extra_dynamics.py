@@ -38,6 +38,7 @@ class ExtraDynamics(Effect):
     name = "extra_dynamics"
     level = "output"
     site = "output"
+    sites = ("output",)
     submodels = ("generic",)
     physics = "an unmodelled real pole or lag (thermal, sensor or actuator lag)"
 
@@ -135,6 +136,17 @@ class ExtraDynamics(Effect):
         th = np.asarray(theta_e, float)
         tau, g = max(th[0], 1e-12), th[1:].reshape(nu, ny)
         return parallel(G, -np.eye(nu) / tau, np.eye(nu) / tau, g.T)
+
+    def output_block(self, y, theta_e, data):
+        """y + Σ_j g_j · lag(u_j, τ): the parallel first-order path."""
+        u = np.asarray(data.inputs, float)
+        ny, nu = y.shape[1], u.shape[1]
+        th = np.asarray(theta_e, float)
+        g = th[1:].reshape(nu, ny)
+        if not np.any(g):
+            return y
+        lags = np.column_stack([lag1(u[:, j], th[0], float(data.fs)) for j in range(nu)])
+        return y + lags @ g
 
     def simulate_with(self, sim, theta_e, data, base):
         y = np.asarray(sim(data), float)

@@ -47,6 +47,7 @@ class StaticNonlinearity(Effect):
     name = "static_nonlinearity"
     level = "input"
     site = "input/output"
+    sites = ("input", "output")
     submodels = ("generic",)
     physics = "a static curve at the input or output (valve or sensor characteristic)"
     #: not screened by default yet: on the cascaded tanks it is named at the input (the
@@ -152,6 +153,18 @@ class StaticNonlinearity(Effect):
             return []
         other = "sn_out" if sig.extra["site"] == "input" else "sn_in"
         return [n for n in ext.names if n.startswith(other)]
+
+    def input_block(self, u, theta_e, data):
+        """u'_j = u_j + a2_j u_j² + a3_j u_j³ (the input site's coefficients)."""
+        nu = u.shape[1]
+        a = np.asarray(theta_e, float)[:2 * nu].reshape(nu, 2)
+        return u + a[:, 0] * u ** 2 + a[:, 1] * u ** 3 if np.any(a) else u
+
+    def output_block(self, y, theta_e, data):
+        """y_i + c2_i y_i² + c3_i y_i³ (the output site's coefficients)."""
+        nu = np.asarray(data.inputs).shape[1]
+        c = np.asarray(theta_e, float)[2 * nu:].reshape(y.shape[1], 2)
+        return y + c[:, 0] * y ** 2 + c[:, 1] * y ** 3
 
     def simulate_with(self, sim, theta_e, data, base):
         ny, nu = dims(base)
