@@ -30,6 +30,7 @@ MIN_TAU_SAMPLES = 0.5
 class ActuatorDynamics(Effect):
     name = "actuator_dynamics"
     level = "input"
+    sites = ("input",)
     submodels = ("bearing", "generic")
     physics = "valve (actuator) dynamics missing between the commanded and the acting input"
 
@@ -94,6 +95,13 @@ class ActuatorDynamics(Effect):
         """1/((τ₁ s + 1)(τ₂ s + 1)) on each input."""
         t = np.asarray(theta_e, float).reshape(G.ninputs, 2)
         return series_inputs(G, [lag_block(t[j]) for j in range(G.ninputs)])
+
+    def input_block(self, u, theta_e, data):
+        """Two first-order lags 1/((τ₁ s + 1)(τ₂ s + 1)) on each input."""
+        t = np.asarray(theta_e, float).reshape(u.shape[1], 2)
+        fs = float(data.fs)
+        return np.column_stack([lag1(lag1(u[:, j], t[j, 0], fs), t[j, 1], fs)
+                                for j in range(u.shape[1])])
 
     def simulate_with(self, sim, theta_e, data, base):
         u = np.asarray(data.inputs, float)

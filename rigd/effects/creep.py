@@ -117,6 +117,7 @@ def nominal_weights(ctx: Context, x: np.ndarray) -> np.ndarray:
 class Creep(Effect):
     name = "creep"
     level = "input"
+    sites = ("input",)
     submodels = ("actuator", "generic")
     physics = "slow creep after steps (piezo valves)"
     linear_note = ("acts on the recorded valve drives inside the valve loops, not on the "
@@ -235,6 +236,24 @@ class Creep(Effect):
     def warm_start(self, ctx, sig):
         b = np.asarray(sig.beta, float).reshape(ctx.nu, 4)
         return np.concatenate([b[:, :2].ravel(), b[:, 2:].ravel(), sig.extra["tau_s"]])
+
+    def input_block(self, u, theta_e, data):
+        """u + the creep terms of the drives (and the decay of a creep already under way)."""
+        nu = u.shape[1]
+        te = np.asarray(theta_e, float)
+        c = te[:2 * nu].reshape(nu, 2)
+        c_init = te[2 * nu:4 * nu].reshape(nu, 2)
+        taus = te[4 * nu:4 * nu + 2]
+        if not (np.any(c) or np.any(c_init)):
+            return u
+        x = drives(data)
+        fs = float(data.fs)
+        v = u.copy()
+        decay = initial_terms(u.shape[0], taus, fs)
+        for j in range(nu):
+            for m, h in enumerate(creep_terms(x[:, j], taus, fs)):
+                v[:, j] += c[j, m] * h + c_init[j, m] * decay[m]
+        return v
 
     def simulate_with(self, sim, theta_e, data, base):
         u = np.asarray(data.inputs, float)

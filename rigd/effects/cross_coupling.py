@@ -19,6 +19,7 @@ from rigd.effects._linear import mechanical_shift
 from rigd.effects._signals import derivative
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
+from rigd.ident.feedback import MechanicalFeedback
 
 
 def _offdiag(n: int) -> list[tuple[int, int]]:
@@ -28,6 +29,8 @@ def _offdiag(n: int) -> list[tuple[int, int]]:
 class CrossCoupling(Effect):
     name = "cross_coupling"
     level = "state"
+    sites = ("state",)
+    requires = ("mechanical",)
     submodels = ("bearing", "generic")
     physics = "cross-coupled (gyroscopic) forces between the axes"
 
@@ -96,6 +99,11 @@ class CrossCoupling(Effect):
         n = G.noutputs
         Kc, Dc = self._F(np.asarray(theta_e, float), n)
         return mechanical_shift(G, Kc, Dc)
+
+    def state_block(self, theta_e, data):
+        """K_c p + D_c ṗ: a linear feedback folded into K and D."""
+        Kc, Dc = self._F(np.asarray(theta_e, float), np.asarray(data.outputs).shape[1])
+        return MechanicalFeedback(dK=Kc, dD=Dc)
 
     def apply_hooks(self, theta_e, hooks, data):
         n = np.asarray(data.outputs).shape[1]

@@ -94,6 +94,7 @@ def find_peak(f, E, coh, exclude_hz, fmin_hz: float):
 class ExtraMode(Effect):
     name = "extra_mode"
     level = "output"
+    sites = ("output",)
     submodels = ("bearing", "generic")
     physics = "an unmodelled structural mode"
 
@@ -191,6 +192,22 @@ class ExtraMode(Effect):
             C[:, 2 * j] = g[j]
             C[:, 2 * j + 1] = h[j] / w
         return parallel(G, A, B, C)
+
+    def output_block(self, y, theta_e, data):
+        """y + Σ_j (g_j q_j + h_j q̇_j/ω): the parallel mode driven by each input."""
+        u = np.asarray(data.inputs, float)
+        ny, nu = y.shape[1], u.shape[1]
+        th = np.asarray(theta_e, float)
+        f0, zeta = th[0], th[1]
+        g = th[2:2 + nu * ny].reshape(nu, ny)
+        h = th[2 + nu * ny:].reshape(nu, ny)
+        if not (np.any(g) or np.any(h)):
+            return y
+        out = y.copy()
+        for j in range(nu):
+            d, v = resonator(u[:, j], f0, zeta, float(data.fs))
+            out += d[:, None] * g[j][None, :] + v[:, None] * h[j][None, :]
+        return out
 
     def simulate_with(self, sim, theta_e, data, base):
         y = sim(data)

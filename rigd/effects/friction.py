@@ -28,6 +28,7 @@ from rigd.effects.base import Effect, dims, is_mechanical
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.linearised import joint_signature
 from rigd.effects.signature import SignatureFit
+from rigd.ident.feedback import MechanicalFeedback
 
 #: sgn(v) is smoothed as tanh(v / v_ε), v_ε this share of the rms velocity of the record
 SMOOTH = 0.05
@@ -50,6 +51,7 @@ class Friction(Effect):
     name = "friction"
     level = "state"
     site = "state"
+    sites = ("state",)
     requires = ("mechanical",)
     submodels = ("generic",)
     physics = "Coulomb and viscous friction in a positioning mechanism"
@@ -130,6 +132,12 @@ class Friction(Effect):
     def refit_fixed(self, ext, sig=None) -> list[str]:
         """The smoothing velocities stay at their start (a resolution, not physics)."""
         return [n for n in ext.names if n.startswith("fr_v_")]
+
+    def state_block(self, theta_e, data):
+        """F_c tanh(ṗ / v_ε) against the motion, per axis."""
+        th = np.asarray(theta_e, float)
+        m = th.size // 2
+        return MechanicalFeedback(friction=np.vstack([th[:m], th[m:]]))
 
     def apply_hooks(self, theta_e, hooks, data):
         th = np.asarray(theta_e, float)

@@ -97,6 +97,7 @@ def operator_inputs(data, c: float) -> np.ndarray:
 class Hysteresis(Effect):
     name = "hysteresis"
     level = "input"
+    sites = ("input",)
     submodels = ("actuator", "generic")
     physics = "hysteresis (piezo valves): the response depends on the direction of motion"
     linear_note = ("rate-independent (Bouc–Wen on the valve drives): no small-signal "
@@ -194,6 +195,15 @@ class Hysteresis(Effect):
     def warm_start(self, ctx, sig):
         c = sig.extra.get("c", 1.0 / drive_spread(ctx.data))
         return np.concatenate([np.asarray(sig.beta, float)[:ctx.nu], [c]])
+
+    def input_block(self, u, theta_e, data):
+        """u − A ∘ z(drives): the Bouc–Wen operator of the drives, per input."""
+        nu = u.shape[1]
+        te = np.asarray(theta_e, float)
+        A, c = te[:nu], max(float(te[nu]), 1e-300)
+        if not np.any(A):
+            return u
+        return u - A * operator_inputs(data, c)
 
     def simulate_with(self, sim, theta_e, data, base):
         u = np.asarray(data.inputs, float)

@@ -82,6 +82,7 @@ class Integrator(Effect):
     name = "integrator"
     level = "output"
     site = "output"
+    sites = ("output",)
     submodels = ("generic",)
     physics = "a pole at zero (an integrating plant) the model lacks"
     linear_note = ("an integrating path (a pole at zero) is left out of the design model")
@@ -179,6 +180,16 @@ class Integrator(Effect):
         ny, nu = dims(base)
         return np.concatenate([np.zeros(nu * ny), np.mean(np.asarray(data.inputs, float),
                                                           axis=0)])
+
+    def output_block(self, y, theta_e, data):
+        """y + ∫(u − b) dt · g: the integrating path."""
+        ny, nu = y.shape[1], np.asarray(data.inputs).shape[1]
+        th = np.asarray(theta_e, float)
+        g = th[:nu * ny].reshape(nu, ny)
+        if not np.any(g):
+            return y
+        b = th[nu * ny:]
+        return y + integral(np.asarray(data.inputs, float) - b, float(data.fs)) @ g
 
     def simulate_with(self, sim, theta_e, data, base):
         y = np.asarray(sim(data), float)

@@ -36,6 +36,8 @@ def harmonics(phi: np.ndarray) -> list[np.ndarray]:
 class Runout(Effect):
     name = "runout"
     level = "output"
+    sites = ("output",)
+    requires = ("rotation",)
     domains = STRUCTURAL  # a shaft that may turn: not a process plant
     submodels = ("bearing", "generic")
     physics = "mass unbalance or surface run-out locked to the shaft angle"
@@ -103,6 +105,14 @@ class Runout(Effect):
 
     def warm_start(self, ctx, sig):
         return np.asarray(sig.beta, float)
+
+    def output_block(self, y, theta_e, data):
+        """y + Σ_k (a_k cos kφ + b_k sin kφ) of the shaft angle φ (none without φ)."""
+        phi = get_phi(data)
+        if phi is None:
+            return y
+        c = np.asarray(theta_e).reshape(len(HARMONICS) * 2, y.shape[1])
+        return y + np.column_stack(harmonics(phi)) @ c
 
     def simulate_with(self, sim, theta_e, data, base):
         y = sim(data)

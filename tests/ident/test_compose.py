@@ -14,6 +14,8 @@ import pytest
 from rigd.effects import REGISTRY
 from rigd.effects.base import ExtendedStructure, is_mechanical
 from rigd.effects.compose import Composed, carries, compose
+from rigd.effects.restoring_hysteresis import RestoringExtended
+from rigd.effects.runout import HARMONICS
 from rigd.ident.iddata import IdData
 from rigd.ident.lti.statespace import StateSpaceModel
 from rigd.ident.mechanical import generic_structure
@@ -27,8 +29,9 @@ def _record(nu: int, ny: int, seed: int = 0) -> IdData:
     u = np.cumsum(rng.standard_normal((N, nu)), axis=0) * 0.05
     u += 0.4 * np.sign(np.sin(np.arange(N)[:, None] / (7.0 + np.arange(nu))))
     y = rng.standard_normal((N, ny))  # outputs only set the effects' start values here
+    phi = np.mod(2 * np.pi * 1.7 * np.arange(N) / FS, 2 * np.pi)   # a turning shaft
     return IdData(u, y, FS, [f"u{j + 1}" for j in range(nu)],
-                  [f"y{i + 1}" for i in range(ny)])
+                  [f"y{i + 1}" for i in range(ny)], aux={"phi": phi})
 
 
 def _mechanical(nu: int, ny: int):
@@ -65,12 +68,31 @@ def _theta_e(name: str, nu: int, ny: int) -> np.ndarray:
     if name == "cubic_stiffness":
         k = 400.0 * np.ones(ny)
         return np.r_[k, 0.5 * k] if ny > 1 else k
+    if name == "actuator_dynamics":
+        return np.tile([0.02, 0.01], nu)
+    if name == "creep":
+        return np.r_[np.full(2 * nu, 0.1), np.full(2 * nu, 0.05), 0.1, 1.0]
+    if name == "hysteresis":
+        return np.r_[np.full(nu, 0.2), 2.0]
+    if name == "extra_mode":
+        return np.r_[12.0, 0.05, np.full(nu * ny, 0.3), np.full(nu * ny, 0.1)]
+    if name == "integrator":
+        return np.r_[np.full(nu * ny, 0.5), np.full(nu, 0.1)]
+    if name == "runout":
+        return np.linspace(0.05, 0.2, 2 * len(HARMONICS) * ny)
+    if name == "cross_coupling":
+        return np.r_[np.full(ny * (ny - 1), 30.0), np.full(ny * (ny - 1), 0.5)]
+    if name == "friction":
+        return np.r_[np.full(ny, 50.0), np.full(ny, 0.5)]
+    if name == "hysteresis_restoring":
+        return np.r_[np.full(ny, 30.0), np.full(ny, 2.0), np.full(ny, 0.5), np.full(ny, 0.3)]
     raise KeyError(name)
 
 
 def _old(structure, names):
     for nm in names:
-        structure = ExtendedStructure(structure, REGISTRY[nm])
+        wrapper = RestoringExtended if nm == "hysteresis_restoring" else ExtendedStructure
+        structure = wrapper(structure, REGISTRY[nm])
     return structure
 
 
@@ -84,11 +106,12 @@ def _assert_same(old, new, th, data):
     assert np.max(np.abs(y_new - y_old)) <= 1e-9 * scale
 
 
-@pytest.mark.parametrize("name", ["delay", "static_nonlinearity", "extra_dynamics",
-                                  "cubic_stiffness"])
+@pytest.mark.parametrize("name", sorted(REGISTRY))
 @pytest.mark.parametrize("dims", [(1, 1), (2, 2)])
 def test_each_effect_alone_simulates_as_the_wrapper(name, dims):
     nu, ny = dims
+    if name == "cross_coupling" and ny == 1:
+        pytest.skip("cross coupling needs two axes")
     data = _record(nu, ny)
     base, tb = _mechanical(nu, ny)
     th = np.r_[tb, _theta_e(name, nu, ny)]
@@ -116,6 +139,19 @@ def test_several_effects_compose_in_the_wrappers_order(order):
         grown = compose(grown, [REGISTRY[nm]])
     assert isinstance(grown, Composed) and grown.base is base
     assert np.max(np.abs(grown.simulate(th, data) - new.simulate(th, data))) == 0.0
+
+
+@pytest.mark.parametrize("order", [
+    ["cubic_stiffness", "hysteresis_restoring"],
+    ["hysteresis_restoring", "delay", "extra_mode"],
+    ["cross_coupling", "hysteresis_restoring", "static_nonlinearity"],
+])
+def test_the_restoring_force_composes_as_its_wrapper(order):
+    nu, ny = 2, 2
+    data = _record(nu, ny, seed=5)
+    base, tb = _mechanical(nu, ny)
+    th = np.concatenate([tb] + [_theta_e(nm, nu, ny) for nm in order])
+    _assert_same(_old(base, order), compose(base, [REGISTRY[nm] for nm in order]), th, data)
 
 
 def test_input_and_output_effects_on_the_lti_base():
