@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from rigd.effects import detectability as DT
-from rigd.effects.compose import carries
+from rigd.effects.compose import Composed, carries
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.scales import RecordScale
 from rigd.effects.signature import SignatureFit, signature_fit
@@ -280,9 +280,11 @@ class Effect:
         return CannotReveal(self.name, "", "", ctx.submodel, code=code, evidence=ev)
 
     # --- model extension ----------------------------------------------------------------
-    def extend(self, structure: Any) -> ExtendedStructure:
-        """The structure with this effect's parameters added (fitted with the rest)."""
-        return ExtendedStructure(structure, self)
+    def extend(self, structure: Any) -> Composed:
+        """The structure with this effect added (its parameters fitted with the rest): one
+        flat :class:`rigd.effects.compose.Composed` (ValueError, with :meth:`not_offered`'s
+        reason, when the base cannot carry it)."""
+        return Composed(structure, [self])
 
     def param_names(self, base: Any) -> list[str]:
         raise NotImplementedError

@@ -208,10 +208,6 @@ class RestoringHysteresis(Effect):
     max_screened_samples = 10_000
     physics = "hysteresis in the restoring force (joints, dampers, mounts): Bouc–Wen stiffness"
 
-    def extend(self, structure):
-        ext = RestoringExtended(structure, self)
-        return ext
-
     def state_block(self, theta_e, data):
         """None: the Bouc–Wen force has a state of its own (:meth:`state_simulate`)."""
         return None

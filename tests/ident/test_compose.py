@@ -194,3 +194,26 @@ def test_a_state_level_effect_is_refused_by_a_base_without_mechanical_states():
     composed = compose(mech, [REGISTRY["delay"]])
     assert "mechanical" in carries(composed) and is_mechanical(composed)
     assert not is_mechanical(compose(base, [REGISTRY["delay"]]))
+
+
+@pytest.mark.parametrize("order", [["delay", "cubic_stiffness", "extra_dynamics"],
+                                   ["hysteresis_restoring", "static_nonlinearity", "runout"]])
+def test_a_model_file_with_effects_reads_back_into_the_same_model(tmp_path, order):
+    """Effects are stored by name and parameters by name: the file rebuilds the composition
+    (the order of the effects kept), which simulates what was saved."""
+    from rigd.effects import resolve
+    from rigd.ident.modelfile import ModelFile, Submodel, load_model
+
+    nu, ny = 2, 2
+    data = _record(nu, ny, seed=6)
+    base, tb = _mechanical(nu, ny)
+    th = np.concatenate([tb] + [_theta_e(nm, nu, ny) for nm in order])
+    saved = _old(base, order)
+    path = ModelFile(FS, {"generic": Submodel("generic", saved, th, np.zeros(th.size))}).save(
+        tmp_path / "m.yaml")
+    sm = load_model(path, resolve_effects=resolve).submodels["generic"]
+    assert isinstance(sm.structure, Composed) and sm.structure.effects == order
+    assert sm.structure.names == saved.names
+    y0 = np.asarray(saved.simulate(th, data))
+    assert np.max(np.abs(sm.structure.simulate(sm.theta, data) - y0)) <= 1e-9 * np.max(
+        np.abs(y0))
