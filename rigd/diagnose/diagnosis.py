@@ -119,7 +119,7 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
     from rigd.effects import REGISTRY
 
     settings.mechanical = any(
-        REGISTRY[nm].level == "state" or "mechanical" in REGISTRY[nm].requires
+        "mechanical" in REGISTRY[nm].requires
         for nm in (effects or []) if nm in REGISTRY)
     notes: list[str] = []
     parts = [_diagnose_part(record, sub, settings, notes, effects=effects, refit=refit,

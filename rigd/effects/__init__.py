@@ -14,7 +14,8 @@ from collections.abc import Iterable
 from typing import Any
 
 from rigd.effects.actuator_dynamics import ActuatorDynamics
-from rigd.effects.base import Effect, ExtendedStructure
+from rigd.effects.base import Effect
+from rigd.effects.compose import Composed
 from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.effects.creep import Creep
 from rigd.effects.cross_coupling import CrossCoupling
@@ -70,12 +71,14 @@ def get(name: str) -> Effect:
 
 
 def extend(structure: Any, names: Iterable[str]) -> Any:
-    """``structure`` extended by several effects (state-level first, output-level last)."""
-    effects = sorted(resolve(names), key=lambda e: _ORDER.get(e.level, 1))
+    """``structure`` extended by several effects: one :class:`Composed` (added state-level
+    first, then input-, then output-level, in the given order within a site: the order of
+    their parameters and of a model file's ``effects``)."""
+    effects = sorted(resolve(names), key=lambda e: _ORDER.get(e.sites[0] if e.sites else "", 1))
     for e in effects:
         structure = e.extend(structure)
     return structure
 
 
-__all__ = ["REGISTRY", "Effect", "Finding", "CannotReveal", "Context", "ExtendedStructure",
+__all__ = ["REGISTRY", "Effect", "Finding", "CannotReveal", "Context", "Composed",
            "get", "resolve", "extend"]

@@ -2,7 +2,7 @@
 linear design model carries of an effect, as python-control state space (time in s).
 
 An *input* block acts on each input before the model (``G · diag(L_j)``), an *output* block
-is added in parallel (``G + P``), as the effects' ``simulate_with`` compose them.
+is added in parallel (``G + P``), as the composition (rigd.effects.compose) runs their blocks.
 """
 
 from __future__ import annotations

@@ -18,7 +18,6 @@ from rigd.effects._linear import lag_block, series_inputs
 from rigd.effects._signals import derivative, lag1
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import Context
-from rigd.ident.iddata import replace_inputs
 
 #: longest lag time constant, samples (relative to the record's rate: 50 ms at the rig's
 #: 5 kHz; rigd.effects.scales)
@@ -29,7 +28,6 @@ MIN_TAU_SAMPLES = 0.5
 
 class ActuatorDynamics(Effect):
     name = "actuator_dynamics"
-    level = "input"
     sites = ("input",)
     submodels = ("bearing", "generic")
     physics = "valve (actuator) dynamics missing between the commanded and the acting input"
@@ -102,11 +100,3 @@ class ActuatorDynamics(Effect):
         fs = float(data.fs)
         return np.column_stack([lag1(lag1(u[:, j], t[j, 0], fs), t[j, 1], fs)
                                 for j in range(u.shape[1])])
-
-    def simulate_with(self, sim, theta_e, data, base):
-        u = np.asarray(data.inputs, float)
-        t = np.asarray(theta_e, float).reshape(u.shape[1], 2)
-        fs = float(data.fs)
-        v = np.column_stack([lag1(lag1(u[:, j], t[j, 0], fs), t[j, 1], fs)
-                             for j in range(u.shape[1])])
-        return sim(replace_inputs(data, v))

@@ -18,15 +18,15 @@ Structures follow the contract of ``docs/ARCHITECTURE.md``: ``names``, ``theta0(
 ``simulate(theta, data) -> (n, ny)``; data carry ``inputs`` (n, nu), ``outputs`` (n, ny),
 ``fs`` and optionally the shaft angle ``phi``.
 
-This module holds :class:`Effect`, :class:`ExtendedStructure` and the helpers
-:func:`accepts_hooks` / :func:`dims`; the context and results live in
-:mod:`rigd.effects.context`, the signature regression in :mod:`rigd.effects.signature`.
+An effect acts through blocks (``sites``: :meth:`Effect.input_block`,
+:meth:`Effect.output_block`, :meth:`Effect.state_block`) that :mod:`rigd.effects.compose`
+puts around the base. This module holds :class:`Effect` and the helpers :func:`dims` /
+:func:`is_mechanical`; the context and results live in :mod:`rigd.effects.context`, the
+signature regression in :mod:`rigd.effects.signature`.
 """
 
 from __future__ import annotations
 
-import copy
-import inspect
 from collections.abc import Callable
 from typing import Any
 
@@ -37,140 +37,12 @@ from rigd.effects.compose import Composed, carries
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.scales import RecordScale
 from rigd.effects.signature import SignatureFit, signature_fit
-from rigd.effects.state_level import fixed_point
-from rigd.ident.simulate import Hooks
 
-__all__ = ["ExtendedStructure", "Effect", "STRUCTURAL", "accepts_hooks", "dims",
-           "is_mechanical"]
+__all__ = ["Effect", "STRUCTURAL", "dims", "is_mechanical"]
 
 #: domains of records with structures that have stiffness and restoring forces (not a
 #: process of time constants: rigd.diagnose.domain)
 STRUCTURAL = ("rotor", "mechanical", "generic")
-
-
-# --------------------------------------------------------------------------------------
-# structure extension
-# --------------------------------------------------------------------------------------
-class ExtendedStructure:
-    """A base structure plus one effect's parameters (``names = base.names + effect``).
-
-    Extending an extended structure nests, so effects compose: ``--add delay,runout``
-    (:func:`rigd.effects.extend` orders them state-level first). State-level effects
-    (``level = "state"``) act on the continuous-time mechanical model when the base exposes
-    ``continuous(theta) -> (A, B, C, D, x0)``, else by fixed-point iteration.
-    """
-
-    def __init__(self, base: Any, effect: Effect):
-        self.base = base
-        self.effect = effect
-        self._enames = list(effect.param_names(base))
-        self.names = list(base.names) + self._enames
-        self.effects = list(getattr(base, "effects", [])) + [effect.name]
-        self._state_ok: bool | None = None
-        #: scales of the data the structure is fitted on (bounds relative to the record)
-        self.record: RecordScale | None = None
-
-    def bind_record(self, data: Any) -> None:
-        """Make the effects' bounds relative to ``data`` (the estimation data): its rate,
-        length and signal spreads (:class:`rigd.effects.scales.RecordScale`). Nested
-        extensions are bound too. Called by the fit (rigd.ident.pem.fit) and the diagnosis
-        refit; without it the effects' record-free bounds apply."""
-        self.record = RecordScale.of(data)
-        if isinstance(self.base, ExtendedStructure):
-            self.base.bind_record(data)
-
-    @property
-    def nb(self) -> int:
-        return len(self.base.names)
-
-    def theta0(self, data: Any) -> np.ndarray:
-        return np.concatenate([np.asarray(self.base.theta0(data), float),
-                               np.asarray(self.effect.theta0_effect(self.base, data), float)])
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lower/upper bounds (base ones if it has them, else unbounded)."""
-        if hasattr(self.base, "bounds"):
-            lb, ub = self.base.bounds()
-        else:
-            lb, ub = np.full(self.nb, -np.inf), np.full(self.nb, np.inf)
-        if self.record is not None:
-            elb, eub = self.effect.record_bounds(self.base, self.record)
-        else:
-            elb, eub = self.effect.param_bounds(self.base)
-        return np.concatenate([lb, elb]), np.concatenate([ub, eub])
-
-    # --- simulation ---------------------------------------------------------------------
-    def simulate(self, theta: np.ndarray, data: Any, hooks: Any = None) -> np.ndarray:
-        """Simulate; ``hooks`` (rigd.ident.simulate.Hooks) are passed down to the base.
-
-        State-level effects set their hooks (cubic stiffness ``k3``, ``dK``/``dD``) for the
-        mechanical base simulator; a base that takes no hooks gets the effect by fixed-point
-        iteration on its batch simulation instead.
-        """
-        theta = np.asarray(theta, dtype=float)
-        tb, te = theta[:self.nb], theta[self.nb:]
-        takes = accepts_hooks(self.base)
-        if self.effect.level == "state" and takes:
-            hooks = hooks if hooks is not None else Hooks()
-            self.effect.apply_hooks(te, hooks, data)
-            return np.asarray(self.base.simulate(tb, data, hooks), dtype=float)
-
-        def sim(d: Any) -> np.ndarray:
-            if hooks is not None and takes:
-                return np.asarray(self.base.simulate(tb, d, copy.copy(hooks)), dtype=float)
-            return np.asarray(self.base.simulate(tb, d), dtype=float)
-
-        if self.effect.level != "state":
-            return self.effect.simulate_with(sim, te, data, self.base)
-        fs, nu = float(data.fs), np.asarray(data.inputs).shape[1]
-        return fixed_point(sim, data, lambda p: self.effect.feedback(p, te, fs, nu))
-
-    def typical(self) -> np.ndarray | None:
-        """Typical sizes of the effect's parameters on the bound record (None: unknown)."""
-        if self.record is None:
-            return None
-        t = self.effect.param_typical(self.base, self.record)
-        return None if t is None else np.asarray(t, float)
-
-    def ss(self, theta: np.ndarray):
-        return self.base.ss(np.asarray(theta, float)[:self.nb])
-
-    def linear_ss(self, theta: np.ndarray, fs: float, G0: Any = None):
-        """(G, included, left_out): the base's linear part (continuous python-control
-        StateSpace; ``G0`` in its place, e.g. a range model of the same base; ``fs`` the
-        rate, Hz, of the record the parameters were fitted on) with each
-        effect's small-signal linear block applied in the simulation's order
-        (:meth:`Effect.linear`: an input block in series before the base, an output block in
-        parallel); ``included`` the effects applied, ``left_out`` {name: why not}."""
-        theta = np.asarray(theta, float)
-        tb, te = theta[:self.nb], theta[self.nb:]
-        if isinstance(self.base, ExtendedStructure):
-            G, included, left_out = self.base.linear_ss(tb, fs, G0)
-        else:
-            G, included, left_out = (self.base.ss(tb) if G0 is None else G0), [], {}
-        Gx = self.effect.linear(G, te, self.base, fs)
-        if Gx is None:
-            return G, included, {**left_out, self.effect.name: self.effect.linear_note}
-        return Gx, included + [self.effect.name], left_out
-
-    def continuous(self, theta: np.ndarray):
-        return self.base.continuous(np.asarray(theta, float)[:self.nb])
-
-    def readouts(self, theta: np.ndarray) -> dict[str, Any]:
-        theta = np.asarray(theta, float)
-        out = dict(self.base.readouts(theta[:self.nb])) if hasattr(self.base, "readouts") else {}
-        out.update({n: float(v) for n, v in zip(self._enames, theta[self.nb:])})
-        return out
-
-    def spec(self) -> dict[str, Any]:
-        d = dict(self.base.spec()) if hasattr(self.base, "spec") else {}
-        d["effects"] = list(self.effects)
-        return d
-
-    def __getattr__(self, item: str) -> Any:  # resonances, ny, ... of the base
-        if item in ("base", "effect") or item.startswith("__"):
-            raise AttributeError(item)
-        return getattr(self.base, item)
 
 
 class Effect:
@@ -202,10 +74,8 @@ class Effect:
     """
 
     name: str = "effect"
-    level: str = "input"  # "state" (mechanical model), "input" (pre-transform), "output"
     #: where the effect acts in a composed model (rigd.effects.compose: ``input`` block before
-    #: the base, ``output`` block after it, ``state`` feedback into it); () : not yet moved
-    #: onto the composition (the older ``simulate_with`` / ``apply_hooks``)
+    #: the base, ``output`` block after it, ``state`` feedback into it)
     sites: tuple[str, ...] = ()
     requires: tuple[str, ...] = ()
     domains: tuple[str, ...] | None = None
@@ -220,8 +90,7 @@ class Effect:
         (:func:`rigd.effects.compose.carries`; ``rotation`` is checked only with
         ``data``)."""
         has = carries(structure, data)
-        if ("mechanical" in self.requires or self.level == "state") and \
-                "mechanical" not in has:
+        if "mechanical" in self.requires and "mechanical" not in has:
             return (f"{self.name} acts on the positions and velocities of a mechanical "
                     f"model (p̈ + D ṗ + K p = B u); the base model "
                     f"({getattr(structure, 'kind', type(structure).__name__)}) is not one")
@@ -311,12 +180,6 @@ class Effect:
         the rate the record is given in."""
         return self.param_bounds(base)
 
-    def simulate_with(self, sim: Callable[[Any], np.ndarray], theta_e: np.ndarray, data: Any,
-                      base: Any) -> np.ndarray:
-        """Output of the extended model, given ``sim(data) -> (n, ny)`` of the base
-        (input- and output-level effects)."""
-        raise NotImplementedError
-
     #: why :meth:`linear` has no block for this effect (a linear design model leaves it out)
     linear_note: str = "nonlinear: no small-signal linear block"
 
@@ -344,14 +207,6 @@ class Effect:
         (:class:`rigd.ident.feedback.MechanicalFeedback`)."""
         raise NotImplementedError
 
-    def apply_hooks(self, theta_e: np.ndarray, hooks: Any, data: Any) -> None:
-        """State-level effects: edit ``hooks`` (rigd.ident.simulate.Hooks) in place."""
-        raise NotImplementedError
-
-    def feedback(self, p: np.ndarray, theta_e: np.ndarray, fs: float, nu: int) -> np.ndarray:
-        """State-level effects without a state model: input correction u' − u from p."""
-        raise NotImplementedError
-
     def implausible(self, ctx: Context, theta_e: np.ndarray) -> str | None:
         """Why the refitted effect is not physically what its name says, else None.
 
@@ -367,22 +222,11 @@ class Effect:
         return None
 
 
-def accepts_hooks(structure: Any) -> bool:
-    """True if ``structure.simulate`` takes a third ``hooks`` argument (rigd.ident bases and
-    wrappers around them)."""
-    if isinstance(structure, ExtendedStructure):
-        return accepts_hooks(structure.base)
-    try:
-        return "hooks" in inspect.signature(structure.simulate).parameters
-    except (TypeError, ValueError):
-        return False
-
-
 def is_mechanical(structure: Any) -> bool:
     """True for a mechanical base (``continuous`` gives x = [p, ṗ], the structure says
-    ``mechanical = True``) whose simulator takes hooks (rigd.ident.mechanical and the modal
-    structures built on it), wrapped or not. A general LTI model has ``continuous`` too, in
-    modal states: not mechanical."""
+    ``mechanical = True``) whose simulator takes the state feedback (rigd.ident.mechanical and
+    the modal structures built on it), with effects composed around it or not. A general LTI
+    model has ``continuous`` too, in modal states: not mechanical."""
     return "mechanical" in carries(structure)
 
 

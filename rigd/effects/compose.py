@@ -109,6 +109,8 @@ class Composed:
         self.base = base
         self.effect_list = list(effects)
         for e in self.effect_list:
+            if not e.sites or not set(e.sites) <= set(SITES):
+                raise ValueError(f"{e.name} declares no site of {SITES} (Effect.sites)")
             why = e.not_offered(base)
             if why is not None:
                 raise ValueError(why)

@@ -41,7 +41,6 @@ from rigd.effects._signals import lag1
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.signature import SignatureFit, signature_fit
-from rigd.ident.iddata import replace_inputs
 from rigd.ident.prefilter import PrefilterOptions
 
 #: the grid of time constants: from this many samples ...
@@ -116,7 +115,6 @@ def nominal_weights(ctx: Context, x: np.ndarray) -> np.ndarray:
 
 class Creep(Effect):
     name = "creep"
-    level = "input"
     sites = ("input",)
     submodels = ("actuator", "generic")
     physics = "slow creep after steps (piezo valves)"
@@ -254,21 +252,3 @@ class Creep(Effect):
             for m, h in enumerate(creep_terms(x[:, j], taus, fs)):
                 v[:, j] += c[j, m] * h + c_init[j, m] * decay[m]
         return v
-
-    def simulate_with(self, sim, theta_e, data, base):
-        u = np.asarray(data.inputs, float)
-        nu = u.shape[1]
-        te = np.asarray(theta_e, float)
-        c = te[:2 * nu].reshape(nu, 2)
-        c_init = te[2 * nu:4 * nu].reshape(nu, 2)
-        taus = te[4 * nu:4 * nu + 2]
-        if not (np.any(c) or np.any(c_init)):
-            return sim(data)
-        x = drives(data)
-        fs = float(data.fs)
-        v = u.copy()
-        decay = initial_terms(u.shape[0], taus, fs)
-        for j in range(nu):
-            for m, h in enumerate(creep_terms(x[:, j], taus, fs)):
-                v[:, j] += c[j, m] * h + c_init[j, m] * decay[m]
-        return sim(replace_inputs(data, v))

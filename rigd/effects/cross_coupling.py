@@ -28,7 +28,6 @@ def _offdiag(n: int) -> list[tuple[int, int]]:
 
 class CrossCoupling(Effect):
     name = "cross_coupling"
-    level = "state"
     sites = ("state",)
     requires = ("mechanical",)
     submodels = ("bearing", "generic")
@@ -104,14 +103,3 @@ class CrossCoupling(Effect):
         """K_c p + D_c ṗ: a linear feedback folded into K and D."""
         Kc, Dc = self._F(np.asarray(theta_e, float), np.asarray(data.outputs).shape[1])
         return MechanicalFeedback(dK=Kc, dD=Dc)
-
-    def apply_hooks(self, theta_e, hooks, data):
-        n = np.asarray(data.outputs).shape[1]
-        Kc, Dc = self._F(np.asarray(theta_e, float), n)
-        hooks.dK = Kc if hooks.dK is None else hooks.dK + Kc
-        hooks.dD = Dc if hooks.dD is None else hooks.dD + Dc
-
-    def feedback(self, p, theta_e, fs, nu):
-        # input-unit approximation for structures without hooks
-        Kc, Dc = self._F(np.asarray(theta_e, float), p.shape[1])
-        return -(p @ Kc.T + derivative(p, fs) @ Dc.T)[:, :nu]

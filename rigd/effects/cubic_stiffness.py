@@ -30,7 +30,6 @@ def amplitude_profile(ctx, nbins: int = 4) -> tuple[np.ndarray, np.ndarray]:
 
 class CubicStiffness(Effect):
     name = "cubic_stiffness"
-    level = "state"
     sites = ("state",)
     requires = ("mechanical",)
     domains = STRUCTURAL  # a restoring force
@@ -88,18 +87,3 @@ class CubicStiffness(Effect):
         th = np.asarray(theta_e, float)
         ny = th.size // 2 if th.size > 1 else 1
         return MechanicalFeedback(k3=th[:ny], k3_cross=th[ny:] if th.size > ny else None)
-
-    def apply_hooks(self, theta_e, hooks, data):
-        th = np.asarray(theta_e, float)
-        ny = th.size // 2 if th.size > 1 else 1
-        k3 = th[:ny]
-        hooks.k3 = k3 if hooks.k3 is None else np.asarray(hooks.k3, float) + k3
-        if th.size > ny:
-            kc = th[ny:]
-            hooks.k3_cross = (kc if hooks.k3_cross is None
-                              else np.asarray(hooks.k3_cross, float) + kc)
-
-    def feedback(self, p, theta_e, fs, nu):
-        # input-unit approximation for structures without hooks (square systems)
-        k3 = np.asarray(theta_e, float)[:p.shape[1]]
-        return (-(p ** 3) * k3[None, :])[:, :nu]

@@ -23,7 +23,6 @@ from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.effects.linearised import joint_signature
 from rigd.effects.signature import signature_fit
 from rigd.ident.figures import fit_percent
-from rigd.ident.iddata import replace_inputs
 from rigd.ident.thresholds import P_LEVEL
 
 #: scan range of the signature, samples (relative to the record's rate: 4 ms at the rig's
@@ -37,7 +36,6 @@ MIN_DELAY_SAMPLES = 0.5
 
 class Delay(Effect):
     name = "delay"
-    level = "input"
     sites = ("input",)
     physics = "a transport delay between input and response"
 
@@ -153,10 +151,6 @@ class Delay(Effect):
     def input_block(self, u, theta_e, data):
         """Every input delayed by d = θe[0] ≥ 0 samples (fractional: interpolated)."""
         return _shifted(u, max(0.0, float(theta_e[0])))
-
-    def simulate_with(self, sim, theta_e, data, base):
-        d = max(0.0, float(theta_e[0]))
-        return sim(replace_inputs(data, _shifted(np.asarray(data.inputs, float), d)))
 
 
 def _shifted(u: np.ndarray, d: float) -> np.ndarray:

@@ -36,7 +36,6 @@ NOMINAL_SHARE = 0.1
 
 class ExtraDynamics(Effect):
     name = "extra_dynamics"
-    level = "output"
     site = "output"
     sites = ("output",)
     submodels = ("generic",)
@@ -146,16 +145,4 @@ class ExtraDynamics(Effect):
         if not np.any(g):
             return y
         lags = np.column_stack([lag1(u[:, j], th[0], float(data.fs)) for j in range(nu)])
-        return y + lags @ g
-
-    def simulate_with(self, sim, theta_e, data, base):
-        y = np.asarray(sim(data), float)
-        u = np.asarray(data.inputs, float)
-        ny, nu = y.shape[1], u.shape[1]
-        th = np.asarray(theta_e, float)
-        g = th[1:].reshape(nu, ny)
-        if not np.any(g):
-            return y
-        fs = float(data.fs)
-        lags = np.column_stack([lag1(u[:, j], th[0], fs) for j in range(nu)])
         return y + lags @ g

@@ -93,7 +93,6 @@ def find_peak(f, E, coh, exclude_hz, fmin_hz: float):
 
 class ExtraMode(Effect):
     name = "extra_mode"
-    level = "output"
     sites = ("output",)
     submodels = ("bearing", "generic")
     physics = "an unmodelled structural mode"
@@ -179,7 +178,7 @@ class ExtraMode(Effect):
 
     def linear(self, G, theta_e, base, fs):
         """The parallel mode: per input j, q̈ + 2ζω q̇ + ω² q = ω² u_j, y += g_j q + h_j q̇/ω
-        (the continuous system ``simulate_with`` discretises)."""
+        (the continuous system ``output_block`` discretises)."""
         nu, ny = G.ninputs, G.noutputs
         th = np.asarray(theta_e, float)
         w, zeta = 2 * np.pi * th[0], th[1]
@@ -195,22 +194,6 @@ class ExtraMode(Effect):
 
     def output_block(self, y, theta_e, data):
         """y + Σ_j (g_j q_j + h_j q̇_j/ω): the parallel mode driven by each input."""
-        u = np.asarray(data.inputs, float)
-        ny, nu = y.shape[1], u.shape[1]
-        th = np.asarray(theta_e, float)
-        f0, zeta = th[0], th[1]
-        g = th[2:2 + nu * ny].reshape(nu, ny)
-        h = th[2 + nu * ny:].reshape(nu, ny)
-        if not (np.any(g) or np.any(h)):
-            return y
-        out = y.copy()
-        for j in range(nu):
-            d, v = resonator(u[:, j], f0, zeta, float(data.fs))
-            out += d[:, None] * g[j][None, :] + v[:, None] * h[j][None, :]
-        return out
-
-    def simulate_with(self, sim, theta_e, data, base):
-        y = sim(data)
         u = np.asarray(data.inputs, float)
         ny, nu = y.shape[1], u.shape[1]
         th = np.asarray(theta_e, float)

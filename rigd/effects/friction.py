@@ -49,7 +49,6 @@ def smooth_sign(p: np.ndarray, fs: float, v_eps: float) -> np.ndarray:
 
 class Friction(Effect):
     name = "friction"
-    level = "state"
     site = "state"
     sites = ("state",)
     requires = ("mechanical",)
@@ -138,17 +137,3 @@ class Friction(Effect):
         th = np.asarray(theta_e, float)
         m = th.size // 2
         return MechanicalFeedback(friction=np.vstack([th[:m], th[m:]]))
-
-    def apply_hooks(self, theta_e, hooks, data):
-        th = np.asarray(theta_e, float)
-        m = th.size // 2
-        fr = np.vstack([th[:m], th[m:]])
-        if hooks.friction is not None:  # never twice in one model (resolve refuses it)
-            raise ValueError("friction added twice")
-        hooks.friction = fr
-
-    def feedback(self, p, theta_e, fs, nu):
-        th = np.asarray(theta_e, float)
-        m = th.size // 2
-        s = np.column_stack([smooth_sign(p[:, i], fs, th[m + i]) for i in range(p.shape[1])])
-        return (-s * th[None, :m])[:, :nu]

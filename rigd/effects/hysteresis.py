@@ -39,7 +39,6 @@ from rigd.effects._signals import n_levels
 from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.signature import SignatureFit, signature_fit
-from rigd.ident.iddata import replace_inputs
 
 #: Bouc–Wen rates c tried by the signature, per half-amplitude of the drive
 #: (:func:`drive_spread`; c = GRID / spread in 1/V): relative to the record's scale, so the
@@ -96,7 +95,6 @@ def operator_inputs(data, c: float) -> np.ndarray:
 
 class Hysteresis(Effect):
     name = "hysteresis"
-    level = "input"
     sites = ("input",)
     submodels = ("actuator", "generic")
     physics = "hysteresis (piezo valves): the response depends on the direction of motion"
@@ -204,12 +202,3 @@ class Hysteresis(Effect):
         if not np.any(A):
             return u
         return u - A * operator_inputs(data, c)
-
-    def simulate_with(self, sim, theta_e, data, base):
-        u = np.asarray(data.inputs, float)
-        nu = u.shape[1]
-        te = np.asarray(theta_e, float)
-        A, c = te[:nu], max(float(te[nu]), 1e-300)
-        if not np.any(A):
-            return sim(data)
-        return sim(replace_inputs(data, u - A * operator_inputs(data, c)))

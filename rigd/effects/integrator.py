@@ -80,7 +80,6 @@ def slowest_real_pole(structure, theta) -> float | None:
 
 class Integrator(Effect):
     name = "integrator"
-    level = "output"
     site = "output"
     sites = ("output",)
     submodels = ("generic",)
@@ -183,16 +182,6 @@ class Integrator(Effect):
 
     def output_block(self, y, theta_e, data):
         """y + ∫(u − b) dt · g: the integrating path."""
-        ny, nu = y.shape[1], np.asarray(data.inputs).shape[1]
-        th = np.asarray(theta_e, float)
-        g = th[:nu * ny].reshape(nu, ny)
-        if not np.any(g):
-            return y
-        b = th[nu * ny:]
-        return y + integral(np.asarray(data.inputs, float) - b, float(data.fs)) @ g
-
-    def simulate_with(self, sim, theta_e, data, base):
-        y = np.asarray(sim(data), float)
         ny, nu = y.shape[1], np.asarray(data.inputs).shape[1]
         th = np.asarray(theta_e, float)
         g = th[:nu * ny].reshape(nu, ny)

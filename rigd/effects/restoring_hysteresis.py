@@ -25,7 +25,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from rigd.effects.base import STRUCTURAL, Effect, ExtendedStructure, dims
+from rigd.effects.base import STRUCTURAL, Effect, dims
 from rigd.effects.context import Context
 from rigd.effects.signature import SignatureFit, signature_fit
 
@@ -144,55 +144,10 @@ def _nsub(K: np.ndarray, fs: float) -> int:
     return int(min(64, max(2, np.ceil(8 * wmax / (2 * np.pi) / fs))))
 
 
-class RestoringExtended(ExtendedStructure):
-    """A mechanical base (or a :class:`rigd.ident.order.ModalStructure`) with the Bouc–Wen
-    restoring force: simulated by :func:`bw_kernel`, parallel modes and other hooks added."""
-
-    def simulate(self, theta, data, hooks=None):
-        from rigd.ident.simulate import Hooks
-
-        theta = np.asarray(theta, float)
-        tb, te = theta[:self.nb], theta[self.nb:]
-        hooks = hooks if hooks is not None else Hooks()
-        # state-level effects below this one set their hooks (cubic stiffness, dK/dD/dB)
-        base, th = self.base, tb
-        while isinstance(base, ExtendedStructure):
-            if base.effect.level != "state":
-                raise ValueError(f"restoring-force hysteresis cannot be combined with "
-                                 f"{base.effect.name} added before it")
-            base.effect.apply_hooks(th[base.nb:], hooks, data)
-            base, th = base.base, th[:base.nb]
-        if not (getattr(base, "mechanical", False) and callable(getattr(base, "continuous",
-                                                                        None))):
-            raise ValueError("the restoring-force hysteresis needs a mechanical base model "
-                             "(states [p, ṗ])")
-        A, Bc, _, _, x0 = base.continuous(th)
-        m = A.shape[0] // 2
-        K, D, B = -A[m:, :m], -A[m:, m:], Bc[m:]
-        K = K if hooks.dK is None else K + hooks.dK
-        D = D if hooks.dD is None else D + hooks.dD
-        B = B if hooks.dB is None else B + hooks.dB
-        k3 = np.zeros(m) if hooks.k3 is None else np.asarray(hooks.k3, float)
-        if hasattr(base, "_with_modes"):  # parallel modes and their free response
-            hooks = base._with_modes(th, hooks, data)
-        off = base.output_offset(th) if hasattr(base, "output_offset") else None
-        if off is not None:   # the outputs' zero (generic): y = p + y_off
-            hooks = hooks.plus_output(off)
-        u = hooks.transform_input(np.ascontiguousarray(data.inputs, float))
-        a, c, be, ga = (np.ascontiguousarray(te[i * m:(i + 1) * m]) for i in range(4))
-        y = bw_kernel(np.ascontiguousarray(K), np.ascontiguousarray(D), np.ascontiguousarray(B),
-                      a, np.abs(c), be, ga, np.ones(m), np.ascontiguousarray(k3),
-                      np.ascontiguousarray(x0, dtype=float), u, 1.0 / float(data.fs),
-                      _nsub(K, float(data.fs)), getattr(base, "hold", "zoh") == "foh")
-        add = hooks.additive_output(u, 1.0 / float(data.fs), m)
-        return y if add is None else y + add
-
-
 class RestoringHysteresis(Effect):
     name = "hysteresis_restoring"
     reported_as = "hysteresis"
     site = "restoring force"
-    level = "state"
     sites = ("state",)
     requires = ("mechanical",)
     domains = STRUCTURAL  # a restoring force

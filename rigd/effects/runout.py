@@ -35,7 +35,6 @@ def harmonics(phi: np.ndarray) -> list[np.ndarray]:
 
 class Runout(Effect):
     name = "runout"
-    level = "output"
     sites = ("output",)
     requires = ("rotation",)
     domains = STRUCTURAL  # a shaft that may turn: not a process plant
@@ -113,13 +112,3 @@ class Runout(Effect):
             return y
         c = np.asarray(theta_e).reshape(len(HARMONICS) * 2, y.shape[1])
         return y + np.column_stack(harmonics(phi)) @ c
-
-    def simulate_with(self, sim, theta_e, data, base):
-        y = sim(data)
-        phi = get_phi(data)
-        if phi is None:
-            return y
-        ny = y.shape[1]
-        c = np.asarray(theta_e).reshape(len(HARMONICS) * 2, ny)
-        H = np.column_stack(harmonics(phi))  # (n, 2K)
-        return y + H @ c

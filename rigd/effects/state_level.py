@@ -1,4 +1,4 @@
-"""State-level model extensions (cubic stiffness, cross coupling) on mechanical structures.
+"""A mechanical model with a cubic force, simulated sample by sample (signature regressors).
 
 A mechanical structure (paper Eq. 5-6: x = [p, ṗ], A = [[0, I], [-K, -D]], B = [[0], [B]],
 C = [I, 0]) that exposes ``continuous(theta) -> (A, B, C, D, x0)`` can be extended at state
@@ -10,19 +10,16 @@ level:
 * a cubic force, u' = u − K3 p³ (film stiffening, Duffing), simulated by a compiled
   sample-by-sample kernel with the zero-order-hold discretisation of (A', B).
 
-For a structure without ``continuous`` the same extensions are applied by fixed-point
-iteration on its batch ``simulate`` (p ← G(u + F(p))), which converges for weak effects.
+:func:`simulate_state` is what :meth:`rigd.effects.context.Context.through_force` uses for the
+response to a force on one axis; the fitted models carry their state-level effects through
+the composition (rigd.effects.compose) and the base's own simulator.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import numba
 import numpy as np
 
-from rigd.ident.iddata import replace_inputs
 from rigd.lti import zoh
 
 
@@ -58,20 +55,3 @@ def simulate_state(A, B, C, D, x0, K3, fs: float, u: np.ndarray) -> np.ndarray:
     x0 = np.ascontiguousarray(np.zeros(A.shape[0]) if x0 is None else x0, dtype=float).ravel()
     return _sim_cubic(np.ascontiguousarray(Phi), np.ascontiguousarray(Gam), C, D, K3, x0,
                       np.ascontiguousarray(u, dtype=float))
-
-
-def fixed_point(sim: Callable[[Any], np.ndarray], data: Any,
-                feedback: Callable[[np.ndarray], np.ndarray],
-                iters: int = 12) -> np.ndarray:
-    """Solve p = G(u + feedback(p)) by damped fixed-point iteration on the batch simulator."""
-    u = np.asarray(data.inputs, float)
-    p = sim(data)
-    for _ in range(iters):
-        p_new = sim(replace_inputs(data, u + feedback(p)))
-        if not np.all(np.isfinite(p_new)):
-            return p_new
-        done = np.max(np.abs(p_new - p)) <= 1e-9 * (1 + np.max(np.abs(p_new)))
-        p = 0.5 * p + 0.5 * p_new if not done else p_new
-        if done:
-            break
-    return p

@@ -26,7 +26,6 @@ from rigd.effects.base import Effect, dims
 from rigd.effects.context import CannotReveal, Context
 from rigd.effects.linearised import joint_signature
 from rigd.effects.signature import SignatureFit
-from rigd.ident.iddata import replace_inputs
 
 #: largest |coefficient| × spread^(k−1): the curve may bend the signal by a few times its
 #: own size over its range, not more
@@ -45,7 +44,6 @@ def _centred_powers(x: np.ndarray, est: slice) -> tuple[np.ndarray, np.ndarray]:
 
 class StaticNonlinearity(Effect):
     name = "static_nonlinearity"
-    level = "input"
     site = "input/output"
     sites = ("input", "output")
     submodels = ("generic",)
@@ -164,19 +162,6 @@ class StaticNonlinearity(Effect):
         """y_i + c2_i y_i² + c3_i y_i³ (the output site's coefficients)."""
         nu = np.asarray(data.inputs).shape[1]
         c = np.asarray(theta_e, float)[2 * nu:].reshape(y.shape[1], 2)
-        return y + c[:, 0] * y ** 2 + c[:, 1] * y ** 3
-
-    def simulate_with(self, sim, theta_e, data, base):
-        ny, nu = dims(base)
-        th = np.asarray(theta_e, float)
-        a = th[:2 * nu].reshape(nu, 2)
-        c = th[2 * nu:].reshape(ny, 2)
-        if np.any(a):
-            u = np.asarray(data.inputs, float)
-            y = sim(replace_inputs(data, u + a[:, 0] * u ** 2 + a[:, 1] * u ** 3))
-        else:
-            y = sim(data)
-        y = np.asarray(y, float)
         return y + c[:, 0] * y ** 2 + c[:, 1] * y ** 3
 
 

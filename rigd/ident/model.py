@@ -134,7 +134,7 @@ class Model(Protocol):
 
 
 def base_of(structure: Any) -> Any:
-    """The base model under effect wrappers (``rigd.effects`` ExtendedStructure)."""
+    """The base model under its effects (``rigd.effects.compose.Composed``)."""
     while hasattr(structure, "effect"):
         structure = structure.base
     return structure

@@ -74,7 +74,8 @@ class FitResult:
 
 
 def _scale(structure, theta: np.ndarray) -> np.ndarray:
-    """Typical parameter sizes; works for foreign wrappers (rigd.effects.ExtendedStructure)."""
+    """Typical parameter sizes; works for a base with effects composed around it
+    (rigd.effects.compose.Composed)."""
     if has_predictor(structure):
         s = np.asarray(structure.scale(theta), float)
         if s.shape == theta.shape:

@@ -179,8 +179,7 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     effects = list(effects or [])
     # an asked effect that acts on a mechanical state (a stiffness, a restoring force)
     # needs the mechanical base (rigd.ident.pipeline.FitSettings.mechanical)
-    settings.mechanical = any(getattr(e, "level", "") == "state" or
-                              "mechanical" in (getattr(e, "requires", None) or ())
+    settings.mechanical = any("mechanical" in (getattr(e, "requires", None) or ())
                               for e in effects_for(effects, "generic"))
     subs: dict[str, Submodel] = {}
     prefilter_reports = {}

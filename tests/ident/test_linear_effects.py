@@ -1,5 +1,5 @@
 """The linear design model of an extended structure (``Effect.linear``,
-``ExtendedStructure.linear_ss``, ``ModelFile.plant``): the effects with a small-signal linear
+``Composed.linear_ss``, ``ModelFile.plant``): the effects with a small-signal linear
 block (delay, actuator lags, an extra mode, a parallel lag, cross coupling) are in the
 continuous G the H∞ design sees, composed as the structure's simulation composes them; the
 others are left out with a reason. Checked against the structure's own simulation (the
