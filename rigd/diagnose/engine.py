@@ -11,7 +11,12 @@ For one sub-model (``actuator`` r→u, ``bearing`` u→e, ``generic``):
    signature) and measure the validation fit; ``score`` = share of the base model's
    validation error energy the effect removes;
 4. an effect is *significant* when its signature is (share ≥ its ``min_score``, p < 1e-3)
-   and its refit lowers the validation error energy by at least ``MIN_REFIT_GAIN``;
+   and its refit lowers the validation error energy by at least ``MIN_REFIT_GAIN``; like a
+   stepwise regression, the top significant one is added, the model refitted, and the
+   remaining effects tested again on the residual of the extended model, until nothing
+   significant is left or ``max_steps`` effects were added (an effect masked by a stronger
+   one is found once that one is in; one that only mimicked part of its signature is no
+   longer significant);
 5. when the residual of the best model is still structured (whiteness or residual–input
    correlation fails, or it is above the noise estimate), it is reported as *unexplained*
    with where it lives (frequency bands, amplitude, time, direction of input motion), its
@@ -110,21 +115,13 @@ def _remaining(sel, added: list[Finding], findings: list[Finding],
 
 def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                   val: slice | None = None, effects: list[str] | None = None,
-                  refit: bool = True, max_nfev: int | None = None,
-                  theta0: np.ndarray | None = None,
+                  refit: bool = True, max_nfev: int | None = None, theta0=None,
                   max_steps: int = MAX_STEPS, offsets: dict[str, float] | None = None,
-                  start: int = 0, other_hold: str | None = None,
-                  yardstick=None, record_meta: dict | None = None, method: str = "oe",
-                  base_theta: np.ndarray | None = None,
+                  start: int = 0, other_hold: str | None = None, yardstick=None,
+                  record_meta: dict | None = None, method: str = "oe", base_theta=None,
                   carried_worth: dict[str, float] | None = None) -> SubDiagnosis:
-    """Diagnose one sub-model on identification data by forward selection.
-
-    Like a stepwise regression: fit the base model; test every effect on its residual
-    (signature + refit); add the top significant one, refit, and test the remaining effects
-    again on the residual of the extended model; repeat until nothing significant is left
-    or ``max_steps`` effects were added. So an effect masked by a stronger one is found once
-    the stronger one is in the model, and an effect that only mimicked part of the stronger
-    one's signature is no longer significant once that one is in.
+    """Diagnose one sub-model on identification data by forward selection (module
+    docstring: a stepwise regression over the catalogue).
 
     Parameters
     ----------
@@ -157,10 +154,9 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         Per effect the base carries, the held-out fit points it loses without it (a delay:
         rigd.ident.lti.delay_worth); below ``MIN_FIT_GAIN`` the effect is not significant
         (rigd.diagnose.selection.carried).
-    offsets : dict, optional
-        Prefilter offsets per channel (levels under ``unexplained`` in the record's units).
-    start : int
-        Index of ``data``'s first sample in the record (samples under ``unexplained``).
+    offsets, start : dict (optional), int
+        Prefilter offsets per channel and the index of ``data``'s first sample in the
+        record (levels and samples under ``unexplained`` in the record's terms).
     yardstick : rigd.ident.yardstick.Yardstick, optional
         Black-box references on the same split: what is reachable (``unexplained``); its
         ``model_fit`` is set to the base model's fit.
@@ -171,11 +167,10 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     Returns
     -------
     SubDiagnosis
-        ``findings``: the added effects first, in the order added (``significant``; score =
-        share of the base model's validation error energy their step removed;
-        ``fit_percent_with`` = fit after their step), then the others as tested on the final
-        model (not significant; score on the base model's scale; ``fit_percent_with`` = fit
-        of the final model extended by them).
+        ``findings``: the added effects in the order added (``significant``; score = share
+        of the base's validation error energy their step removed; ``fit_percent_with`` =
+        fit after it), then the others as tested on the final model (not significant; score
+        on the base's scale; ``fit_percent_with`` = the final model extended by them).
     """
     n = data.n
     if est is None or val is None:
@@ -184,11 +179,50 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     structure = structure or structure_for(submodel, data,
                                            hold=DEFAULT_HOLD.get(submodel, "zoh"))
     data_est = data.slice(est.start, est.stop)
-    if base_theta is not None:
-        theta = np.asarray(base_theta, float)
-    else:
-        theta = S.fit_model(structure, data_est, theta0=theta0, max_nfev=max_nfev,
-                            method=method).theta
+    if base_theta is None:
+        base_theta = S.fit_model(structure, data_est, theta0=theta0, max_nfev=max_nfev,
+                                 method=method).theta
+    ctx0, context, dom = _base_context(data, submodel, structure, base_theta, est, val,
+                                       record_meta)
+    notes: list[str] = [f"domain: {dom.name} ({dom.why})"]
+    names = S.offered(effects, submodel, dom, structure, est, n, notes)
+    sel = S.Selection(ctx0, context, refit, data_est, max_nfev, method, max_steps,
+                      other_hold, [], notes)
+    sd = _stepwise(sel, ctx0, dom, names, carried_worth)
+    if yardstick is not None:
+        yardstick.model_fit = sd.fit_percent
+    sd.yardstick = yardstick
+    _tests_and_unexplained(sd, offsets, start)
+    return sd
+
+
+def _stepwise(sel, ctx0: Context, dom, names: list[str],
+              carried_worth: dict[str, float] | None) -> SubDiagnosis:
+    """The forward selection ``sel`` (rigd.diagnose.selection.Selection, its steps still
+    empty) from the base model of ``ctx0`` over the effects ``names``: what the base already
+    carries (a pole slower than the record: an integrator; Effect.carried_by_base) is named
+    from it, not added; the rest is selected stepwise (module docstring)."""
+    yhat, val = ctx0.yhat, ctx0.val
+    fp_base = float(np.mean(fit_percent(ctx0.y[val], yhat[val])))
+    err_base = S.val_err(ctx0, yhat)
+    sel.steps.append(S.Step(None, fp_base, ctx0.structure, ctx0.theta, yhat))
+    carried = S.carried(ctx0, names, dom, carried_worth)
+    names = [nm for nm in names if nm not in {f.effect for f in carried}]
+    cannot: list[CannotReveal] = []
+    added, findings, err_cur = sel.run(names, cannot)
+    findings, cannot = _remaining(sel, added, findings, cannot, err_cur / err_base
+                                  if err_base > 0 else 1.0, sel.max_steps)
+    return SubDiagnosis(ctx0.submodel, fp_base, carried + added + findings, cannot, [], ctx0,
+                        {}, sel.refits, (0, ctx0.data.n), sel.steps, notes=sel.notes,
+                        domain=dom)
+
+
+def _base_context(data, submodel: str, structure, theta, est: slice, val: slice,
+                  record_meta: dict | None):
+    """(context of the base model, the factory ``context(structure, theta, yhat)`` of the
+    later steps' contexts, the record's domain): the base at ``theta`` simulated on the whole
+    record, its domain and time constants (rigd.diagnose.domain) shared by every step."""
+    theta = np.asarray(theta, float)
     yhat = np.asarray(structure.simulate(theta, data), float)
     omega_hz = float(getattr(data, "meta", {}).get("omega_rpm", 0.0) or 0.0) / 60.0
     dom = D.decide(submodel, record_meta or {}, structure, theta)
@@ -199,28 +233,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                        model_resonances(st, th), list(data.input_names),
                        list(data.output_names), dom.name, taus)
 
-    ctx0 = context(structure, theta, yhat)
-    fp_base = float(np.mean(fit_percent(ctx0.y[val], yhat[val])))
-    err_base = S.val_err(ctx0, yhat)
-    steps = [S.Step(None, fp_base, structure, theta, yhat)]
-    cannot: list[CannotReveal] = []
-    notes: list[str] = [f"domain: {dom.name} ({dom.why})"]
-    names = S.offered(effects, submodel, dom, structure, est, n, notes)
-    # an effect the base model already carries (a pole slower than the record: an
-    # integrator) is named from the base, not added (Effect.carried_by_base)
-    carried = S.carried(ctx0, names, dom, carried_worth)
-    names = [nm for nm in names if nm not in {f.effect for f in carried}]
-    sel = S.Selection(ctx0, context, refit, data_est, max_nfev, method, max_steps,
-                      other_hold, steps, notes)
-    added, findings, err_cur = sel.run(names, cannot)
-    findings, cannot = _remaining(sel, added, findings, cannot, err_cur / err_base
-                                  if err_base > 0 else 1.0, max_steps)
-    if yardstick is not None:
-        yardstick.model_fit = fp_base
-    sd = SubDiagnosis(submodel, fp_base, carried + added + findings, cannot, [], ctx0, {},
-                      sel.refits, (0, data.n), steps, notes=notes, yardstick=yardstick, domain=dom)
-    _tests_and_unexplained(sd, offsets, start)
-    return sd
+    return context(structure, theta, yhat), context, dom
 
 
 def _corr_tests(ctx: Context, r: np.ndarray) -> dict[str, Any]:
