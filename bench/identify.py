@@ -13,7 +13,7 @@ import numpy as np
 
 def _record(n: int = 30000, seed: int = 0):
     from rigd.ident.iddata import IdData
-    from rigd.ident.simulate import Hooks, simulate_mechanical
+    from rigd.ident.simulate import simulate_mechanical
 
     rng = np.random.default_rng(seed)
     w1, w2 = 2 * np.pi * 110.0, 2 * np.pi * 160.0
@@ -21,7 +21,7 @@ def _record(n: int = 30000, seed: int = 0):
     D = np.array([[2 * 0.05 * w1, 5.0], [-3.0, 2 * 0.04 * w2]])
     B = K @ np.array([[5.0, 0.5], [-0.3, 4.0]])
     u = np.repeat(np.sign(rng.standard_normal((n // 2 + 1, 2))), 2, axis=0)[:n]
-    y = simulate_mechanical(K, D, B, np.zeros(4), u, 5000.0, Hooks(hold="foh"))
+    y = simulate_mechanical(K, D, B, np.zeros(4), u, 5000.0, hold="foh")
     y += 0.02 * y.std(0) * rng.standard_normal(y.shape)
     return IdData(u, y, 5000.0, ["u_x", "u_y"], ["e_x", "e_y"])
 

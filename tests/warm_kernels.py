@@ -94,17 +94,20 @@ def group_models() -> None:
     from rigd.effects.hysteresis import bouc_wen
     from rigd.effects.restoring_hysteresis import bw_kernel, bw_operator
     from rigd.effects.state_level import simulate_state
-    from rigd.ident.simulate import Hooks, predict_mechanical, simulate_mechanical
+    from rigd.ident.feedback import MechanicalFeedback
+    from rigd.ident.simulate import predict_mechanical, simulate_mechanical
 
     fs, n, m = 5000.0, 200, 2
     rng = np.random.default_rng(0)
     K = np.diag([(2 * np.pi * 120.0) ** 2, (2 * np.pi * 150.0) ** 2])
     D, B, x0 = np.diag([40.0, 50.0]), np.eye(m) * 1e4, np.zeros(2 * m)
     u = rng.standard_normal((n, m))
-    cubic = Hooks(k3=np.full(m, 1e3), friction=np.array([[1.0, 1.0], [1e-3, 1e-3]]))
-    for hooks in (None, Hooks(hold="foh"), cubic, Hooks(k3=np.full(m, 1e3), hold="foh")):
-        y = simulate_mechanical(K, D, B, x0, u, fs, hooks)
-        predict_mechanical(K, D, B, np.eye(m), x0, u, y, fs, hooks)
+    cubic = MechanicalFeedback(k3=np.full(m, 1e3),
+                               friction=np.array([[1.0, 1.0], [1e-3, 1e-3]]))
+    for fb, hold in ((None, "zoh"), (None, "foh"), (cubic, "zoh"),
+                     (MechanicalFeedback(k3=np.full(m, 1e3)), "foh")):
+        y = simulate_mechanical(K, D, B, x0, u, fs, fb, hold)
+        predict_mechanical(K, D, B, np.eye(m), x0, u, y, fs, fb, hold)
     A = np.array([[0.0, 1.0], [-1e4, -10.0]])
     simulate_state(A, np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]]), None, None,
                    np.array([[1.0]]), fs, u[:, :1])

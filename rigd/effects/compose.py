@@ -36,7 +36,6 @@ import numpy as np
 from rigd.effects.scales import RecordScale
 from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.iddata import get_phi, replace_inputs
-from rigd.ident.simulate import Hooks
 
 __all__ = ["Composed", "compose", "carries", "bare_base", "SITES", "REQUIREMENTS"]
 
@@ -69,7 +68,7 @@ def carries(structure: Any, data: Any = None) -> set[str]:
     base = bare_base(structure)
     out = set()
     try:
-        takes = "hooks" in inspect.signature(base.simulate).parameters
+        takes = "feedback" in inspect.signature(base.simulate).parameters
     except (TypeError, ValueError, AttributeError):
         takes = False
     if bool(getattr(base, "mechanical", False)) and takes and callable(
@@ -78,11 +77,6 @@ def carries(structure: Any, data: Any = None) -> set[str]:
     if data is None or get_phi(data) is not None:
         out.add("rotation")
     return out
-
-
-def _hooks(fb: MechanicalFeedback) -> Hooks:
-    """The simulator's hooks carrying the feedback block ``fb``."""
-    return Hooks(**{k: v for k, v in fb.as_dict().items() if v is not None})
 
 
 class Composed:
@@ -204,7 +198,7 @@ class Composed:
             return lambda d: np.asarray(e.state_simulate(self.base, tb, t, fb, d), float)
         if fb is None:
             return lambda d: np.asarray(self.base.simulate(tb, d), float)
-        return lambda d: np.asarray(self.base.simulate(tb, d, _hooks(fb)), float)
+        return lambda d: np.asarray(self.base.simulate(tb, d, fb), float)
 
     def simulate(self, theta: np.ndarray, data: Any) -> np.ndarray:
         """Simulated output (n, ny): the input blocks, the base with the feedback blocks,

@@ -5,7 +5,8 @@ response to p̂³ (the first-order change for a small k3) and grows with amplitu
 Extension: a cubic force −k3_i p_i³ on each axis and, with two or more axes, −k3c_i
 (Σ_{j≠i} p_j²) p_i (film stiffening grows with the eccentricity |p|: k3c = k3 is the radial
 law k3 |p|² p), mass-normalised, output unit⁻² s⁻²; integrated by the mechanical simulator
-(``Hooks.k3``, ``Hooks.k3_cross``, RK4), fixed-point iteration (per-axis part) otherwise.
+(the state block ``MechanicalFeedback.k3``/``k3_cross``, RK4); a base without [p, ṗ] states
+is not offered it.
 """
 
 from __future__ import annotations

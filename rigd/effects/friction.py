@@ -6,7 +6,8 @@ size against the motion, −F_c,i sgn(ṗ_i), with sgn smoothed as tanh(ṗ_i / 
 smoothing velocity v_ε (a share of the record's rms velocity: the same for any unit or rate);
 the viscous part is the base's own damping D (reported beside F_c). It is a feedback block of
 the state (Lur'e form φ(C_f x) into B_f, C_f the velocities), integrated by the mechanical
-simulator (``Hooks.friction``, RK4 with sub-steps where the smoothed sign is steep).
+simulator (``MechanicalFeedback.friction``, RK4 with sub-steps where the smoothed sign is
+steep).
 
 Signature: a *linearised refit* (promoted from the dry-friction probe that described it under
 *unexplained* before it was in the catalogue): the base residual regressed on the model's

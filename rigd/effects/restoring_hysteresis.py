@@ -172,8 +172,6 @@ class RestoringHysteresis(Effect):
         restoring force and the other state-level effects' ``feedback``
         (rigd.ident.feedback.MechanicalFeedback or None): :func:`bw_kernel`, the base's
         parallel modes and output offsets added."""
-        from rigd.ident.simulate import Hooks
-
         if not (getattr(base, "mechanical", False) and callable(getattr(base, "continuous",
                                                                         None))):
             raise ValueError("the restoring-force hysteresis needs a mechanical base model "
@@ -189,20 +187,19 @@ class RestoringHysteresis(Effect):
         D = D if fb.get("dD") is None else D + fb["dD"]
         B = B if fb.get("dB") is None else B + fb["dB"]
         k3 = np.zeros(m) if fb.get("k3") is None else np.asarray(fb["k3"], float)
-        hooks = Hooks()
-        if hasattr(base, "_with_modes"):  # parallel modes and their free response
-            hooks = base._with_modes(theta_b, hooks, data)
-        off = base.output_offset(theta_b) if hasattr(base, "output_offset") else None
-        if off is not None:   # the outputs' zero (generic): y = p + y_off
-            hooks = hooks.plus_output(off)
         u = np.ascontiguousarray(data.inputs, float)
         a, c, be, ga = (np.ascontiguousarray(te[i * m:(i + 1) * m]) for i in range(4))
         y = bw_kernel(np.ascontiguousarray(K), np.ascontiguousarray(D), np.ascontiguousarray(B),
                       a, np.abs(c), be, ga, np.ones(m), np.ascontiguousarray(k3),
                       np.ascontiguousarray(x0, dtype=float), u, 1.0 / float(data.fs),
                       _nsub(K, float(data.fs)), getattr(base, "hold", "zoh") == "foh")
-        add = hooks.additive_output(u, 1.0 / float(data.fs), m)
-        return y if add is None else y + add
+        off = base.output_offset(theta_b) if hasattr(base, "output_offset") else None
+        if off is not None:   # the outputs' zero (generic): y = p + y_off
+            y = y + off
+        if hasattr(base, "parallel_output"):  # parallel modes and their free response
+            add = base.parallel_output(theta_b, data)
+            y = y if add is None else y + add
+        return y
 
     def refit_fixed(self, ext, sig=None) -> list[str]:
         """The loop scale ``c`` stays at its start in the diagnosis refit: z ↦ λz with

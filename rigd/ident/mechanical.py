@@ -21,11 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.iddata import IdData
 from rigd.ident.initial import mechanical_initial
 from rigd.ident.model import LinearPart
 from rigd.ident.readouts import linear_readouts
-from rigd.ident.simulate import Hooks, mechanical_abc, predict_mechanical, simulate_mechanical
+from rigd.ident.simulate import mechanical_abc, predict_mechanical, simulate_mechanical
 from rigd.ident.structure import Structure
 
 
@@ -148,21 +149,18 @@ class MechanicalStructure(Structure):
             sc[self._off:self._off + self.n] = xs
         return sc
 
-    def _hooks(self, hooks, theta=None):
-        hooks = hooks or Hooks()
-        hooks.hold = self.hold
-        off = None if theta is None else self.output_offset(theta)
-        return hooks if off is None else hooks.plus_output(off)
-
-    def simulate(self, theta, data, hooks: Hooks | None = None):
-        hooks = self._hooks(hooks, theta)
+    def simulate(self, theta, data, feedback: MechanicalFeedback | None = None):
+        """Simulated output (n, ny) from the inputs of ``data``; ``feedback``: the
+        state-level effects' Lur'e feedback (rigd.ident.feedback, from rigd.effects.compose)."""
         K, D, B, Bd, x0 = self.unpack(theta)
-        return simulate_mechanical(K, D, B, x0, data.u, data.fs, hooks)
+        y = simulate_mechanical(K, D, B, x0, data.u, data.fs, feedback, self.hold)
+        off = self.output_offset(theta)
+        return y if off is None else y + off
 
-    def predict(self, theta, data, hooks: Hooks | None = None):
-        hooks = self._hooks(hooks, theta)
+    def predict(self, theta, data, feedback: MechanicalFeedback | None = None):
         K, D, B, Bd, x0 = self.unpack(theta)
-        return predict_mechanical(K, D, B, Bd, x0, data.u, data.y, data.fs, hooks)
+        return predict_mechanical(K, D, B, Bd, x0, data.u, data.y, data.fs, feedback,
+                                  self.hold, add=self.output_offset(theta))
 
     def ss(self, theta):
         """Continuous StateSpace u -> p (states [p, ṗ]); python-control."""

@@ -11,8 +11,9 @@ what :class:`Model` lists:
   by :func:`rigd.ident.workflow.estimate_x0`); ``noise_index`` — entries used only by the
   one-step predictor (frozen by an output-error fit);
 * ``theta0(data)``, ``bounds()``, ``scale(theta)`` — start values, bounds and typical sizes;
-* ``simulate(theta, data, hooks=None)`` — the simulated output (n, ny); optional
-  ``predict(theta, data, hooks=None)`` (one-step-ahead, for PEM; ``None`` if unstable);
+* ``simulate(theta, data)`` — the simulated output (n, ny); optional ``predict(theta,
+  data)`` (one-step-ahead, for PEM; ``None`` if unstable); a mechanical base takes a third
+  argument, the state-level effects' ``feedback`` (rigd.ident.feedback);
 * ``linear_part(theta)`` — the model's linear dynamics as a :class:`LinearPart`. Every
   read-out (poles, f_n/ζ, time constants, integrators, the static gain of the *whole* model)
   is computed from it in one place, :mod:`rigd.ident.readouts`;
@@ -120,7 +121,7 @@ class Model(Protocol):
     def scale(self, theta: np.ndarray) -> np.ndarray:
         """Typical magnitude of each parameter (step sizes and scaling of the fit)."""
 
-    def simulate(self, theta: np.ndarray, data: IdData, hooks: Any = None) -> np.ndarray:
+    def simulate(self, theta: np.ndarray, data: IdData) -> np.ndarray:
         """Simulated output (n, ny) from the inputs of ``data`` alone."""
 
     def linear_part(self, theta: np.ndarray) -> LinearPart:

@@ -5,7 +5,8 @@ measured at one point). :class:`ModalStructure` is the generic mechanical struct
 per output, :func:`rigd.ident.mechanical.generic_structure`) plus ``m`` parallel modes,
 each ω²/(s² + 2ζω s + ω²) from every input to every output with its own gains
 (``modeK_f_hz``, ``modeK_zeta``, ``modeK_g_<in>_<out>``). It is a structure like the others
-(fitted by PEM or OE, hooks for the effects, model files, ``ss``).
+(fitted by PEM or OE, the state-level effects' feedback into its mechanical part, model
+files, ``ss``).
 
 :func:`choose_order` picks the number of modes from the data:
 
@@ -23,13 +24,15 @@ Frequencies are bounded relative to the record (two periods in the estimation pa
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.figures import mean_fit
-from rigd.ident.simulate import ExtraMode, Hooks
+from rigd.ident.simulate import ExtraMode, parallel_modes
 from rigd.ident.structure import Structure
 from rigd.ident.thresholds import MIN_FIT_GAIN, MODE_SEPARATION
 
@@ -144,26 +147,39 @@ class ModalStructure(Structure):
         return np.concatenate([sb, se])
 
     # --- simulation --------------------------------------------------------------------
-    def _with_modes(self, theta, hooks: Hooks | None, data) -> Hooks:
-        hooks = hooks if hooks is not None else Hooks()
-        free = self.free_response(theta, data.n, data.fs)
-        if free is not None:
-            hooks.output_add = free if hooks.output_add is None else hooks.output_add + free
+    def parallel_output(self, theta, data) -> np.ndarray | None:
+        """(n, ny) output of the parallel modes driven by the inputs of ``data`` (the base's
+        hold) plus their free response; None without either."""
+        modes = []
         for f, z, g in self.modes_of(theta):
             w = 2 * np.pi * f
             for j in range(self.nu):
                 b = np.zeros(self.nu)
                 b[j] = w * w
-                hooks.extra_modes = list(hooks.extra_modes) + [ExtraMode(w, z, b, g[j].copy())]
-        return hooks
+                modes.append(ExtraMode(w, z, b, g[j].copy()))
+        out = parallel_modes(modes, np.ascontiguousarray(data.u, dtype=float),
+                             1.0 / float(data.fs), self.base.hold)
+        free = self.free_response(theta, data.n, data.fs)
+        if free is not None:
+            out = free if out is None else out + free
+        return out
 
-    def simulate(self, theta, data, hooks: Hooks | None = None):
+    def simulate(self, theta, data, feedback: MechanicalFeedback | None = None):
+        """The base's output (with the state-level effects' ``feedback``, rigd.ident.feedback)
+        plus the parallel modes'."""
         th = np.asarray(theta, float)
-        return self.base.simulate(th[:self.nb], data, self._with_modes(th, hooks, data))
+        y = self.base.simulate(th[:self.nb], data, feedback)
+        add = self.parallel_output(th, data)
+        return y if add is None else y + add
 
-    def predict(self, theta, data, hooks: Hooks | None = None):
+    def predict(self, theta, data, feedback: MechanicalFeedback | None = None):
+        """The base's one-step prediction of the measurement less the parallel modes'
+        output, plus that output."""
         th = np.asarray(theta, float)
-        return self.base.predict(th[:self.nb], data, self._with_modes(th, hooks, data))
+        add = self.parallel_output(th, data)
+        d = data if add is None else dataclasses.replace(data, y=data.y - add)
+        yh = self.base.predict(th[:self.nb], d, feedback)
+        return yh if yh is None or add is None else yh + add
 
     def output_offset(self, theta):
         """The base's constant output offsets (None without them)."""

@@ -9,22 +9,21 @@ fixed-step Runge-Kutta 4 with ``nsub`` sub-steps per sample (:func:`cubic_kernel
 or linear between samples like the linear path), which can
 also apply the innovation correction so the same kernel predicts.
 
-The :class:`Hooks` bundle carries the optional modifications that physical effects need
-(input delay, input pre-transform, cubic stiffness, extra parallel modes, additive output,
-additive changes of the K/D/B matrices); :func:`simulate_mechanical` and
-:func:`predict_mechanical` apply them around the base model.
+The state-level effects' feedback (:class:`rigd.ident.feedback.MechanicalFeedback`: ΔK, ΔD, ΔB,
+cubic stiffness, friction) enters :func:`simulate_mechanical` and :func:`predict_mechanical`;
+everything else an effect does happens around the base (rigd.effects.compose). Parallel
+modes (:class:`ExtraMode`, the order search's) are simulated by :func:`parallel_modes`.
 
 The compiled kernels live in :mod:`rigd.ident.sim_kernels`.
 """
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.sim_kernels import cubic_kernel, expm_kernel, lsim_kernel, predict_kernel
 from rigd.lti import foh, zoh
 
@@ -72,116 +71,62 @@ class ExtraMode:
     c: np.ndarray
 
 
-@dataclass
-class Hooks:
-    """Optional modifications of a mechanical model, set by effects (see ``docs/identify.md``).
-
-    Attributes
-    ----------
-    delay : int
-        Input delay, samples (u[k - delay] drives the model; zero before the start).
-    input_transform : callable (n, nu) -> (n, nu), optional
-        Applied to the (delayed) inputs first (hysteresis, valve dynamics, creep ...).
-    k3 : ndarray (ny,), optional
-        Per-axis cubic stiffness, force k3_i p_i³ (acceleration per output unit cubed);
-        nonlinear -> RK4 integration.
-    k3_cross : ndarray (ny,), optional
-        Cubic stiffness of axis i from the other axes' amplitude, force k3_cross_i ·
-        (Σ_{j≠i} p_j²) p_i (k3_cross = k3: radial film stiffening k3 |p|² p).
-    extra_modes : list of ExtraMode
-        Parallel modes added to the output.
-    output_add : ndarray (n, ny), optional
-        Added to the simulated output (run-out harmonics ...).
-    dK, dD, dB : ndarray, optional
-        Added to K, D, B (cross-coupling terms of a decoupled model ...).
-    friction : ndarray (2, ny), optional
-        Per-axis dry (Coulomb) friction: force friction[0, i]·tanh(ṗ_i / friction[1, i])
-        against the motion (acceleration units; smoothing velocity in output units/s);
-        nonlinear -> RK4 integration.
-    nsub : int
-        RK4 sub-steps per sample for the nonlinear path.
-    hold : {"zoh", "foh"}
-        Input between samples: held (commanded signals) or linear (measured, smooth
-        signals). Set by the structure; applies to the linear and the cubic (RK4) path
-        and to the extra modes alike.
-    """
-
-    delay: int = 0
-    input_transform: Callable[[np.ndarray], np.ndarray] | None = None
-    k3: np.ndarray | None = None
-    k3_cross: np.ndarray | None = None
-    extra_modes: list[ExtraMode] = field(default_factory=list)
-    output_add: np.ndarray | None = None
-    dK: np.ndarray | None = None
-    dD: np.ndarray | None = None
-    dB: np.ndarray | None = None
-    friction: np.ndarray | None = None
-    nsub: int = 2
-    hold: str = "zoh"
-
-    @property
-    def nonlinear(self) -> bool:
-        """True if a cubic or friction term is set (RK4 path)."""
-        return any(k is not None and np.any(np.asarray(k) != 0)
-                   for k in (self.k3, self.k3_cross)) or (
-            self.friction is not None and bool(np.any(np.asarray(self.friction)[0] != 0)))
-
-    def friction_terms(self, m: int, dt: float) -> tuple[np.ndarray, int]:
-        """(friction (2, m) for the kernel, RK4 sub-steps): more sub-steps where the smoothed
-        sign is steep (its slope F/v_ε times the sub-step kept below 1, at most 64)."""
-        if self.friction is None:
-            return np.zeros((2, m)), int(self.nsub)
-        fr = np.ascontiguousarray(self.friction, dtype=float).reshape(2, m).copy()
-        fr[1] = np.where(fr[0] != 0, np.maximum(np.abs(fr[1]), 1e-300), 1.0)
-        slope = float(np.max(np.abs(fr[0]) / fr[1]))
-        need = int(np.ceil(slope * dt)) if np.isfinite(slope) else 64
-        return fr, int(min(max(int(self.nsub), need), 64))
-
-    def cubic(self, m: int) -> tuple[np.ndarray, np.ndarray]:
-        """(k3, k3_cross) as float arrays of length m (zeros where unset)."""
-        return tuple(np.zeros(m) if k is None else np.ascontiguousarray(k, dtype=float)
-                     for k in (self.k3, self.k3_cross))
-
-    def plus_output(self, add: np.ndarray) -> Hooks:
-        """A copy with ``add`` added to :attr:`output_add` (the caller's hooks unchanged: they
-        may be used for another simulation)."""
-        return dataclasses.replace(
-            self, output_add=add if self.output_add is None else self.output_add + add)
-
-    def transform_input(self, u: np.ndarray) -> np.ndarray:
-        if self.delay > 0:
-            ud = np.zeros_like(u)
-            if self.delay < len(u):
-                ud[self.delay:] = u[:-self.delay]
-            u = ud
-        if self.input_transform is not None:
-            u = np.ascontiguousarray(self.input_transform(u), dtype=float)
-        return u
-
-    def additive_output(self, u: np.ndarray, dt: float, ny: int) -> np.ndarray | None:
-        """Output of the extra modes plus ``output_add`` (None if there is neither)."""
-        out = None if self.output_add is None else np.array(self.output_add, float)
-        for m in self.extra_modes:
-            A = np.array([[0.0, 1.0], [-m.wn ** 2, -2 * m.zeta * m.wn]])
-            Bm = np.zeros((2, u.shape[1]))
-            Bm[1] = m.b
-            Ad, Bd, ue = _discrete(A, Bm, dt, self.hold, u)
-            z = np.empty((u.shape[0], 1))
-            lsim_kernel(Ad, Bd, np.array([[1.0, 0.0]]), np.zeros(2), ue, z)
-            contrib = z * np.asarray(m.c, float)[None, :]
-            out = contrib if out is None else out + contrib
-        return out
+def parallel_modes(modes: list[ExtraMode], u: np.ndarray, dt: float,
+                   hold: str) -> np.ndarray | None:
+    """Summed output (n, ny) of parallel ``modes`` driven by ``u`` (n, nu) (None: no mode),
+    each discretised exactly with the input ``hold``."""
+    out = None
+    for m in modes:
+        A = np.array([[0.0, 1.0], [-m.wn ** 2, -2 * m.zeta * m.wn]])
+        Bm = np.zeros((2, u.shape[1]))
+        Bm[1] = m.b
+        Ad, Bd, ue = _discrete(A, Bm, dt, hold, u)
+        z = np.empty((u.shape[0], 1))
+        lsim_kernel(Ad, Bd, np.array([[1.0, 0.0]]), np.zeros(2), ue, z)
+        contrib = z * np.asarray(m.c, float)[None, :]
+        out = contrib if out is None else out + contrib
+    return out
 
 
-def _matrices(K, D, B, hooks: Hooks):
-    K = K if hooks.dK is None else K + hooks.dK
-    D = D if hooks.dD is None else D + hooks.dD
-    B = B if hooks.dB is None else B + hooks.dB
+def _nonlinear(fb: MechanicalFeedback | None) -> bool:
+    """True if ``fb`` has a cubic or friction term (RK4 path)."""
+    if fb is None:
+        return False
+    return any(k is not None and np.any(np.asarray(k) != 0) for k in (fb.k3, fb.k3_cross)) or (
+        fb.friction is not None and bool(np.any(np.asarray(fb.friction)[0] != 0)))
+
+
+def _friction_terms(fb: MechanicalFeedback | None, m: int, dt: float,
+                    nsub: int) -> tuple[np.ndarray, int]:
+    """(friction (2, m) for the kernel, RK4 sub-steps): more sub-steps where the smoothed
+    sign is steep (its slope F/v_ε times the sub-step kept below 1, at most 64)."""
+    if fb is None or fb.friction is None:
+        return np.zeros((2, m)), int(nsub)
+    fr = np.ascontiguousarray(fb.friction, dtype=float).reshape(2, m).copy()
+    fr[1] = np.where(fr[0] != 0, np.maximum(np.abs(fr[1]), 1e-300), 1.0)
+    slope = float(np.max(np.abs(fr[0]) / fr[1]))
+    need = int(np.ceil(slope * dt)) if np.isfinite(slope) else 64
+    return fr, int(min(max(int(nsub), need), 64))
+
+
+def _cubic(fb: MechanicalFeedback | None, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """(k3, k3_cross) as float arrays of length m (zeros where unset)."""
+    return tuple(np.zeros(m) if k is None else np.ascontiguousarray(k, dtype=float)
+                 for k in ((None, None) if fb is None else (fb.k3, fb.k3_cross)))
+
+
+def _matrices(K, D, B, fb: MechanicalFeedback | None):
+    if fb is None:
+        return K, D, B
+    K = K if fb.dK is None else K + fb.dK
+    D = D if fb.dD is None else D + fb.dD
+    B = B if fb.dB is None else B + fb.dB
     return K, D, B
 
 
-def simulate_mechanical(K, D, B, x0, u, fs, hooks: Hooks | None = None) -> np.ndarray:
-    """Simulated output p (n, ny) of p̈ + D ṗ + K p (+ k3 p³) = B u from state ``x0``.
+def simulate_mechanical(K, D, B, x0, u, fs, feedback: MechanicalFeedback | None = None,
+                        hold: str = "zoh", nsub: int = 2) -> np.ndarray:
+    """Simulated output p (n, ny) of p̈ + D ṗ + K p (+ φ(p, ṗ)) = B u from state ``x0``.
 
     Parameters
     ----------
@@ -192,30 +137,32 @@ def simulate_mechanical(K, D, B, x0, u, fs, hooks: Hooks | None = None) -> np.nd
     x0 : ndarray (2m,)
         Initial [p, ṗ].
     u : ndarray (n, nu)
-        Inputs, held over each sample (ZOH).
+        Inputs.
     fs : float
         Sample rate, Hz.
-    hooks : Hooks, optional
-        Effect hooks (delay, cubic stiffness, extra modes, ...).
+    feedback : MechanicalFeedback, optional
+        The state-level effects' feedback (rigd.ident.feedback): ΔK, ΔD, ΔB folded in; a
+        cubic or friction term integrates by RK4 with ``nsub`` sub-steps (more where the
+        friction's smoothed sign is steep).
+    hold : {"zoh", "foh"}
+        Input between samples: held, or linear (the linear and the RK4 path alike).
     """
-    hooks = hooks or Hooks()
-    K, D, B = _matrices(np.asarray(K, float), np.asarray(D, float), np.asarray(B, float), hooks)
+    K, D, B = _matrices(np.asarray(K, float), np.asarray(D, float), np.asarray(B, float),
+                        feedback)
     u = np.ascontiguousarray(u, dtype=float)
-    uu = hooks.transform_input(u)
     m = K.shape[0]
     y = np.empty((u.shape[0], m))
     x0 = np.ascontiguousarray(x0, dtype=float)
-    if hooks.nonlinear:
-        k3, k3x = hooks.cubic(m)
-        fr, nsub = hooks.friction_terms(m, 1.0 / fs)
-        cubic_kernel(K, D, B, k3, k3x, np.zeros((2 * m, m)), x0, uu,
-                     1.0 / fs, nsub, y, False, y, hooks.hold == "foh", fr)
+    if _nonlinear(feedback):
+        k3, k3x = _cubic(feedback, m)
+        fr, nsub = _friction_terms(feedback, m, 1.0 / fs, nsub)
+        cubic_kernel(K, D, B, k3, k3x, np.zeros((2 * m, m)), x0, u,
+                     1.0 / fs, nsub, y, False, y, hold == "foh", fr)
     else:
         A, Bc, C = mechanical_abc(K, D, B)
-        Ad, Bd, ue = _discrete(A, Bc, 1.0 / fs, hooks.hold, uu)
+        Ad, Bd, ue = _discrete(A, Bc, 1.0 / fs, hold, u)
         lsim_kernel(Ad, Bd, C, x0, ue, y)
-    add = hooks.additive_output(uu, 1.0 / fs, m)
-    return y if add is None else y + add
+    return y
 
 
 def predictor_gain(K, D, B, Bdist, fs, hold="zoh", u=None):
@@ -236,30 +183,33 @@ def predictor_gain(K, D, B, Bdist, fs, hold="zoh", u=None):
     return Ad, Bd, Kd, C, ue
 
 
-def predict_mechanical(K, D, B, Bdist, x0, u, y, fs, hooks: Hooks | None = None):
+def predict_mechanical(K, D, B, Bdist, x0, u, y, fs,
+                       feedback: MechanicalFeedback | None = None, hold: str = "zoh",
+                       nsub: int = 2, add: np.ndarray | None = None):
     """One-step-ahead prediction ŷ (n, ny) of Eq. 5 given measured ``y`` (n, ny).
 
     The disturbance d(t) enters the output and, through B_d, the states; its discretised
-    gain is the innovation gain Kd. Returns ``None`` if the predictor is unstable
-    (spectral radius of Ad - Kd C >= 1), which the fit treats as a bad parameter set.
+    gain is the innovation gain Kd. ``feedback``, ``hold``, ``nsub`` as
+    :func:`simulate_mechanical`; ``add`` (n, ny): a known output added to the model's (output
+    offsets, parallel modes), taken off the measurement first. Returns ``None`` if the
+    predictor is unstable (spectral radius of Ad - Kd C >= 1), which the fit treats as a bad
+    parameter set.
     """
-    hooks = hooks or Hooks()
-    K, D, B = _matrices(np.asarray(K, float), np.asarray(D, float), np.asarray(B, float), hooks)
+    K, D, B = _matrices(np.asarray(K, float), np.asarray(D, float), np.asarray(B, float),
+                        feedback)
     u = np.ascontiguousarray(u, dtype=float)
-    uu = hooks.transform_input(u)
     m = K.shape[0]
-    Ad, Bd, Kd, C, ue = predictor_gain(K, D, B, np.asarray(Bdist, float), fs, hooks.hold, uu)
+    Ad, Bd, Kd, C, ue = predictor_gain(K, D, B, np.asarray(Bdist, float), fs, hold, u)
     if np.max(np.abs(np.linalg.eigvals(Ad - Kd @ C))) >= 1.0:
         return None
-    add = hooks.additive_output(uu, 1.0 / fs, m)
     ym = np.ascontiguousarray(y if add is None else y - add)
     yhat = np.empty((u.shape[0], m))
     x0 = np.ascontiguousarray(x0, dtype=float)
-    if hooks.nonlinear:
-        k3, k3x = hooks.cubic(m)
-        fr, nsub = hooks.friction_terms(m, 1.0 / fs)
-        cubic_kernel(K, D, B, k3, k3x, Kd, x0, uu, 1.0 / fs,
-                     nsub, ym, True, yhat, hooks.hold == "foh", fr)
+    if _nonlinear(feedback):
+        k3, k3x = _cubic(feedback, m)
+        fr, nsub = _friction_terms(feedback, m, 1.0 / fs, nsub)
+        cubic_kernel(K, D, B, k3, k3x, Kd, x0, u, 1.0 / fs,
+                     nsub, ym, True, yhat, hold == "foh", fr)
     else:
         predict_kernel(Ad, Bd, Kd, C, x0, ue, ym, yhat)
     return yhat if add is None else yhat + add
@@ -283,34 +233,15 @@ def shift_inputs(u: np.ndarray, delays) -> np.ndarray:
     return out
 
 
-def _linear_inputs(lp, u: np.ndarray, hooks: Hooks | None) -> np.ndarray:
-    u = np.ascontiguousarray(u, dtype=float)
-    if hooks is not None:
-        u = hooks.transform_input(u)
-    return np.ascontiguousarray(shift_inputs(u, lp.delays))
-
-
-def _hooks_unsupported(hooks: Hooks | None) -> bool:
-    """True if ``hooks`` ask for a mechanical state-level change (cubic stiffness, K/D/B
-    increments) that a general linear part cannot carry."""
-    return hooks is not None and (hooks.nonlinear or any(
-        h is not None for h in (hooks.dK, hooks.dD, hooks.dB)))
-
-
-def simulate_linear(lp, x0, u, fs, hooks: Hooks | None = None) -> np.ndarray:
+def simulate_linear(lp, x0, u, fs) -> np.ndarray:
     """Simulated output (n, ny) of a :class:`rigd.ident.model.LinearPart` from state ``x0``.
 
     A, B are discretised exactly with the part's hold (:func:`rigd.lti.zoh`/:func:`foh`),
     the per-input delays are input shifts (:func:`shift_inputs`), then the compiled
-    :func:`lsim_kernel` runs; ``y = C x + D u``. ``hooks`` (effects): input delay and
-    transform, extra modes and additive output apply; a mechanical state-level change
-    (cubic stiffness, dK/dD/dB) cannot be carried by a general linear part and gives NaN
-    (the fit treats it as a failed simulation).
+    :func:`lsim_kernel` runs; ``y = C x + D u``.
     """
-    uu = _linear_inputs(lp, u, hooks)
+    uu = np.ascontiguousarray(shift_inputs(np.ascontiguousarray(u, dtype=float), lp.delays))
     n, ny = uu.shape[0], lp.ny
-    if _hooks_unsupported(hooks):
-        return np.full((n, ny), np.nan)
     Ad, Bd, ue = _discrete(np.asarray(lp.A, float), np.asarray(lp.B, float), 1.0 / fs,
                            lp.hold, uu)
     y = np.empty((n, ny))
@@ -318,21 +249,15 @@ def simulate_linear(lp, x0, u, fs, hooks: Hooks | None = None) -> np.ndarray:
                 np.ascontiguousarray(x0, dtype=float), ue, y)
     if np.any(lp.D):
         y += uu @ np.asarray(lp.D, float).T
-    if hooks is not None:
-        add = dataclasses.replace(hooks, hold=lp.hold).additive_output(uu, 1.0 / fs, ny)
-        if add is not None:
-            y += add
     return y
 
 
-def predict_linear(lp, x0, u, y, fs, hooks: Hooks | None = None) -> np.ndarray | None:
+def predict_linear(lp, x0, u, y, fs) -> np.ndarray | None:
     """One-step-ahead prediction (n, ny) of a linear part with innovation gain ``lp.K``
     (discrete, nx × ny); ``None`` if the predictor is unstable (spectral radius of
-    Ad − K C ≥ 1). Same discretisation, delays and hooks as :func:`simulate_linear`."""
-    uu = _linear_inputs(lp, u, hooks)
+    Ad − K C ≥ 1). Same discretisation and delays as :func:`simulate_linear`."""
+    uu = np.ascontiguousarray(shift_inputs(np.ascontiguousarray(u, dtype=float), lp.delays))
     n, ny = uu.shape[0], lp.ny
-    if _hooks_unsupported(hooks):
-        return None
     Ad, Bd, ue = _discrete(np.asarray(lp.A, float), np.asarray(lp.B, float), 1.0 / fs,
                            lp.hold, uu)
     C = np.ascontiguousarray(lp.C, dtype=float)
@@ -340,18 +265,9 @@ def predict_linear(lp, x0, u, y, fs, hooks: Hooks | None = None) -> np.ndarray |
     if not np.all(np.isfinite(Ad)) or (lp.nx and np.max(np.abs(np.linalg.eigvals(
             Ad - Kd @ C)))) >= 1.0:
         return None
-    add = None
-    if hooks is not None:
-        add = dataclasses.replace(hooks, hold=lp.hold).additive_output(uu, 1.0 / fs, ny)
     direct = uu @ np.asarray(lp.D, float).T if np.any(lp.D) else None
-    ym = np.asarray(y, float)
-    for part in (add, direct):
-        if part is not None:
-            ym = ym - part
+    ym = np.asarray(y, float) if direct is None else np.asarray(y, float) - direct
     yhat = np.empty((n, ny))
     predict_kernel(Ad, Bd, Kd, C, np.ascontiguousarray(x0, dtype=float), ue,
                    np.ascontiguousarray(ym), yhat)
-    for part in (add, direct):
-        if part is not None:
-            yhat += part
-    return yhat
+    return yhat if direct is None else yhat + direct

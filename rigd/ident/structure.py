@@ -5,8 +5,9 @@ A *structure* is the model class 𝔐(θ) of the paper (Eqs. 7 and 9): it knows 
 (output error) and, where defined, ``predict(theta, data)`` (one-step-ahead, for PEM).
 
 Physical effects (``rigd.effects``) extend a structure without touching it
-(``Effect.extend``: input blocks before the base, output blocks after it, state feedback
-into it through the simulator's :class:`~rigd.ident.simulate.Hooks`).
+(``Effect.extend``, rigd.effects.compose: input blocks before the base, output blocks after
+it, a mechanical base's state feedback, :class:`~rigd.ident.feedback.MechanicalFeedback`,
+into its simulator).
 """
 
 from __future__ import annotations
@@ -16,7 +17,6 @@ from typing import Any
 import numpy as np
 
 from rigd.ident.iddata import IdData
-from rigd.ident.simulate import Hooks
 
 
 class Structure:
@@ -52,11 +52,10 @@ class Structure:
         """Typical magnitude of each parameter (for step sizes and scaling of the fit)."""
         return np.maximum(np.abs(theta), 1e-6)
 
-    def simulate(self, theta: np.ndarray, data: IdData, hooks: Hooks | None = None) -> np.ndarray:
+    def simulate(self, theta: np.ndarray, data: IdData) -> np.ndarray:
         raise NotImplementedError
 
-    def predict(self, theta: np.ndarray, data: IdData,
-                hooks: Hooks | None = None) -> np.ndarray | None:
+    def predict(self, theta: np.ndarray, data: IdData) -> np.ndarray | None:
         """One-step-ahead prediction; ``None`` if the predictor is unstable at theta."""
         raise NotImplementedError(f"{self.kind} has no one-step predictor")
 

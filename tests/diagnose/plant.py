@@ -20,8 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from rigd.effects._signals import lag1, play
+from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.iddata import IdData
-from rigd.ident.simulate import ExtraMode, Hooks, simulate_mechanical
+from rigd.ident.simulate import ExtraMode, parallel_modes, simulate_mechanical
 
 FS = 5000.0
 # operating points: natural frequencies (Hz) and damping ratio of the two axes
@@ -52,29 +53,32 @@ def bearing(effects=(), seed: int = 0, point: str = "mid", seconds: float = 1.6,
     B = np.diag(w ** 2 * 2.0) + np.array([[0, 0.1], [-0.1, 0]]) * w[0] ** 2
     r = excitation(n, rng, hold=(2, 12))
     u = r.copy()
-    hooks = Hooks()
+    fb: dict = {}
+    modes: list[ExtraMode] = []
     omega_rpm = 0.0
     if "actuator_dynamics" in effects:
         tau = 1 / (2 * np.pi * 250)
         u = np.column_stack([lag1(lag1(r[:, j], tau, FS), 0.5 * tau, FS) for j in range(2)])
-    if "delay" in effects:
-        hooks.delay = 4
-    if "cubic_stiffness" in effects:
-        hooks.k3 = np.array([1.0, 1.0])  # scaled below
+    uu = u
+    if "delay" in effects:   # 4 samples, zero before the start
+        uu = np.zeros_like(u)
+        uu[4:] = u[:-4]
     if "extra_mode" in effects:
-        hooks.extra_modes = [ExtraMode(2 * np.pi * 430, 0.015, np.array([1.0, 0.6]) * 1.5e5,
-                                       np.array([1.0, 0.7]) * 12.0)]
+        modes = [ExtraMode(2 * np.pi * 430, 0.015, np.array([1.0, 0.6]) * 1.5e5,
+                           np.array([1.0, 0.7]) * 12.0)]
     if "cross_coupling" in effects:
         omega_rpm = 3000.0
         g = 0.9 * 2 * z * w[0]
-        hooks.dD = np.array([[0.0, g], [-g, 0.0]])
+        fb["dD"] = np.array([[0.0, g], [-g, 0.0]])
     if "runout" in effects:
         omega_rpm = 3000.0
-    if hooks.k3 is not None:
-        p = simulate_mechanical(K, D, B, np.zeros(4), u, FS, Hooks())
+    if "cubic_stiffness" in effects:
+        p = simulate_mechanical(K, D, B, np.zeros(4), u, FS)   # scale on the undelayed input
         pmax = np.percentile(np.abs(p), 99, axis=0)
-        hooks.k3 = 0.35 * np.diag(K) / pmax ** 2
-    e = simulate_mechanical(K, D, B, np.zeros(4), u, FS, hooks)
+        fb["k3"] = 0.35 * np.diag(K) / pmax ** 2
+    e = simulate_mechanical(K, D, B, np.zeros(4), uu, FS, MechanicalFeedback(**fb))
+    add = parallel_modes(modes, uu, 1.0 / FS, "zoh")
+    e = e if add is None else e + add
     t = np.arange(n) / FS
     phi = np.mod(2 * np.pi * omega_rpm / 60 * t, 2 * np.pi)
     if "runout" in effects:
@@ -102,6 +106,6 @@ def actuator(effects=(), seed: int = 0, seconds: float = 1.6, noise: float = 0.0
     p = 2 * np.pi * np.array([300.0, 900.0])
     K = np.diag([p[0] * p[1]] * 2)
     D = np.diag([p[0] + p[1]] * 2)
-    u = simulate_mechanical(K, D, 0.95 * K, np.zeros(4), v, FS, Hooks())
+    u = simulate_mechanical(K, D, 0.95 * K, np.zeros(4), v, FS)
     u = u + noise * u.std(axis=0) * rng.standard_normal(u.shape)
     return IdData(r, u, FS, ["r_x", "r_y"], ["u_x", "u_y"], {}, {"submodel": "actuator"})

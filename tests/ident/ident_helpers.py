@@ -8,7 +8,7 @@ noise. Optionally a synchronous run-out term locked to the shaft angle is added 
 import numpy as np
 
 from rigd.data.record import Record
-from rigd.ident.simulate import Hooks, simulate_mechanical
+from rigd.ident.simulate import simulate_mechanical
 
 FS = 5000.0
 W1, W2 = 2 * np.pi * 110.0, 2 * np.pi * 160.0
@@ -48,7 +48,7 @@ def rotor_record(n=15000, seed=0, noise=0.02, omega_rpm=0.0, p_inj_bar=4.0, runo
     u = simulate_mechanical(Ka, Da, Ba, np.zeros(4), r, FS)
     # u is a measured, continuous signal: linear between samples (FOH), as in the sim plant
     e = simulate_mechanical(K_TRUE * kscale, D_TRUE, B_TRUE, np.zeros(4), u, FS,
-                            Hooks(hold="foh"))
+                            hold="foh")
     sd_u = 0.5 if not excite else u.std(0)
     sd_e = 5.0 if not excite else e.std(0)
     u = u + noise * sd_u * rng.standard_normal(u.shape)

@@ -19,10 +19,11 @@ from rigd.effects._signals import lag1, shift
 from rigd.effects.base import is_mechanical
 from rigd.effects.compose import Composed, carries, compose
 from rigd.effects.runout import HARMONICS
+from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.iddata import IdData, replace_inputs
 from rigd.ident.lti.statespace import StateSpaceModel
 from rigd.ident.mechanical import generic_structure
-from rigd.ident.simulate import Hooks
+from rigd.ident.simulate import simulate_mechanical
 
 FS = 200.0
 N = 600
@@ -116,8 +117,7 @@ def _by_hand(base, tb, names, th_e, data):
     elif fb is None:
         y = base.simulate(tb, d)
     else:
-        y = base.simulate(tb, d, Hooks(**{k: v for k, v in fb.as_dict().items()
-                                          if v is not None}))
+        y = base.simulate(tb, d, fb)
     for e, de in zip(effects, seen):
         if "output" in e.sites:
             y = e.output_block(np.asarray(y, float), th_e[e.name], de)
@@ -156,8 +156,10 @@ def test_four_effects_are_the_model_written_out(dims):
            base.simulate(tb, data) + lags @ th_e[1:].reshape(nu, ny))
 
     th_e = _theta_e("cubic_stiffness", nu, ny)
-    hooks = Hooks(k3=th_e[:ny], k3_cross=th_e[ny:] if ny > 1 else None)
-    _close(run("cubic_stiffness", th_e), base.simulate(tb, data, hooks))
+    K, D, B, _, x0 = base.unpack(tb)
+    p = simulate_mechanical(K, D, B, x0, u, FS, hold="foh", feedback=MechanicalFeedback(
+        k3=th_e[:ny], k3_cross=th_e[ny:] if ny > 1 else None))
+    _close(run("cubic_stiffness", th_e), p + base.output_offset(tb))
     # each changes the output (the comparison is not of two base models)
     assert np.max(np.abs(run("cubic_stiffness", th_e) - base.simulate(tb, data))) > 1e-3
 

@@ -5,10 +5,11 @@ import numpy as np
 import pytest
 from ident_helpers import ACT_GAIN, ACT_POLES, B_TRUE, D_TRUE, K_TRUE, rotor_record
 
+from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.iddata import from_record
 from rigd.ident.mechanical import actuator_structure, bearing_structure
 from rigd.ident.pem import fit, fit_percent
-from rigd.ident.simulate import Hooks, simulate_mechanical
+from rigd.ident.simulate import simulate_mechanical
 
 
 @pytest.fixture(scope="module")
@@ -76,15 +77,8 @@ def test_cubic_hook_matches_linear_when_k3_zero_and_differs_otherwise(rec):
     data = from_record(rec, "bearing").slice(0, 3000)
     lin = simulate_mechanical(K_TRUE, D_TRUE, B_TRUE, np.zeros(4), data.u, data.fs)
     rk = simulate_mechanical(K_TRUE, D_TRUE, B_TRUE, np.zeros(4), data.u, data.fs,
-                             Hooks(k3=np.array([1e-12, 0.0]), nsub=4))
+                             MechanicalFeedback(k3=np.array([1e-12, 0.0])), nsub=4)
     np.testing.assert_allclose(rk, lin, atol=2e-3 * np.abs(lin).max())
     hard = simulate_mechanical(K_TRUE, D_TRUE, B_TRUE, np.zeros(4), data.u, data.fs,
-                               Hooks(k3=np.array([K_TRUE[0, 0] * 0.05, 0.0])))
+                               MechanicalFeedback(k3=np.array([K_TRUE[0, 0] * 0.05, 0.0])))
     assert np.abs(hard - lin).max() > 0.05 * np.abs(lin).max()
-
-
-def test_delay_hook_shifts_input(rec):
-    data = from_record(rec, "bearing").slice(0, 2000)
-    base = simulate_mechanical(K_TRUE, D_TRUE, B_TRUE, np.zeros(4), data.u, data.fs)
-    d = simulate_mechanical(K_TRUE, D_TRUE, B_TRUE, np.zeros(4), data.u, data.fs, Hooks(delay=7))
-    np.testing.assert_allclose(d[7:], base[:-7], atol=1e-9)

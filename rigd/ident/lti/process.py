@@ -125,10 +125,10 @@ class ProcessModel(Structure):
                           self.delays, self.hold, tuple(self.input_names),
                           tuple(self.output_names), self.fs, ints)
 
-    def simulate(self, theta, data, hooks=None):
+    def simulate(self, theta, data):
         m = self.matrices(theta)
-        return simulate_linear(self.linear_part(theta), m["x0"], data.u, data.fs,
-                               hooks) + m["yoff"][None, :]
+        return simulate_linear(self.linear_part(theta), m["x0"], data.u,
+                               data.fs) + m["yoff"][None, :]
 
     def output_offset(self, theta):
         return np.asarray(theta, float)[self._off:].copy()

@@ -37,7 +37,7 @@ import numpy as np
 from rigd.ident.iddata import IdData
 from rigd.ident.model import LinearPart
 from rigd.ident.readouts import linear_readouts
-from rigd.ident.simulate import Hooks, predict_linear, simulate_linear
+from rigd.ident.simulate import predict_linear, simulate_linear
 from rigd.ident.structure import Structure
 
 #: damping ratio bounds of a complex pair
@@ -272,15 +272,15 @@ class StateSpaceModel(Structure):
         sc[slice(*g["k"])] = 1.0                                   # discrete gains, ~ 1
         return sc
 
-    def simulate(self, theta, data, hooks: Hooks | None = None):
+    def simulate(self, theta, data):
         m = self.matrices(theta)
-        y = simulate_linear(self.linear_part(theta), m["x0"], data.u, data.fs, hooks)
+        y = simulate_linear(self.linear_part(theta), m["x0"], data.u, data.fs)
         return y + m["yoff"][None, :]
 
-    def predict(self, theta, data, hooks: Hooks | None = None):
+    def predict(self, theta, data):
         m = self.matrices(theta)
         y = predict_linear(self.linear_part(theta), m["x0"], data.u, data.y - m["yoff"],
-                           data.fs, hooks)
+                           data.fs)
         return None if y is None else y + m["yoff"][None, :]
 
     def output_offset(self, theta) -> np.ndarray | None:
