@@ -316,3 +316,28 @@ def test_a_model_file_with_effects_reads_back_into_the_same_model(tmp_path, orde
     y0 = np.asarray(saved.simulate(th, data))
     assert np.max(np.abs(sm.structure.simulate(sm.theta, data) - y0)) <= 1e-9 * np.max(
         np.abs(y0))
+
+
+def test_the_predictor_of_the_mechanical_base_with_parallel_modes_adds_what_it_simulates():
+    """With no disturbance gain (B_d = 0) the one-step predictor is the simulation: output
+    offsets and the parallel modes (with their free response) are taken off the measurement
+    and added back, the state-level feedback enters both alike."""
+    from rigd.ident.feedback import MechanicalFeedback
+    from rigd.ident.order import ModalStructure
+
+    nu, ny = 2, 2
+    data = _record(nu, ny, seed=8)
+    base, tb = _mechanical(nu, ny)
+    st = ModalStructure(base, 1)
+    th = st.theta0(data)
+    th[:st.nb] = tb
+    th[st.nb:st.nb + 2] = [9.0, 0.05]                      # the mode: 9 Hz, ζ 0.05
+    th[st.nb + 2:st.nb + 2 + nu * ny] = [0.4, -0.2, 0.1, 0.3]
+    th[st.nb + 2 + nu * ny:] = [0.02, -0.01, 0.0, 0.01]    # its free response
+    fb = MechanicalFeedback(k3=np.array([300.0, 200.0]))
+    for feedback in (None, fb):
+        y = st.simulate(th, data, feedback)
+        assert np.max(np.abs(y - base.simulate(tb, data, feedback))) > 1e-3   # modes count
+        yhat = st.predict(th, IdData(data.u, y + 0.3, FS, data.input_names,
+                                     data.output_names), feedback)
+        _close(yhat, y)
