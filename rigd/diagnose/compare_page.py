@@ -20,13 +20,13 @@ from rigd.diagnose.engine import model_resonances
 from rigd.diagnose.page_data import measured_view, model_view, resonances_below_nyquist
 from rigd.htmlpage import write_page
 from rigd.ident.iddata import get_phi
+from rigd.ident.model import base_of
 
 
 def _resonances(c) -> list[float]:
     """Resonances (Hz) of the compared model's linear part (effect wrappers skipped)."""
     base, th = c.structure, np.asarray(c.theta)
-    while hasattr(base, "effect"):
-        base = base.base
+    base = base_of(base)
     return model_resonances(base, th[:len(base.names)]) if base is not None else []
 
 

@@ -54,14 +54,12 @@ def _poles(structure: Any, theta: np.ndarray) -> np.ndarray | None:
     """Continuous-time poles of the base's linear part (None: none readable): the Model
     protocol's ``linear_part`` (:func:`rigd.ident.model.linear_part_of`), else the older
     structures' ``full_abcd`` / ``continuous``."""
-    from rigd.ident.model import linear_part_of
+    from rigd.ident.model import base_of, linear_part_of
 
     lp = linear_part_of(structure, theta)
     if lp is not None:
         return np.linalg.eigvals(np.asarray(lp.A, float))
-    base = structure
-    while hasattr(base, "effect") and hasattr(base, "base"):
-        base = base.base
+    base = base_of(structure)
     th = np.asarray(theta, float)[:len(getattr(base, "names", theta))]
     for get in ("full_abcd", "continuous"):
         fn = getattr(base, get, None)

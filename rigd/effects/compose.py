@@ -36,6 +36,7 @@ import numpy as np
 from rigd.effects.scales import RecordScale
 from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.iddata import get_phi, replace_inputs
+from rigd.ident.model import base_of
 
 __all__ = ["Composed", "compose", "carries", "bare_base", "SITES", "REQUIREMENTS"]
 
@@ -49,10 +50,8 @@ Sim = Callable[[Any], np.ndarray]
 
 
 def bare_base(structure: Any) -> Any:
-    """The base model under a :class:`Composed` or a chain of older effect wrappers."""
-    while isinstance(structure, Composed) or hasattr(structure, "effect"):
-        structure = structure.base
-    return structure
+    """The base model under a :class:`Composed` (rigd.ident.model.base_of)."""
+    return base_of(structure)
 
 
 def carries(structure: Any, data: Any = None) -> set[str]:
@@ -121,12 +120,6 @@ class Composed:
         self.record: RecordScale | None = None
 
     # --- composition --------------------------------------------------------------------
-    @property
-    def effect(self) -> Any:
-        """The last effect added (older callers test ``hasattr(s, "effect")`` for a model
-        with effects; :func:`bare_base` is the way to the base)."""
-        return self.effect_list[-1]
-
     def with_effect(self, effect: Any) -> Composed:
         """This model with one more effect (added last)."""
         return Composed(self.base, self.effect_list + [effect])

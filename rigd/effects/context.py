@@ -16,6 +16,7 @@ import numpy as np
 
 from rigd.effects.state_level import simulate_state
 from rigd.ident.iddata import get_phi, replace_inputs
+from rigd.ident.model import base_of
 
 
 # --------------------------------------------------------------------------------------
@@ -248,9 +249,7 @@ class Context:
         Falls back to :meth:`through_model` on input ``axis`` for structures without a
         continuous state-space form.
         """
-        base = self.structure
-        while hasattr(base, "effect") and hasattr(base, "base"):  # effect wrappers
-            base = base.base
+        base = base_of(self.structure)
         # no [p, ṗ] states (a general LTI model has modal ones: rigd.effects.base.is_mechanical)
         if not (getattr(base, "mechanical", False) and
                 callable(getattr(self.structure, "continuous", None))):

@@ -23,6 +23,7 @@ from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.effects.linearised import joint_signature
 from rigd.effects.signature import signature_fit
 from rigd.ident.figures import fit_percent
+from rigd.ident.model import base_of
 from rigd.ident.thresholds import P_LEVEL
 
 #: scan range of the signature, samples (relative to the record's rate: 4 ms at the rig's
@@ -49,9 +50,7 @@ class Delay(Effect):
         """A finding when the base model already delays its inputs (the general LTI and
         process families take a per-input delay in whole samples, chosen before their order:
         rigd.ident.lti.order): the delay is named from the base, not added."""
-        base = ctx.structure
-        while hasattr(base, "effect") and hasattr(base, "base"):
-            base = base.base
+        base = base_of(ctx.structure)
         delays = [int(d) for d in getattr(base, "delays", ()) or ()]
         if not delays or max(delays) <= 0:
             return None

@@ -135,8 +135,9 @@ class Model(Protocol):
 
 
 def base_of(structure: Any) -> Any:
-    """The base model under its effects (``rigd.effects.compose.Composed``)."""
-    while hasattr(structure, "effect"):
+    """The base model under its effects (a ``rigd.effects.compose.Composed`` has an
+    ``effect_list`` and its ``base``)."""
+    while hasattr(structure, "effect_list"):
         structure = structure.base
     return structure
 

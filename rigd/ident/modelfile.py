@@ -40,6 +40,7 @@ from pydantic import Field
 from rigd.configio import StrictModel, dump_yaml, read_yaml, validate
 from rigd.errors import InputError
 from rigd.ident.mechanical import structure_for
+from rigd.ident.model import base_of
 from rigd.plain import plain
 
 FORMAT = 1
@@ -123,9 +124,7 @@ class Submodel:
 
     def ss(self):
         """Continuous python-control StateSpace of the (linear part of the) sub-model."""
-        st = self.structure
-        while hasattr(st, "effect"):  # effect wrappers; a ModalStructure is a base
-            st = st.base
+        st = base_of(self.structure)  # a ModalStructure is a base
         return st.ss(np.asarray(self.theta)[:len(st.names)])
 
     def linear_ss(self, fs: float, G0=None):
@@ -180,11 +179,7 @@ class ModelFile:
     def to_dict(self) -> dict[str, Any]:
         subs = {}
         for name, sm in self.submodels.items():
-            spec = dict(sm.structure.spec()) if hasattr(sm.structure, "spec") else {}
-            base = sm.structure
-            while hasattr(base, "effect"):  # effect wrappers; a ModalStructure is a base
-                base = base.base
-            spec = dict(base.spec())
+            spec = dict(base_of(sm.structure).spec())  # a ModalStructure is a base
             spec["effects"] = list(getattr(sm.structure, "effects", []))
             subs[name] = {
                 "structure": spec,

@@ -93,7 +93,7 @@ def _scale(structure, theta: np.ndarray) -> np.ndarray:
 
 def has_predictor(structure) -> bool:
     """True if ``structure`` itself (not a delegate of a wrapper) has a one-step predictor."""
-    return isinstance(structure, Structure) and not hasattr(structure, "effect")
+    return isinstance(structure, Structure)
 
 
 def _bounds(structure, npar: int):

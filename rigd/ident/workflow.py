@@ -22,6 +22,7 @@ import numpy as np
 from rigd.data.record import Record
 from rigd.errors import InputError
 from rigd.ident.iddata import IdData, channels_for
+from rigd.ident.model import base_of
 from rigd.ident.modelfile import ModelFile, Submodel, apply_effects
 from rigd.ident.pem import fit_percent
 from rigd.ident.pipeline import DEFAULT_SPLIT, prepare  # noqa: F401 - prepare: re-exported
@@ -67,9 +68,7 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData,
     ``rows`` = the estimation part and ``data`` = estimation + validation gives the
     validation part's state from the estimation part alone.
     """
-    base = structure
-    while hasattr(base, "effect"):  # effect wrappers (their parameters come last)
-        base = base.base
+    base = base_of(structure)  # the effects' parameters come after the base's
     idx = list(getattr(base, "x0_index", [])) + list(getattr(base, "offset_index", []))
     if not idx:
         return np.asarray(theta, float)
@@ -108,9 +107,7 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData,
 def samples_needed(structure) -> int:
     """Fewest samples a fitted model needs to be compared on a record: its initial states
     are estimated by least squares (one more sample than states), and at least 3."""
-    base = structure
-    while hasattr(base, "effect"):  # effect wrappers (their parameters come last)
-        base = base.base
+    base = base_of(structure)  # the effects' parameters come after the base's
     return max(3, len(list(getattr(base, "x0_index", []))) + 1)
 
 
