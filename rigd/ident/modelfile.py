@@ -243,7 +243,10 @@ def rebuild_structure(spec: StructureSpec | dict, where: str = "<model>",
             raise InputError(f"the structure names effects ({', '.join(spec.effects)}) but no "
                              "effect catalogue was given to rebuild them "
                              "(load_model(path, resolve_effects=rigd.effects.resolve))", where)
-        st = apply_effects(st, resolve_effects(spec.effects, where))
+        try:
+            st = apply_effects(st, resolve_effects(spec.effects, where))
+        except ValueError as exc:  # an effect the base cannot carry (Effect.not_offered)
+            raise InputError(str(exc), where) from None
     return st
 
 

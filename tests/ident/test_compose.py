@@ -341,3 +341,21 @@ def test_the_predictor_of_the_mechanical_base_with_parallel_modes_adds_what_it_s
         yhat = st.predict(th, IdData(data.u, y + 0.3, FS, data.input_names,
                                      data.output_names), feedback)
         _close(yhat, y)
+
+
+def test_a_model_file_naming_an_effect_its_base_cannot_carry_is_refused(tmp_path):
+    """A general LTI base naming cubic_stiffness (a hand-edited file): one line naming the
+    file and why, not a traceback."""
+    from rigd.effects import resolve
+    from rigd.errors import InputError
+    from rigd.ident.modelfile import ModelFile, Submodel, load_model
+
+    base, tb = _lti(1, 1)
+    path = ModelFile(FS, {"generic": Submodel("generic", base, tb, np.zeros(tb.size))}).save(
+        tmp_path / "m.yaml")
+    text = path.read_text().replace("effects: []", "effects: [cubic_stiffness]")
+    assert "cubic_stiffness" in text
+    path.write_text(text)
+    with pytest.raises(InputError, match="positions and velocities") as exc:
+        load_model(path, resolve_effects=resolve)
+    assert "m.yaml" in str(exc.value)
