@@ -86,8 +86,9 @@ def refit_effect(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe")
         try:
             th, yw = th0, np.asarray(ext.simulate(th0, data), float)
         except (np.linalg.LinAlgError, ValueError, FloatingPointError):
-            # the extension cannot be simulated on this model at all (restoring-force
-            # hysteresis below an input-level effect): it gains nothing, nothing crashes
+            # the extension cannot be simulated on this model at all (two effects each
+            # with a state model of its own, rigd.effects.compose): it gains nothing,
+            # nothing crashes
             th, yw = th0, ctx.yhat
     if not np.all(np.isfinite(yw)):
         th, yw = th0, ctx.yhat

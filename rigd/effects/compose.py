@@ -28,6 +28,7 @@ is refused with the sentence of ``Effect.not_offered``.
 from __future__ import annotations
 
 import copy
+import inspect
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -38,7 +39,7 @@ from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.iddata import get_phi, replace_inputs
 from rigd.ident.model import base_of
 
-__all__ = ["Composed", "compose", "carries", "bare_base", "SITES", "REQUIREMENTS"]
+__all__ = ["Composed", "compose", "carries", "SITES", "REQUIREMENTS"]
 
 #: where an effect acts: before the base, after it, or fed back into its states
 SITES = ("input", "output", "state")
@@ -49,11 +50,6 @@ REQUIREMENTS = ("mechanical", "rotation")
 Sim = Callable[[Any], np.ndarray]
 
 
-def bare_base(structure: Any) -> Any:
-    """The base model under a :class:`Composed` (rigd.ident.model.base_of)."""
-    return base_of(structure)
-
-
 def carries(structure: Any, data: Any = None) -> set[str]:
     """What the base of ``structure`` can carry (:data:`REQUIREMENTS`).
 
@@ -62,9 +58,7 @@ def carries(structure: Any, data: Any = None) -> set[str]:
     ``rotation``: the record ``data`` has a shaft angle (``phi``); without ``data`` it is
     not known and assumed carried.
     """
-    import inspect
-
-    base = bare_base(structure)
+    base = base_of(structure)
     out = set()
     try:
         takes = "feedback" in inspect.signature(base.simulate).parameters
@@ -84,8 +78,7 @@ class Composed:
     Parameters
     ----------
     base : Model
-        The base model (a :class:`Composed` or an older wrapper is unwrapped: its effects
-        come first).
+        The base model (a :class:`Composed` is unwrapped: its effects come first).
     effects : sequence of Effect
         The effects, in the order added.
 
