@@ -278,17 +278,16 @@ def _describe_base(bf) -> str:
 def _order_notes(bf) -> list[str]:
     """The order chosen and, when the base has more modes than one per output, the modes a
     mechanical model of one DOF per output misses (with its held-out fit)."""
-    from rigd.ident.order import ModalStructure
     from rigd.ident.readouts import resonances_hz
     from rigd.ident.thresholds import MODE_SEPARATION
 
     chosen, structure = bf.order, bf.structure
     out = [f"base model order: {chosen.describe()}"]
-    if isinstance(structure, ModalStructure):   # the mechanical base + parallel modes
+    if getattr(structure, "m", 0):   # the mechanical base + parallel modes
         missed = ", ".join(f"{f:.4g} Hz" for f, _, _ in structure.modes_of(bf.theta))
         out.append(f"one mode per output misses mode(s) at {missed}: the base model has "
-                   f"{chosen.modes} modes (fit {chosen.fits[structure.base.n]:.2f} % with "
-                   f"{structure.base.n})")
+                   f"{chosen.modes} modes (fit {chosen.fits[structure.n]:.2f} % with "
+                   f"{structure.n})")
         return out
     ny = len(bf.data.output_names)
     if chosen.modes <= ny:

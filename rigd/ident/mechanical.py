@@ -25,6 +25,7 @@ from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.iddata import IdData
 from rigd.ident.initial import mechanical_initial
 from rigd.ident.model import LinearPart
+from rigd.ident.parallel import ParallelModes
 from rigd.ident.readouts import linear_readouts
 from rigd.ident.simulate import mechanical_abc, predict_mechanical, simulate_mechanical
 from rigd.ident.structure import Structure
@@ -52,7 +53,9 @@ class MechanicalStructure(Structure):
 
     def __init__(self, kind, mask_K, mask_D, mask_B, mask_Bd, prefix="", out_labels=None,
                  in_labels=None, input_names=None, output_names=None, x0_name="x0_",
-                 hold="zoh", output_offsets=False):
+                 hold="zoh", output_offsets=False, extra_modes=0):
+        self._args = (kind, mask_K, mask_D, mask_B, mask_Bd, prefix, out_labels, in_labels,
+                      input_names, output_names, x0_name, hold, output_offsets)
         if hold not in ("zoh", "foh"):
             raise ValueError(f"hold must be 'zoh' or 'foh', got {hold!r}")
         self.hold = hold
@@ -81,10 +84,50 @@ class MechanicalStructure(Structure):
         self.output_offsets = bool(output_offsets)
         if self.output_offsets:
             names += [f"yoff_{i + 1}" for i in range(self.n)]
-        self.names = names
         self.x0_index = list(range(self._x0, self._x0 + 2 * self.n))
         self.offset_index = list(range(self._off, len(names)))
+        #: parameters of the mechanical part (the parallel modes' come after them)
+        self.nb = len(names)
+        #: the order search's parallel modes (rigd.ident.parallel), None without them
+        self.parallel = (ParallelModes(extra_modes, self.input_names, self.output_names)
+                         if extra_modes else None)
+        if self.parallel is not None:
+            names += self.parallel.names
+            self.x0_index += self.parallel.x0_index(self.nb)
+        self.names = names
         self.effects = []
+
+    @property
+    def m(self) -> int:
+        """Number of parallel modes (beyond one per output)."""
+        return 0 if self.parallel is None else self.parallel.m
+
+    def with_modes(self, m: int) -> MechanicalStructure:
+        """The same structure with ``m`` parallel modes (rigd.ident.parallel)."""
+        return type(self)(*self._args, extra_modes=m)
+
+    @property
+    def velocity_index(self) -> list[int]:
+        """Indices in θ of the initial velocities ṗ(0) of the mechanical part."""
+        return list(range(self._x0 + self.n, self._x0 + 2 * self.n))
+
+    def set_record(self, fs: float, n_est: int) -> None:
+        """Bounds of the parallel modes relative to the record (rigd.ident.parallel)."""
+        if self.parallel is not None:
+            self.parallel.set_record(fs, n_est)
+
+    def modes_of(self, theta) -> list[tuple[float, float, np.ndarray]]:
+        """[(f_hz, zeta, g (nu, ny))] of the parallel modes."""
+        return [] if self.parallel is None else self.parallel.modes_of(
+            np.asarray(theta, float)[self.nb:])
+
+    def parallel_output(self, theta, data) -> np.ndarray | None:
+        """(n, ny) output of the parallel modes driven by the inputs of ``data`` plus their
+        free response; None without either."""
+        if self.parallel is None:
+            return None
+        return self.parallel.output(np.asarray(theta, float)[self.nb:], data.u, data.fs,
+                                    self.hold)
 
     # --- packing -------------------------------------------------------------------
     def unpack(self, theta):
@@ -131,7 +174,17 @@ class MechanicalStructure(Structure):
                                      self.mask_B, self.hold)
         x0 = np.zeros(2 * self.n)
         x0[:self.n] = data.y[0]
-        return self.pack(K, D, B, np.zeros((self.n, self.n)), x0)
+        th = self.pack(K, D, B, np.zeros((self.n, self.n)), x0)
+        if self.parallel is not None:  # spread over the band; choose_order gives better starts
+            th[self.nb:] = self.parallel.theta0(float(data.fs))
+        return th
+
+    def bounds(self):
+        lo, hi = np.full(self.nb, -np.inf), np.full(self.nb, np.inf)
+        if self.parallel is None:
+            return lo, hi
+        plo, phi = self.parallel.bounds()
+        return np.concatenate([lo, plo]), np.concatenate([hi, phi])
 
     def scale(self, theta):
         K, D, B, Bd, x0 = self.unpack(theta)
@@ -147,6 +200,8 @@ class MechanicalStructure(Structure):
         sc[self._x0 + self.n:self._x0 + 2 * self.n] = xs * wmax
         if self.output_offsets:
             sc[self._off:self._off + self.n] = xs
+        if self.parallel is not None:  # gains at their size, free responses at the output's
+            sc[self.nb:] = self.parallel.scale(np.asarray(theta, float)[self.nb:], xs)
         return sc
 
     def simulate(self, theta, data, feedback: MechanicalFeedback | None = None):
@@ -155,17 +210,29 @@ class MechanicalStructure(Structure):
         K, D, B, Bd, x0 = self.unpack(theta)
         y = simulate_mechanical(K, D, B, x0, data.u, data.fs, feedback, self.hold)
         off = self.output_offset(theta)
-        return y if off is None else y + off
+        y = y if off is None else y + off
+        par = self.parallel_output(theta, data)
+        return y if par is None else y + par
 
     def predict(self, theta, data, feedback: MechanicalFeedback | None = None):
+        """One-step prediction; the parallel modes' output is taken off the measurement and
+        added back (they carry no disturbance)."""
         K, D, B, Bd, x0 = self.unpack(theta)
-        return predict_mechanical(K, D, B, Bd, x0, data.u, data.y, data.fs, feedback,
-                                  self.hold, add=self.output_offset(theta))
+        par = self.parallel_output(theta, data)
+        y = data.y if par is None else data.y - par
+        yh = predict_mechanical(K, D, B, Bd, x0, data.u, y, data.fs, feedback, self.hold,
+                                add=self.output_offset(theta))
+        return yh if yh is None or par is None else yh + par
 
     def ss(self, theta):
-        """Continuous StateSpace u -> p (states [p, ṗ]); python-control."""
+        """Continuous StateSpace u -> y (states [p, ṗ], then the parallel modes');
+        python-control."""
         import control
 
+        if self.parallel is not None:
+            A, B, C, D = self.full_abcd(theta)
+            return control.ss(A, B, C, D, inputs=self.input_names, outputs=self.output_names,
+                              name=self.kind)
         K, D, B, _, _ = self.unpack(theta)
         A, Bc, C = mechanical_abc(K, D, B)
         n = self.n
@@ -184,11 +251,27 @@ class MechanicalStructure(Structure):
         A, Bc, C = mechanical_abc(K, D, B)
         return A, Bc, C, np.zeros((self.n, self.nu)), x0
 
+    def full_abcd(self, theta):
+        """(A, B, C, D) of the whole linear model: [p, ṗ], then the parallel modes."""
+        A0, B0, C0, D0, _ = self.continuous(theta)
+        if self.parallel is None:
+            return A0, B0, C0, D0
+        from scipy.linalg import block_diag
+
+        As, Bs, Cs = self.parallel.blocks(np.asarray(theta, float)[self.nb:])
+        return block_diag(A0, *As), np.vstack([B0] + Bs), np.hstack([C0] + Cs), D0
+
     def linear_part(self, theta) -> LinearPart:
-        """The model's linear dynamics (states [p, ṗ]; no delay, no feedthrough)."""
-        A, Bc, C, Dm, _ = self.continuous(theta)
+        """The model's linear dynamics (states [p, ṗ], then the parallel modes'; no delay,
+        no feedthrough)."""
+        A, Bc, C, Dm = self.full_abcd(theta)
         return LinearPart(A, Bc, C, Dm, None, (0,) * self.nu, self.hold,
                           tuple(self.input_names), tuple(self.output_names))
+
+    def resonances_hz(self, theta) -> list[float]:
+        """Natural frequencies (Hz) of every mode, mechanical and parallel."""
+        lam = np.linalg.eigvals(self.full_abcd(theta)[0])
+        return sorted({round(float(abs(v) / (2 * np.pi)), 6) for v in lam if v.imag > 1e-9})
 
     def modes(self, theta):
         """Modes of A: list of dicts with f_n (Hz), zeta (-), or real poles (rad/s)
@@ -211,6 +294,8 @@ class MechanicalStructure(Structure):
             d["n"] = self.n
             d["nu"] = self.nu
             d["output_offsets"] = self.output_offsets
+        if self.parallel is not None:
+            d["extra_modes"] = self.parallel.m
         return d
 
 

@@ -69,7 +69,7 @@ class StructureSpec(StrictModel):
     nu: int | None = None
     hold: str | None = None
     effects: list[str] = Field(default_factory=list)
-    #: parallel modes beyond one per output (generic, rigd.ident.order.ModalStructure)
+    #: parallel modes beyond one per output (generic, rigd.ident.parallel)
     extra_modes: int = Field(0, ge=0)
     #: generic: a constant offset per output is a parameter (``yoff_i``; absent in files
     #: written before it existed, which rebuild without it)
@@ -124,7 +124,7 @@ class Submodel:
 
     def ss(self):
         """Continuous python-control StateSpace of the (linear part of the) sub-model."""
-        st = base_of(self.structure)  # a ModalStructure is a base
+        st = base_of(self.structure)  # parallel modes are the base's own
         return st.ss(np.asarray(self.theta)[:len(st.names)])
 
     def linear_ss(self, fs: float, G0=None):
@@ -179,7 +179,7 @@ class ModelFile:
     def to_dict(self) -> dict[str, Any]:
         subs = {}
         for name, sm in self.submodels.items():
-            spec = dict(base_of(sm.structure).spec())  # a ModalStructure is a base
+            spec = dict(base_of(sm.structure).spec())  # parallel modes are the base's own
             spec["effects"] = list(getattr(sm.structure, "effects", []))
             subs[name] = {
                 "structure": spec,
@@ -235,9 +235,7 @@ def rebuild_structure(spec: StructureSpec | dict, where: str = "<model>",
     if spec.extra_modes:
         if spec.kind != "generic":
             raise InputError("extra_modes is for generic structures only", where)
-        from rigd.ident.order import ModalStructure
-
-        st = ModalStructure(st, spec.extra_modes)
+        st = st.with_modes(spec.extra_modes)
     if spec.effects:
         if resolve_effects is None:
             raise InputError(f"the structure names effects ({', '.join(spec.effects)}) but no "

@@ -80,11 +80,9 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData,
     # velocities; the free response is linear in x0 (nonlinear models: for small steps)
     ys = float(np.max(np.std(data.y, axis=0))) or 1.0
     vs = float(np.max(np.std(np.diff(data.y, axis=0), axis=0))) * float(data.fs) or ys
-    mech = getattr(base, "base", base)  # a ModalStructure's mechanical part
-    half = len(getattr(mech, "x0_index", [])) // 2
-    # velocity states [p, ṗ] of a mechanical model; other families: every state at y's scale
-    vel = (set(list(getattr(mech, "x0_index", []))[half:])
-           if getattr(mech, "mechanical", False) else set())
+    # velocity states [p, ṗ] of a mechanical model (its parallel modes' initial values are
+    # output amplitudes); other families: every state at y's scale
+    vel = set(getattr(base, "velocity_index", []) or [])
     steps = np.array([vs if i in vel else ys for i in idx]) * 1e-2
     cols = []
     for i, d in zip(idx, steps):

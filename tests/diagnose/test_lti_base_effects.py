@@ -14,7 +14,6 @@ from rigd.effects.context import Context
 from rigd.ident.iddata import IdData
 from rigd.ident.lti.statespace import StateSpaceModel
 from rigd.ident.mechanical import generic_structure
-from rigd.ident.order import ModalStructure
 
 FS = 100.0
 N = 1500
@@ -52,7 +51,7 @@ def test_continuous_is_the_linear_part_and_not_mechanical():
     assert not is_mechanical(m)
     assert not is_mechanical(REGISTRY["delay"].extend(m))
     mech = generic_structure(["a", "b"], ["y"])
-    assert is_mechanical(mech) and is_mechanical(ModalStructure(mech, 1))
+    assert is_mechanical(mech) and is_mechanical(mech.with_modes(1))
     assert is_mechanical(REGISTRY["delay"].extend(mech))
 
 

@@ -323,12 +323,11 @@ def test_the_predictor_of_the_mechanical_base_with_parallel_modes_adds_what_it_s
     offsets and the parallel modes (with their free response) are taken off the measurement
     and added back, the state-level feedback enters both alike."""
     from rigd.ident.feedback import MechanicalFeedback
-    from rigd.ident.order import ModalStructure
 
     nu, ny = 2, 2
     data = _record(nu, ny, seed=8)
     base, tb = _mechanical(nu, ny)
-    st = ModalStructure(base, 1)
+    st = base.with_modes(1)
     th = st.theta0(data)
     th[:st.nb] = tb
     th[st.nb:st.nb + 2] = [9.0, 0.05]                      # the mode: 9 Hz, ζ 0.05
