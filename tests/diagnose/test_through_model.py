@@ -88,22 +88,41 @@ def test_input_scale_per_channel_not_mixing_units():
 
 
 def test_an_extension_that_cannot_be_simulated_on_the_model_gains_nothing_and_never_crashes():
-    """Restoring-force hysteresis cannot sit above an input-level effect (its kernel takes
-    the mechanical model only). The diagnosis tried it on a model with ``delay`` during the
-    forward selection on a friction stage and died with a ValueError; now the refit reports
-    no gain."""
+    """The diagnosis once tried restoring-force hysteresis on a model with ``delay`` (its
+    wrapper's kernel took the mechanical model only) during the forward selection on a
+    friction stage and died with a ValueError. The composition (rigd.effects.compose) now
+    carries it above the delay on the mechanical base (the Bouc–Wen force at zero gives the
+    model without it); an extension that really cannot be simulated on the model still makes
+    the refit report no gain, never a crash."""
     from rigd.diagnose.selection import refit_effect as _refit
     from rigd.effects import REGISTRY
+    from rigd.effects.base import Effect
 
     rec = B.duffing(seed=0, n=3000)
     data = from_record(rec, "generic")
-    sub = identify_record(rec, "generic", method="oe", effects=resolve(["delay"]),
+    # cubic_stiffness keeps the mechanical base (a restoring force needs [p, ṗ] states)
+    sub = identify_record(rec, "generic", method="oe",
+                          effects=resolve(["delay", "cubic_stiffness"]),
                           order=2).submodels["generic"]
     th = np.asarray(sub.theta, float)
     yhat = np.asarray(sub.structure.simulate(th, data), float)
     ctx = Context("generic", data, sub.structure, th, yhat, slice(0, 2000), slice(2000, 3000))
     eff = REGISTRY["hysteresis_restoring"]
-    with pytest.raises(ValueError, match="cannot be combined"):
-        eff.extend(sub.structure).simulate(np.concatenate([th, np.zeros(4)]), data)
-    r = _refit(eff, ctx, eff.signature(ctx), data.slice(0, 2000), 50)
+    ext = eff.extend(sub.structure)
+    y0 = ext.simulate(np.concatenate([th, np.zeros(4)]), data)   # a = 0: no Bouc–Wen force
+    assert np.max(np.abs(y0 - yhat)) < 1e-3 * np.max(np.abs(yhat))  # RK4 vs exact hold
+
+    class Unsimulable(Effect):
+        name, sites = "unsimulable", ("input",)
+
+        def param_names(self, base):
+            return ["x"]
+
+        def warm_start(self, ctx, sig):
+            return np.zeros(1)
+
+        def input_block(self, u, theta_e, data):
+            raise ValueError("this model cannot carry it")
+
+    r = _refit(Unsimulable(), ctx, None, data.slice(0, 2000), 50)
     assert np.array_equal(r.yhat, yhat)
