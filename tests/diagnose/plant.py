@@ -1,6 +1,7 @@
 """A small simulated rig for the diagnosis tests: a 2-axis bearing (Eq. 4) or a lumped valve
 pair (Eq. 8) simulated by rigd.ident's mechanical simulator, with any catalogue effect switched
-on through its hooks (the base model of the test is unaware of it).
+on in the simulation (a state feedback, a shifted input, a parallel mode; the base model of
+the test is unaware of it).
 
 How each effect is posed (docs/diagnose.md):
 
