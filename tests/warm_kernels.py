@@ -116,7 +116,8 @@ def group_models() -> None:
     bouc_wen(x, 0.5)
     bw_operator(x, 0.5, 0.5, 0.5, 1.0)
     a = np.ones(m)
-    bw_kernel(K, D, B, a, a, a, a, np.ones(m), np.zeros(m), x0, u, 1.0 / fs, 2, False)
+    bw_kernel(K, D, B, a, a, a, a, np.ones(m), np.zeros(m), np.zeros(m), x0, u, 1.0 / fs, 2,
+              False)
     nf, nm = 4, 2
     G = np.ones((nm, nf, 2, 2), complex)
     out = np.empty((nm, nf))

@@ -78,6 +78,8 @@ class Effect:
     #: the base, ``output`` block after it, ``state`` feedback into it)
     sites: tuple[str, ...] = ()
     requires: tuple[str, ...] = ()
+    #: effects that cannot be simulated beside this one in one composed model
+    excludes: tuple[str, ...] = ()
     domains: tuple[str, ...] | None = None
     submodels: tuple[str, ...] = ("actuator", "bearing", "generic")
     physics: str = ""
@@ -85,10 +87,17 @@ class Effect:
 
     # --- diagnosis ----------------------------------------------------------------------
     def not_offered(self, structure: Any, data: Any = None) -> str | None:
-        """Why the base ``structure`` cannot carry this effect (None: it can): a
-        requirement (:attr:`requires`) the base, or the record ``data``, lacks
+        """Why the base ``structure`` cannot carry this effect (None: it can): the effect
+        is already in ``structure`` (a :class:`rigd.effects.compose.Composed`) or excluded
+        by one there (:attr:`excludes`, either way), or a requirement (:attr:`requires`) the base, or the record ``data``, lacks
         (:func:`rigd.effects.compose.carries`; ``rotation`` is checked only with
         ``data``)."""
+        inside = list(getattr(structure, "effect_list", ()))
+        if self.name in (getattr(e, "name", None) for e in inside):
+            return f"{self.name} is already in the model"
+        for e in inside:
+            if e.name in self.excludes or self.name in getattr(e, "excludes", ()):
+                return f"{self.name} cannot be simulated beside {e.name} in one model"
         has = carries(structure, data)
         if "mechanical" in self.requires and "mechanical" not in has:
             return (f"{self.name} acts on the positions and velocities of a mechanical "

@@ -94,6 +94,15 @@ class Composed:
             base = base.base
         self.base = base
         self.effect_list = list(effects)
+        seen = [e.name for e in self.effect_list]
+        twice = sorted({n for n in seen if seen.count(n) > 1})
+        if twice:
+            raise ValueError(f"{', '.join(twice)} added twice: an effect enters a model once")
+        for k, e in enumerate(self.effect_list):
+            for o in self.effect_list[:k]:
+                if o.name in e.excludes or e.name in o.excludes:
+                    raise ValueError(f"{e.name} cannot be simulated beside {o.name} in one "
+                                     "model")
         for e in self.effect_list:
             if not e.sites or not set(e.sites) <= set(SITES):
                 raise ValueError(f"{e.name} declares no site of {SITES} (Effect.sites)")

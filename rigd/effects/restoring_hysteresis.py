@@ -62,10 +62,14 @@ def bw_operator(p: np.ndarray, c: float, beta: float, gamma: float, sig: float) 
 
 
 @numba.njit(cache=True)
-def _deriv(K, D, a, c, beta, gamma, sig, k3, p, v, z, f, out_a, out_z):
+def _deriv(K, D, a, c, beta, gamma, sig, k3, k3c, p, v, z, f, out_a, out_z):
     m = p.shape[0]
+    pp = 0.0
+    for j in range(m):
+        pp += p[j] * p[j]
     for i in range(m):
-        s = f[i] - a[i] * (z[i] - c[i] * p[i]) - k3[i] * p[i] * p[i] * p[i]
+        s = (f[i] - a[i] * (z[i] - c[i] * p[i]) - k3[i] * p[i] * p[i] * p[i]
+             - k3c[i] * (pp - p[i] * p[i]) * p[i])
         for j in range(m):
             s -= K[i, j] * p[j] + D[i, j] * v[j]
         out_a[i] = s
@@ -74,9 +78,10 @@ def _deriv(K, D, a, c, beta, gamma, sig, k3, p, v, z, f, out_a, out_z):
 
 
 @numba.njit(cache=True)
-def bw_kernel(K, D, B, a, c, beta, gamma, sig, k3, x0, u, dt, nsub, foh):  # pragma: no cover
-    """p̈ + D ṗ + K p + k3∘p³ + a∘(z − c p) = B u, ż = c(ṗ − β|ṗ|z − γ ṗ|z|) (ṗ per ``sig``);
-    RK4 with ≥ ``nsub`` sub-steps per sample (more where the z law is stiff, ≤ 64)."""
+def bw_kernel(K, D, B, a, c, beta, gamma, sig, k3, k3c, x0, u, dt, nsub,
+              foh):  # pragma: no cover
+    """p̈ + D ṗ + K p + k3∘p³ + k3c∘(|p|² − p²)∘p + a∘(z − c p) = B u,
+    ż = c(ṗ − β|ṗ|z − γ ṗ|z|) (ṗ per ``sig``); RK4 with ≥ ``nsub`` sub-steps per sample (more where the z law is stiff, ≤ 64)."""
     n = u.shape[0]
     m = K.shape[0]
     nu = B.shape[1]
@@ -126,7 +131,7 @@ def bw_kernel(K, D, B, a, c, beta, gamma, sig, k3, x0, u, dt, nsub, foh):  # pra
                         zt[i] = z[i] + frac * h * kz[st - 1, i]
                 for i in range(m):
                     kv[st, i] = vt[i]
-                _deriv(K, D, a, c, beta, gamma, sig, k3, pt, vt, zt, f, ka[st], kz[st])
+                _deriv(K, D, a, c, beta, gamma, sig, k3, k3c, pt, vt, zt, f, ka[st], kz[st])
             for i in range(m):
                 p[i] += h / 6.0 * (kv[0, i] + 2 * kv[1, i] + 2 * kv[2, i] + kv[3, i])
                 v[i] += h / 6.0 * (ka[0, i] + 2 * ka[1, i] + 2 * ka[2, i] + ka[3, i])
@@ -150,6 +155,8 @@ class RestoringHysteresis(Effect):
     site = "restoring force"
     sites = ("state",)
     requires = ("mechanical",)
+    #: its own RK4 kernel (bw_kernel) carries K, D, B and the cubic terms, not dry friction
+    excludes = ("friction",)
     domains = STRUCTURAL  # a restoring force
     # generic records: in the default screening (docs/diagnose.md). Not offered on the
     # rotor's bearing sub-model: a gas film's force is not known to be hysteretic and no
@@ -181,16 +188,24 @@ class RestoringHysteresis(Effect):
         m = A.shape[0] // 2
         K, D, B = -A[m:, :m], -A[m:, m:], Bc[m:]
         fb = feedback.as_dict() if feedback is not None else {}
-        # bw_kernel takes K, D, B and a per-axis cubic term: a friction or cross cubic
-        # feedback beside it is left out, as the nested wrapper left it (docs/ARCHITECTURE.md)
+        # bw_kernel carries K, D, B and the cubic terms; dry friction beside it is refused,
+        # never silently simulated without
+        fr = fb.get("friction")
+        if fr is not None and np.any(np.asarray(fr, float)[0] != 0.0):
+            raise ValueError("the restoring-force hysteresis cannot be simulated with dry "
+                             "friction beside it on the same base (its Bouc–Wen kernel "
+                             "carries K, D, B and the cubic stiffness terms only)")
         K = K if fb.get("dK") is None else K + fb["dK"]
         D = D if fb.get("dD") is None else D + fb["dD"]
         B = B if fb.get("dB") is None else B + fb["dB"]
         k3 = np.zeros(m) if fb.get("k3") is None else np.asarray(fb["k3"], float)
+        k3c = (np.zeros(m) if fb.get("k3_cross") is None
+               else np.asarray(fb["k3_cross"], float))
         u = np.ascontiguousarray(data.inputs, float)
         a, c, be, ga = (np.ascontiguousarray(te[i * m:(i + 1) * m]) for i in range(4))
         y = bw_kernel(np.ascontiguousarray(K), np.ascontiguousarray(D), np.ascontiguousarray(B),
                       a, np.abs(c), be, ga, np.ones(m), np.ascontiguousarray(k3),
+                      np.ascontiguousarray(k3c),
                       np.ascontiguousarray(x0, dtype=float), u, 1.0 / float(data.fs),
                       _nsub(K, float(data.fs)), getattr(base, "hold", "zoh") == "foh")
         off = base.output_offset(theta_b) if hasattr(base, "output_offset") else None

@@ -111,9 +111,11 @@ def candidate_mode(u, r, fs, exclude_hz, hold="foh"):
 def _unresolved(st, theta) -> str:
     """'' when every pair of modes is resolvable, else which pair is not: closer than
     ``MIN_SEPARATION`` (relative) or with overlapping half-power bands (|f_i − f_j| ≤
-    ζ_i f_i + ζ_j f_j)."""
-    lam = np.linalg.eigvals(st.full_abcd(theta)[0])
-    modes = sorted((abs(v) / (2 * np.pi), -v.real / abs(v)) for v in lam if v.imag > 1e-9)
+    ζ_i f_i + ζ_j f_j). Each parallel mode counts once: its realisation repeats its pole
+    pair once per input (``ParallelModes.blocks``), which is one mode, not several."""
+    lam = np.linalg.eigvals(st.continuous(theta)[0])
+    modes = [(abs(v) / (2 * np.pi), -v.real / abs(v)) for v in lam if v.imag > 1e-9]
+    modes = sorted(modes + [(f, z) for f, z, _ in st.modes_of(theta)])
     for (f1, z1), (f2, z2) in zip(modes, modes[1:]):
         if f2 - f1 < MIN_SEPARATION * f2 or f2 - f1 <= z1 * f1 + z2 * f2:
             return f"the modes at {f1:.4g} Hz and {f2:.4g} Hz overlap"

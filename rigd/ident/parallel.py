@@ -138,17 +138,25 @@ class ParallelModes:
         return out
 
     def blocks(self, th) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
-        """(A, B, C) blocks of the modes in the whole linear part (one pair per mode and
-        input: the modes are driven from each input separately)."""
+        """(A, B, C) blocks of the modes in the whole linear part: a minimal realisation.
+
+        Mode k's transfer from input j to output i is g[j, i] ω²/(s² + 2ζω s + ω²): its
+        residue matrix gᵀ (ny, nu) has rank r ≤ min(nu, ny), and it takes r pole pairs
+        (gᵀ = Σ σ_q u_q v_qᵀ: pair q driven by ω² σ_q v_q, read by u_q) — one pair with one
+        input or one output, so the mode appears once in the poles and the read-outs
+        whatever the number of inputs. The simulation (:meth:`output`) drives the mode
+        from each input separately; both give the same response."""
         As, Bs, Cs = [], [], []
         for f, z, g in self.modes_of(th):
             w = 2 * np.pi * f
-            for j in range(self.nu):
+            U, sv, Vt = np.linalg.svd(np.asarray(g, float).T, full_matrices=False)
+            keep = [q for q in range(sv.size) if sv[q] > 1e-12 * max(sv[0], 1e-300)] or [0]
+            for q in keep:
                 As.append(np.array([[0.0, 1.0], [-w * w, -2 * z * w]]))
                 b = np.zeros((2, self.nu))
-                b[1, j] = w * w
+                b[1] = w * w * sv[q] * Vt[q]
                 Bs.append(b)
                 c = np.zeros((self.ny, 2))
-                c[:, 0] = g[j]
+                c[:, 0] = U[:, q]
                 Cs.append(c)
         return As, Bs, Cs

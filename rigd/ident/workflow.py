@@ -205,7 +205,12 @@ def _with_effects(bf, applied: list[Any], sm: str, init: ModelFile | None, metho
     if not applied:
         return structure, res
     nb = len(structure.names)
-    th_init = start_values(apply_effects(structure, applied), init, sm, bf.est_data)
+    try:   # an effect the base cannot carry, or two that cannot be simulated together
+        composed = apply_effects(structure, applied)
+    except ValueError as exc:
+        raise InputError(f"the {sm} model cannot take "
+                         f"{', '.join(e.name for e in applied)}: {exc}", "--add") from None
+    th_init = start_values(composed, init, sm, bf.est_data)
     starts = [None if th_init is None else th_init[nb:]]
     structure, res2, _ = refit_with(structure, res.theta, applied, bf.est_data, method,
                                     starts=starts)

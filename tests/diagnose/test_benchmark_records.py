@@ -147,11 +147,11 @@ def _restoring_record(seed):
     w = 2 * np.pi * 40.0
     K, D, Bm = np.array([[w * w]]), np.array([[2 * 0.03 * w]]), np.array([[w * w]])
     y0 = bw_kernel(K, D, Bm, np.zeros(1), np.ones(1), np.zeros(1), np.zeros(1), np.ones(1),
-                   np.zeros(1), np.zeros(2), u[:, None], 1 / fs, 4, True)[:, 0]
+                   np.zeros(1), np.zeros(1), np.zeros(2), u[:, None], 1 / fs, 4, True)[:, 0]
     sig = float(np.std(y0))  # the linear response's std: the loop's scale
     y = bw_kernel(K, D, Bm, np.array([0.4 * w * w * sig]), np.array([2.0 / sig]),
-                  np.array([0.5]), np.array([0.5]), np.ones(1), np.zeros(1), np.zeros(2),
-                  u[:, None], 1 / fs, 4, True)[:, 0]
+                  np.array([0.5]), np.array([0.5]), np.ones(1), np.zeros(1), np.zeros(1),
+                  np.zeros(2), u[:, None], 1 / fs, 4, True)[:, 0]
     y = y + 0.01 * np.std(y) * rng.standard_normal(n)
     return Record({"F": u, "x": y}, fs, {"inputs": ["F"], "outputs": ["x"]}, "<generated>")
 

@@ -48,6 +48,15 @@ def test_duplicate_add_is_refused_in_one_line(tmp_path, capsys):
     assert not (tmp_path / "m.yaml").exists()
 
 
+def test_effects_that_cannot_be_simulated_together_are_refused_in_one_line(tmp_path, capsys):
+    opts = _csv(tmp_path / "d.csv", B.duffing(seed=0, n=1500))
+    rc = main(["identify", str(tmp_path / "d.csv"), *opts, "--order", "2", "--method", "oe",
+               "--add", "friction,hysteresis_restoring", "-o", str(tmp_path / "m.yaml")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--add" in err and "beside friction" in err
+    assert err.strip().count("\n") == 0 and not (tmp_path / "m.yaml").exists()
+
+
 def test_compare_cubic_model_on_metres_and_millimetres(tmp_path, capsys):
     """The same record in m and in mm (and in km, µm): compare works on every scale and gives
     the same fit (the initial state was estimated by stepping x0 by 1.0, i.e. 1 m, which

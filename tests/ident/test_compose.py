@@ -224,30 +224,71 @@ def test_the_order_of_input_blocks_is_the_order_added():
     assert np.max(np.abs(y1 - y2)) > 1e-6 * np.max(np.abs(y1))
 
 
+def _composed_equals_written_out(base_of, nu, ny, seed, order):
+    data = _record(nu, ny, seed=seed)
+    base, tb = base_of(nu, ny)
+    th_e = _params(order, nu, ny)
+    th = np.concatenate([tb] + [th_e[nm] for nm in order])
+    _close(compose(base, [REGISTRY[nm] for nm in order]).simulate(th, data),
+           _by_hand(base, tb, order, th_e, data))
+
+
 @pytest.mark.parametrize("order", [
     ["cubic_stiffness", "hysteresis_restoring"],
     ["hysteresis_restoring", "delay", "extra_mode"],
     ["cross_coupling", "hysteresis_restoring", "static_nonlinearity"],
 ])
 def test_the_restoring_force_composes_with_the_others(order):
-    nu, ny = 2, 2
-    data = _record(nu, ny, seed=5)
-    base, tb = _mechanical(nu, ny)
-    th_e = _params(order, nu, ny)
-    th = np.concatenate([tb] + [th_e[nm] for nm in order])
-    _close(compose(base, [REGISTRY[nm] for nm in order]).simulate(th, data),
-           _by_hand(base, tb, order, th_e, data))
+    _composed_equals_written_out(_mechanical, 2, 2, 5, order)
 
 
 def test_input_and_output_effects_on_the_lti_base():
-    nu, ny = 2, 1
-    data = _record(nu, ny, seed=2)
-    base, tb = _lti(nu, ny)
-    order = ["delay", "static_nonlinearity", "extra_dynamics"]
-    th_e = _params(order, nu, ny)
-    th = np.concatenate([tb] + [th_e[nm] for nm in order])
-    _close(compose(base, [REGISTRY[nm] for nm in order]).simulate(th, data),
-           _by_hand(base, tb, order, th_e, data))
+    _composed_equals_written_out(_lti, 2, 1, 2, ["delay", "static_nonlinearity",
+                                                 "extra_dynamics"])
+
+
+def test_the_restoring_force_at_zero_size_is_the_base_with_the_same_cubic_terms():
+    # the Bouc–Wen kernel's own integration of the cubic and cross-axis cubic stiffness
+    # against the mechanical base's simulator given the same feedback (a = 0: no loop)
+    nu, ny = 2, 2
+    data = _record(nu, ny, seed=6)
+    base, tb = _mechanical(nu, ny)
+    cub = REGISTRY["cubic_stiffness"]
+    fb = cub.state_block(_theta_e("cubic_stiffness", nu, ny), data)
+    assert np.any(fb.k3_cross != 0)
+    te = _theta_e("hysteresis_restoring", nu, ny)
+    te[:ny] = 0.0
+    y = REGISTRY["hysteresis_restoring"].state_simulate(base, tb, te, fb, data)
+    ref = base.simulate(tb, data, fb)
+    assert np.max(np.abs(y - ref)) <= 1e-6 * float(np.max(np.abs(ref)))
+    y_lin = REGISTRY["hysteresis_restoring"].state_simulate(base, tb, te, None, data)
+    assert np.max(np.abs(y_lin - ref)) > 1e-3 * float(np.max(np.abs(ref)))
+
+
+def test_the_restoring_force_refuses_dry_friction_beside_it():
+    nu, ny = 1, 1
+    data = _record(nu, ny, seed=7)
+    base, tb = _mechanical(nu, ny)
+    order = ["friction", "hysteresis_restoring"]
+    th = np.concatenate([tb] + [_theta_e(nm, nu, ny) for nm in order])
+    with pytest.raises(ValueError, match="cannot be simulated beside friction"):
+        compose(base, [REGISTRY[nm] for nm in order])
+    with_friction = compose(base, [REGISTRY["friction"]])
+    assert "beside friction" in REGISTRY["hysteresis_restoring"].not_offered(with_friction)
+    # the kernel refuses it too, were the two ever handed to it together
+    fb = REGISTRY["friction"].state_block(_theta_e("friction", nu, ny), data)
+    with pytest.raises(ValueError, match="dry friction"):
+        REGISTRY["hysteresis_restoring"].state_simulate(
+            base, tb, th[-4 * ny:], fb, data)
+
+
+def test_an_effect_enters_a_model_once():
+    base, _ = _mechanical(1, 1)
+    once = compose(base, [REGISTRY["delay"]])
+    with pytest.raises(ValueError, match="delay added twice"):
+        once.with_effect(REGISTRY["delay"])
+    assert REGISTRY["delay"].not_offered(once) == "delay is already in the model"
+    assert REGISTRY["extra_dynamics"].not_offered(once) is None
 
 
 def test_parameters_bounds_readouts_and_linear_model_come_flat_from_the_parts():

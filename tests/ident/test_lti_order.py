@@ -54,6 +54,21 @@ def test_heater_with_a_three_sample_delay_is_first_order_with_that_delay():
     assert js["family"] in ("lti", "process") and js["delays_samples"] == c.delays
 
 
+@pytest.mark.parametrize("seed", [2, 4])
+def test_a_heater_fitted_with_the_other_hold_gets_no_integrator_it_does_not_need(seed):
+    # held steps fitted as if linear between samples (foh): half a sample of lag to carry,
+    # which a spare state can take; a slow real pole read as an integrator whose gain the
+    # refit then drives to nothing must not survive as "a pole at zero, static gain inf"
+    g = thermal(delay=3.0, tau_s=20.0, fs=2.0, n=1500, seed=seed)
+    d, est, val = _split(g)
+    c = choose_base(d, est, val, hold="foh")
+    ro = c.structure.readouts(c.theta)
+    assert ro["integrators"] == 0
+    assert ro["static_gain"][0][0] == pytest.approx(0.6, rel=0.1)
+    slow = max(m["time_constant_s"] for m in ro["modes"] if "time_constant_s" in m)
+    assert slow == pytest.approx(20.0, rel=0.15)
+
+
 def test_an_integrating_plant_gets_an_integrator_not_a_spring():
     g = integrator_loop("PI", n=3000, seed=2)
     d, est, val = _split(g)

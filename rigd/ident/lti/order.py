@@ -303,7 +303,10 @@ def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
         small = ref.states <= MAX_STATES
         (lti_ok if ref.fit_val >= top - REF_MARGIN and not covered and small
          else as_is).append(ref)
-    refined = [_refine(c, data, d_est, est, val, max_nfev) for c in lti_ok] + as_is
+    refined = [_refine(c, data, d_est, est, val, max_nfev) for c in lti_ok]
+    refined += [_refine(p, data, d_est, est, val, max_nfev)
+                for p in (_without_integrator(c, data, est, val) for c in refined)
+                if p is not None] + as_is
     best_by_family.pop("lti", None)
     if "process" in best_by_family:
         best_by_family["process"] = _refine(best_by_family["process"], data, d_est, est, val,
@@ -327,6 +330,31 @@ def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
     delays = list(getattr(pick.structure, "delays", [0] * len(d_est.input_names)))
     return BaseChoice(pick.structure, pick.theta, pick.family, pick.states, delays,
                       cands + [c for c in final if all(c is not x for x in cands)], why)
+
+
+def _without_integrator(cand: Candidate, data, est: slice, val: slice) -> Candidate | None:
+    """The refined LTI candidate ``cand`` without its last explicit integrator (None when
+    it has none), its other parameters kept: it competes beside ``cand``.
+
+    An integrator variant is built from a slow real pole before any refit
+    (:func:`lti_candidates`); after the output-error refit its gain can be nothing (a
+    first-order heater fitted with a spare state: gain 2e-5 ± 2e-5), and the model would
+    carry a pole at zero, an infinite static gain and an "integrator" reading the data do
+    not pay for. The same model without that state then fits as well with fewer parameters
+    and wins by the criterion (or by the validation check) in :func:`_pick`."""
+    m = cand.structure
+    if cand.family != "lti" or getattr(m, "ni", 0) < 1 or m.nx < 2:
+        return None
+    p = StateSpaceModel(m.input_names, m.output_names, m.fs, m.nc, m.nr, m.ni - 1,
+                        list(m.delays), m.hold, m.feedthrough, m.output_offsets,
+                        m.norm_rows[:-1])
+    p.set_record(getattr(m, "_n_est", None) or (est.stop - est.start))
+    index = {n: i for i, n in enumerate(m.names)}
+    if any(n not in index for n in p.names):  # the integrator is the last state
+        return None
+    th = _clip(p, np.asarray([cand.theta[index[n]] for n in p.names], float))
+    b, fe, fv = score(p, th, data, est, val, cand.skip)
+    return Candidate("lti", p.nx, p, th, b, fe, fv, len(p.names), cand.skip)
 
 
 def _oscillates(cand: Candidate) -> bool:
