@@ -89,9 +89,9 @@ class Effect:
     def not_offered(self, structure: Any, data: Any = None) -> str | None:
         """Why the base ``structure`` cannot carry this effect (None: it can): the effect
         is already in ``structure`` (a :class:`rigd.effects.compose.Composed`) or excluded
-        by one there (:attr:`excludes`, either way), or a requirement (:attr:`requires`) the base, or the record ``data``, lacks
-        (:func:`rigd.effects.compose.carries`; ``rotation`` is checked only with
-        ``data``)."""
+        by one there (:attr:`excludes`, either way), or a requirement (:attr:`requires`)
+        the base, or the record ``data``, lacks (:func:`rigd.effects.compose.carries`;
+        ``rotation`` is checked only with ``data``)."""
         inside = list(getattr(structure, "effect_list", ()))
         if self.name in (getattr(e, "name", None) for e in inside):
             return f"{self.name} is already in the model"

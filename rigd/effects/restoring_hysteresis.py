@@ -81,7 +81,8 @@ def _deriv(K, D, a, c, beta, gamma, sig, k3, k3c, p, v, z, f, out_a, out_z):
 def bw_kernel(K, D, B, a, c, beta, gamma, sig, k3, k3c, x0, u, dt, nsub,
               foh):  # pragma: no cover
     """p̈ + D ṗ + K p + k3∘p³ + k3c∘(|p|² − p²)∘p + a∘(z − c p) = B u,
-    ż = c(ṗ − β|ṗ|z − γ ṗ|z|) (ṗ per ``sig``); RK4 with ≥ ``nsub`` sub-steps per sample (more where the z law is stiff, ≤ 64)."""
+    ż = c(ṗ − β|ṗ|z − γ ṗ|z|) (ṗ per ``sig``); RK4 with ≥ ``nsub`` sub-steps per sample
+    (more where the z law is stiff, ≤ 64)."""
     n = u.shape[0]
     m = K.shape[0]
     nu = B.shape[1]
