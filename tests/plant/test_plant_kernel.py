@@ -126,11 +126,12 @@ def test_operating_point_staged_and_swapped_whole():
 
     th = threading.Thread(target=writer)
     th.start()
-    seen = set()
-    t_end = time.monotonic() + 0.4
-    try:
-        while time.monotonic() < t_end:
+    seen, writes = set(), 0
+    t_end = time.monotonic() + 120.0   # a hang guard: the loop ends on what it saw
+    try:   # until both sets were applied (a busy machine may starve the writer a while)
+        while (len(seen) < 2 or writes < 2000) and time.monotonic() < t_end:
             d.write(drive)
+            writes += 1
             key = round(float(d.params[k.ACT:k.ACT + k.NA].sum()), 9)
             assert key in sets
             seen.add(key)
