@@ -18,7 +18,8 @@ not a rotor's (``generic``):
    :data:`MIN_GAIN` points of the best, and the one with the fewest states) become the
    modal family: subspace poles, gains, initial state and offsets by least squares
    (:mod:`rigd.ident.lti.modal`; a slow real pole also as an explicit integrator), refined
-   by output error (:func:`rigd.ident.pem.fit`);
+   by output error (:func:`rigd.ident.pem.fit`); a refined one with an integrator competes
+   beside the same model without it (:func:`_without_integrator`);
    The yardstick's references join them (:mod:`rigd.ident.lti.references`): the ARX and
    subspace models selected on the estimation part alone are carried whole (poles, B, C, D;
    x0 and offsets by least squares) into modal models of their order (up to
