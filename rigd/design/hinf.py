@@ -151,7 +151,7 @@ def synthesize(G, weights: Weights, highpass: HighPass | None = None) -> HinfRes
     w = OMEGA_SCALE
     P = generalized_plant(_freq_scale(Ga, w), _freq_scale(Wp, w), _freq_scale(Wu, w), weights.W_d)
     gamma, Ks = _sb10ad(P, ny, nu)
-    g_opt, tried = gamma, []
+    g_opt, tried, loop_stable = gamma, [], None
     Kt = _unscale(Ks, w)
     if not _stable(Ks.A):
         for f in RELAX_FACTORS:
@@ -162,11 +162,13 @@ def synthesize(G, weights: Weights, highpass: HighPass | None = None) -> HinfRes
             Kft = _unscale(Kf, w)
             ok = _stable(Kf.A) and is_stable(G, H * Kft if H is not None else Kft)
             tried.append({"factor": f, "gamma": g, "controller_stable": ok})
-            if ok:
-                gamma, Kt = g, Kft
+            if ok:   # its loop was checked just now: not again below
+                gamma, Kt, loop_stable = g, Kft, True
                 break
     K = H * Kt if H is not None else Kt
-    return HinfResult(K=K, gamma=float(gamma), closed_loop_stable=is_stable(G, K),
+    if loop_stable is None:
+        loop_stable = is_stable(G, K)
+    return HinfResult(K=K, gamma=float(gamma), closed_loop_stable=loop_stable,
                       K_tilde=Kt, H=H, gamma_optimal=float(g_opt), relaxed=tried)
 
 
