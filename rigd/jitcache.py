@@ -14,8 +14,10 @@ unset — a plain ``rigd`` or ``python -m bench`` from a shell — the base is :
 (the virtual environment's ``numba-cache``, else ``~/.cache/rigd/numba``), never numba's own
 default (``__pycache__`` beside each file, where a stale caller survives a changed callee:
 ``python -m bench reynolds`` ran the plant compiled before 1594f91 that way, 1.74 Newton
-iterations per sub-step instead of 1.57). Folders of older source stay until removed
-(≈ 11 MB each).
+iterations per sub-step instead of 1.57). Folders of older source (≈ 11 MB each) are
+removed by the first process of a new source tree once unused for :data:`STALE_DAYS` days
+(:func:`prune`; each process marks its own folder used), so checkouts and upgrades do not
+pile them up; one still in use by an installed copy of other source is at most recompiled.
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ from pathlib import Path
 
 ENV = "NUMBA_CACHE_DIR"
 PREFIX = "src-"
+#: a ``src-`` folder of other source unused this long is removed (:func:`prune`)
+STALE_DAYS = 7.0
 
 
 def source_roots() -> list[Path]:
@@ -67,11 +71,36 @@ def configure(roots: list[Path] | None = None) -> str:
     """
     base = os.environ.get(ENV)
     path = Path(base) if base else default_base()
-    if path.name.startswith(PREFIX):
+    inherited = path.name.startswith(PREFIX)
+    if inherited:
         path = path.parent
     folder = str(path / (PREFIX + source_digest(roots if roots is not None else source_roots())))
+    if not inherited:   # once per process tree, not in every child
+        prune(path, Path(folder))
     os.environ[ENV] = folder
     config = sys.modules.get("numba.core.config")
     if config is not None:
         config.CACHE_DIR = folder
     return folder
+
+
+def prune(base: Path, current: Path, stale_days: float = STALE_DAYS) -> list[Path]:
+    """Mark ``current`` used (its modification time) and remove the other ``src-`` folders
+    of ``base`` unused for ``stale_days`` days; returns those removed. Best effort: a base
+    that cannot be read or written (a read-only install) is left as it is."""
+    import shutil
+    import time
+
+    removed = []
+    try:
+        if current.is_dir():
+            os.utime(current)
+        limit = time.time() - stale_days * 86400.0
+        for p in base.glob(PREFIX + "*"):
+            if p != current and p.is_dir() and p.stat().st_mtime < limit:
+                shutil.rmtree(p, ignore_errors=True)
+                if not p.exists():
+                    removed.append(p)
+    except OSError:
+        pass
+    return removed

@@ -104,3 +104,30 @@ def test_unset_cache_dir_is_keyed_too(tmp_path):
     assert out[0] == out[1]
     assert Path(out[0]).name.startswith(jitcache.PREFIX)
     assert Path(out[0]).parent == jitcache.default_base()
+
+
+def test_folders_of_other_source_unused_for_a_week_are_removed(tmp_path):
+    """A new source tree's first process removes the ``src-`` folders unused for
+    ``STALE_DAYS`` (checkouts and upgrades piled up 11 MB each), keeps recent ones and its
+    own, and leaves anything that is not a cache folder alone."""
+    import time
+
+    day = 86400.0
+    old, recent, mine, other = (tmp_path / n for n in ("src-old", "src-recent", "src-mine",
+                                                       "notes"))
+    for p in (old, recent, mine, other):
+        p.mkdir()
+        (p / "k.nbi").write_text("x")
+    now = time.time()
+    os.utime(old, (now - 10 * day, now - 10 * day))
+    os.utime(recent, (now - 1 * day, now - 1 * day))
+    os.utime(mine, (now - 30 * day, now - 30 * day))
+    os.utime(other, (now - 30 * day, now - 30 * day))
+    assert jitcache.prune(tmp_path, mine) == [old]
+    assert not old.exists() and recent.is_dir() and mine.is_dir() and other.is_dir()
+    assert mine.stat().st_mtime > now - day          # marked used: kept next time too
+    # and it happens when rigd is imported by the top process of a tree
+    os.utime(recent, (now - 10 * day, now - 10 * day))
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    subprocess.run([sys.executable, "-c", "import rigd"], env=env, timeout=120, check=True)
+    assert not recent.exists() and other.is_dir()
