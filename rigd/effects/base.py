@@ -85,6 +85,11 @@ class Effect:
     physics: str = ""
     min_score: float = 0.05
 
+    def clashes_with(self, other: Effect) -> bool:
+        """True when this effect and ``other`` cannot be simulated in one composed model
+        (either one's :attr:`excludes` names the other)."""
+        return other.name in self.excludes or self.name in other.excludes
+
     # --- diagnosis ----------------------------------------------------------------------
     def not_offered(self, structure: Any, data: Any = None) -> str | None:
         """Why the base ``structure`` cannot carry this effect (None: it can): the effect
@@ -93,10 +98,10 @@ class Effect:
         the base, or the record ``data``, lacks (:func:`rigd.effects.compose.carries`;
         ``rotation`` is checked only with ``data``)."""
         inside = list(getattr(structure, "effect_list", ()))
-        if self.name in (getattr(e, "name", None) for e in inside):
+        if self.name in (e.name for e in inside):
             return f"{self.name} is already in the model"
         for e in inside:
-            if e.name in self.excludes or self.name in getattr(e, "excludes", ()):
+            if self.clashes_with(e):
                 return f"{self.name} cannot be simulated beside {e.name} in one model"
         has = carries(structure, data)
         if "mechanical" in self.requires and "mechanical" not in has:

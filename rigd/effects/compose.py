@@ -100,7 +100,7 @@ class Composed:
             raise ValueError(f"{', '.join(twice)} added twice: an effect enters a model once")
         for k, e in enumerate(self.effect_list):
             for o in self.effect_list[:k]:
-                if o.name in e.excludes or e.name in o.excludes:
+                if e.clashes_with(o):
                     raise ValueError(f"{e.name} cannot be simulated beside {o.name} in one "
                                      "model")
         for e in self.effect_list:
