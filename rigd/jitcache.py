@@ -16,7 +16,7 @@ default (``__pycache__`` beside each file, where a stale caller survives a chang
 ``python -m bench reynolds`` ran the plant compiled before 1594f91 that way, 1.74 Newton
 iterations per sub-step instead of 1.57). Folders of older source (≈ 11 MB each) are
 removed by the first process of a new source tree once unused for :data:`STALE_DAYS` days
-(:func:`prune`; each process marks its own folder used), so checkouts and upgrades do not
+(:func:`prune`; that process marks its own folder used), so checkouts and upgrades do not
 pile them up; one still in use by an installed copy of other source is at most recompiled.
 """
 

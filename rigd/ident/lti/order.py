@@ -306,7 +306,7 @@ def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
          else as_is).append(ref)
     refined = [_refine(c, data, d_est, est, val, max_nfev) for c in lti_ok]
     refined += [_refine(p, data, d_est, est, val, max_nfev)
-                for p in (_without_integrator(c, data, est, val) for c in refined)
+                for p in (_without_integrator(c, data, d_est, est, val) for c in refined)
                 if p is not None] + as_is
     best_by_family.pop("lti", None)
     if "process" in best_by_family:
@@ -333,9 +333,12 @@ def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
                       cands + [c for c in final if all(c is not x for x in cands)], why)
 
 
-def _without_integrator(cand: Candidate, data, est: slice, val: slice) -> Candidate | None:
+def _without_integrator(cand: Candidate, data, d_est, est: slice, val: slice
+                        ) -> Candidate | None:
     """The refined LTI candidate ``cand`` without its last explicit integrator (None when
-    it has none), its other parameters kept: it competes beside ``cand``.
+    it has none), its other parameters kept: it competes beside ``cand``. The integrators
+    are the last states (``StateSpaceModel.block_states``), so every parameter of the model
+    without one is a parameter of ``cand``.
 
     An integrator variant is built from a slow real pole before any refit
     (:func:`lti_candidates`); after the output-error refit its gain can be nothing (a
@@ -349,10 +352,8 @@ def _without_integrator(cand: Candidate, data, est: slice, val: slice) -> Candid
     p = StateSpaceModel(m.input_names, m.output_names, m.fs, m.nc, m.nr, m.ni - 1,
                         list(m.delays), m.hold, m.feedthrough, m.output_offsets,
                         m.norm_rows[:-1])
-    p.set_record(getattr(m, "_n_est", None) or (est.stop - est.start))
+    p.set_record(d_est.n)
     index = {n: i for i, n in enumerate(m.names)}
-    if any(n not in index for n in p.names):  # the integrator is the last state
-        return None
     th = _clip(p, np.asarray([cand.theta[index[n]] for n in p.names], float))
     b, fe, fv = score(p, th, data, est, val, cand.skip)
     return Candidate("lti", p.nx, p, th, b, fe, fv, len(p.names), cand.skip)
