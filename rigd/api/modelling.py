@@ -146,7 +146,7 @@ class Identification:
 
 def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
              runout: Record | str | Path | None = None, add: str | list[str] | None = None,
-             method: str = "pem", init: Any = None, split: float | None = None,
+             method: str = "auto", init: Any = None, split: float | None = None,
              est: str | slice | None = None, val: str | slice | None = None,
              hold: str = "auto", offsets: bool = True, median: bool = True,
              runout_filter: bool = True, offset_samples: int = 2000,
@@ -165,8 +165,11 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
         Run-out record at the same operating point (needs ``phi``): run-out filter F_r(φ).
     add : str or list of str, optional
         Effects (``rigd.effects.REGISTRY``) added to the structure, e.g. ``["delay"]``.
-    method : {"pem", "oe"}
-        Prediction error (one-step predictor) or output error.
+    method : {"auto", "pem", "oe"}
+        Prediction error (one-step predictor) or output error; ``auto``: prediction error
+        for the rotor's actuator and bearing (the paper's method), output error for a
+        generic record (its held-out figure is a free-run simulation, as every peer tool's;
+        :func:`diagnose`'s default, so its base model is this one).
     init : Identification, ModelFile or path, optional
         Start from this model's parameters.
     split : float, optional
@@ -227,7 +230,7 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
 
 
 def identify_sweep(run_dir: str | Path, *, out: str | Path | None = None,
-                   jobs: int | None = None, method: str = "pem", split: float | None = None,
+                   jobs: int | None = None, method: str = "auto", split: float | None = None,
                    offsets: bool = True, median: bool = True, runout_filter: bool = True,
                    offset_samples: int = 2000):
     """Identify every point of a sweep run directory; reassemble G_bear(Ω, P_I).
@@ -484,7 +487,9 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
         Generic records: modes of the base model (as :func:`identify`).
     method : {"oe", "pem"}
         Fit method of the base model and of every refit (default output error: the base
-        model is then ``identify(..., method="oe")``'s, rigd.ident.pipeline).
+        model is then :func:`identify`'s — for a generic record with its default
+        ``method="auto"``, for the rotor's sub-models with ``method="oe"``;
+        rigd.ident.pipeline).
     init : Identification, ModelFile or path, optional
         Start the base fit from this model's parameters (as :func:`identify`).
 

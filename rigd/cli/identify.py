@@ -44,8 +44,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "structure (rigd.effects.REGISTRY names)")
     p.add_argument("--init", metavar="MODEL.yaml", help="start from a previous model's "
                    "parameters (default: automatic initial guess)")
-    p.add_argument("--method", choices=["pem", "oe"], default="pem",
-                   help="prediction error (one-step predictor, default) or output error")
+    p.add_argument("--method", choices=["auto", "pem", "oe"], default="auto",
+                   help="prediction error (one-step predictor) or output error; auto "
+                   "(default): prediction error for the rotor's actuator and bearing, output "
+                   "error for a generic record (as rigd diagnose)")
     p.add_argument("--split", type=float, default=None,
                    help="fraction of samples for estimation; the rest validates (default 2/3)")
     p.add_argument("--est", metavar="A:B", help="estimation samples (with --val; instead of "

@@ -85,7 +85,7 @@ def _fit_point(job: dict) -> dict:
         ro = load_record(job["runout"]) if job.get("runout") else None
         model = identify_record(rec, "bearing", runout=ro,
                                 options=PrefilterOptions(**job.get("options", {})),
-                                method=job.get("method", "pem"), split=job.get("split", 2 / 3))
+                                method=job.get("method", "auto"), split=job.get("split", 2 / 3))
         sm = model.submodels["bearing"]
         return {**job, "ok": True, "parameters": sm.parameters,
                 "std": dict(zip(sm.structure.names, map(float, sm.std))),
@@ -215,7 +215,7 @@ class SweepResult:
         return "\n".join(lines)
 
 
-def identify_sweep(run_dir, out=None, jobs: int | None = None, method: str = "pem",
+def identify_sweep(run_dir, out=None, jobs: int | None = None, method: str = "auto",
                    options=None, split: float = 2 / 3) -> SweepResult:
     """Identify every grid point of a sweep run directory in parallel (see module doc)."""
     job_list, notes = sweep_jobs(run_dir)

@@ -126,7 +126,7 @@ def residual_stats(y: np.ndarray, yhat: np.ndarray, names: list[str]) -> dict[st
 
 def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                     runout: Record | None = None, options: PrefilterOptions | None = None,
-                    method: str = "pem", init: ModelFile | None = None,
+                    method: str = "auto", init: ModelFile | None = None,
                     effects: Sequence[Any] = (), split: float = DEFAULT_SPLIT,
                     data_hash: str | None = None, hold: str | None = None,
                     order: str | int = "auto", est: slice | None = None,
@@ -141,7 +141,9 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     runout : Record, optional
         Run-out record at the same operating point (needs ``phi``).
     options : PrefilterOptions, optional
-    method : {"pem", "oe"}
+    method : {"auto", "pem", "oe"}
+        ``auto``: prediction error for the rotor's sub-models, output error for a generic
+        record (:data:`rigd.ident.pipeline.AUTO_METHOD`).
     init : ModelFile, optional
         Previous model: its parameters are the start values.
     effects : sequence of Effect, optional
@@ -163,10 +165,13 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         delays from the data (:func:`rigd.ident.lti.order.choose_base`, as ``rigd
         diagnose``); with an effect on a mechanical state, modes of the mechanical base.
     """
-    from rigd.ident.pipeline import FitSettings, effects_for, fit_base
+    import dataclasses
+
+    from rigd.ident.pipeline import FitSettings, effects_for, fit_base, method_for
 
     if isinstance(submodels, str):
         submodels = resolve_submodels(record, submodels)
+    method_for(method, "generic")     # an unknown method: refused before any fit
     settings = FitSettings(method=method, split=None if est is not None else split, est=est,
                            val=val, hold=hold or "auto", order=order, init=init,
                            options=options, runout=runout)
@@ -180,9 +185,10 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     prefilter_reports = {}
     split_info = {}
     for sm in submodels:
-        bf = fit_base(record, sm, settings)
+        used = method_for(method, sm)
+        bf = fit_base(record, sm, dataclasses.replace(settings, method=used))
         prefilter_reports[sm] = bf.prefilter
-        structure, res = _with_effects(bf, effects_for(effects, sm), sm, init, method)
+        structure, res = _with_effects(bf, effects_for(effects, sm), sm, init, used)
         subs[sm] = _submodel(sm, bf, structure, res)
         a, es, vs = bf.window[0], bf.est, bf.val
         split_info = {"estimation": [a + es.start, a + es.stop],

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from rigd import api
-from rigd.ident.pipeline import FitSettings, analysis_window
+from rigd.errors import InputError
+from rigd.ident.pipeline import FitSettings, analysis_window, method_for
 
 
 @pytest.fixture(scope="module")
@@ -15,7 +16,7 @@ def rec():
 
 
 def _ident(rec, **kw):
-    sub = api.identify(rec, "generic", method="oe", **kw).model
+    sub = api.identify(rec, "generic", **kw).model     # the defaults of both commands
     return sub.submodels["generic"], sub.split["base"]
 
 
@@ -31,6 +32,24 @@ def test_diagnose_base_is_identify_model(rec):
     np.testing.assert_allclose(part.steps[0].theta, sm.theta, rtol=1e-9, atol=1e-12)
     assert abs(part.fit_percent - sm.fit_percent["validation_mean"]) < 1e-9
     assert base_i == base_d  # method, window, split, hold, order, start, iterations
+
+
+def test_identify_default_method_is_the_papers_on_the_rotor_and_diagnoses_on_a_generic_record():
+    assert method_for("auto", "generic") == "oe"      # rigd diagnose's default
+    assert method_for("auto", "actuator") == method_for("auto", "bearing") == "pem"
+    assert method_for("pem", "generic") == "pem" and method_for("oe", "bearing") == "oe"
+    with pytest.raises(InputError, match="unknown fit method 'ls'") as exc:
+        method_for("ls", "generic")
+    assert exc.value.where == "--method"
+
+
+def test_identify_pem_on_a_generic_record_is_another_model(rec):
+    """The default matters: the same record by PEM is a different fit (so the equality above
+    is the defaults', not a coincidence)."""
+    sm, _ = _ident(rec)
+    sm_pem, base_pem = _ident(rec, method="pem")
+    assert base_pem["method"] == "pem" and sm.method == "oe"
+    assert not np.allclose(sm_pem.theta, sm.theta, rtol=1e-6)
 
 
 def test_init_is_honoured_by_both(rec, tmp_path):
