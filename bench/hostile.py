@@ -39,8 +39,8 @@ requests no cycle took within ``SAFE_WAIT_S``: must be 0), and ``hostile_loads_o
 not happen: the figure says so), ``hostile_per_pair`` ([hostile cycles, overruns, idle
 cycles, overruns] per pair) with ``hostile_minus_idle_mean`` / ``_stderr`` (the paired
 difference of the miss fractions and its standard error: 20 pairs, because the idle windows'
-own overruns vary by tens of per cent from one second to the next). Targets: SAFE p99 <= 50 ms; hostile miss fraction <= idle +
-1e-3.
+own overruns vary by tens of per cent from one second to the next). Targets: SAFE p99 <=
+50 ms; hostile miss fraction <= idle + 1e-3.
 
     python -m bench hostile        # about 80 s on an idle machine, bounded by max_s
 """
