@@ -274,6 +274,15 @@ def run() -> dict:
     return {"peers": table}
 
 
+def margin(row: dict) -> float | None:
+    """rigd's base held-out fit minus the better of the ARX and subspace models' (points;
+    issue 20's Must-show: >= -1), None when either side has no figure."""
+    base = row["rigd"].get("fit_percent")
+    refs = [row[k]["fit_percent"] for k in ("arx", "subspace")
+            if row.get(k, {}).get("fit_percent") is not None]
+    return None if base is None or not refs else round(base - max(refs), 2)
+
+
 def markdown(table: dict) -> str:
     """The table of docs/diagnose.md from :func:`run`'s ``peers`` object."""
     def cell(r, key="fit_percent"):
@@ -289,17 +298,28 @@ def markdown(table: dict) -> str:
         return (f"{r['fit_percent']:.2f} ({r['cpu_s']:.0f} s CPU) {r['family']} "
                 f"{r['states']} st., delays {r['delays']}")
 
+    def base(r):
+        out = cell(r)
+        d = r.get("diagnose_base")
+        if d is not None and r.get("fit_percent") is not None and \
+                abs(d - r["fit_percent"]) >= 0.01:
+            out += f"; diagnosed on another base: {d:.2f}"
+        return out
+
     lines = ["| record (n, in×out) | rigd base | rigd + effect | LTI base (choose_base) | "
-             "ARX (n) | subspace (order) | NARX FROLS |", "|---|---|---|---|---|---|---|"]
+             "ARX (n) | subspace (order) | NARX FROLS | base − best of ARX, subspace |",
+             "|---|---|---|---|---|---|---|---|"]
     for name, row in table.items():
         r = row["rigd"]
         eff = (f"{r['fit_percent_with_effect']:.2f} ({r['effect']})" if r.get("effect")
                else "none named" if "diagnose_base" in r else "not run")
+        m = margin(row)
         lines.append(
-            f"| {name} ({row['n']}, {row['inputs']}×{row['outputs']}) | {cell(r)} | {eff} | "
+            f"| {name} ({row['n']}, {row['inputs']}×{row['outputs']}) | {base(r)} | {eff} | "
             f"{lti(row.get('lti'))} | "
             f"{cell(row['arx'])} n={row['arx'].get('order', '–')} | {cell(row['subspace'])} "
-            f"n={row['subspace'].get('order', '–')} | {cell(row['narx'])} |")
+            f"n={row['subspace'].get('order', '–')} | {cell(row['narx'])} | "
+            f"{'–' if m is None else f'{m:+.2f}'} |")
     return "\n".join(lines)
 
 

@@ -44,4 +44,11 @@ def test_markdown_table():
            "narx": {"status": "failed: ValueError: x", "seconds": 0.5}}
     md = peers.markdown({"r": row}).splitlines()
     assert md[2] == ("| r (10, 1×1) | 90.00 (3 s) | 95.00 (delay) | 91.00 (2 s CPU) lti 2 st., "
-                     "delays [1] | 91.50 (1 s) n=3 | diverged n=– | failed |")
+                     "delays [1] | 91.50 (1 s) n=3 | diverged n=– | failed | -1.50 |")
+    # diagnose's base shown when it is another model's (the mechanical base); no margin
+    # without a reference figure
+    row["rigd"]["diagnose_base"] = 71.1
+    row["arx"] = {"fit_percent": None, "status": "diverged", "seconds": 1.0}
+    md = peers.markdown({"r": row}).splitlines()
+    assert "90.00 (3 s); diagnosed on another base: 71.10 |" in md[2]
+    assert md[2].endswith("| failed | – |")
