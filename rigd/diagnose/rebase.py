@@ -34,7 +34,9 @@ def alternatives(bf, sd) -> list[Any]:
     More states, not other candidates of the linear search: what the curve's distortion
     took from the linear part is a lag or a delay standing in for a missing state (the
     exponential valve curve before two lags: one lag + 4 samples of delay), and a
-    block-oriented model's linear part is of the plant's own order.
+    block-oriented model's linear part is of the plant's own order. Where the exact-order
+    model has input delays, the same order without them is tried too (the delays were
+    checked on the linear model, without the curve).
     """
     from rigd.ident.lti.order import MAX_STATES, OrderRefused, choose_base
 
@@ -49,10 +51,32 @@ def alternatives(bf, sd) -> list[Any]:
         if n > MAX_STATES:
             break
         try:
-            out.append(choose_base(bf.data, bf.est, bf.val, order=n, hold=bf.hold.hold))
+            c = choose_base(bf.data, bf.est, bf.val, order=n, hold=bf.hold.hold)
         except (OrderRefused, ValueError, np.linalg.LinAlgError):
             continue
+        out.append(c)
+        if any(c.delays):
+            z = _without_delays(bf, n)
+            if z is not None:
+                out.append(z)
     return out
+
+
+def _without_delays(bf, n: int):
+    """The general LTI model of ``n`` states and no input delay on ``bf``'s split (the same
+    start and refinement as an order asked, :mod:`rigd.ident.lti.order`), or None."""
+    from rigd.ident.lti.candidates import settle
+    from rigd.ident.lti.order import BaseChoice, _refine, lti_candidates
+
+    d_est = bf.data.slice(bf.est.start, bf.est.stop)
+    zero = [0] * len(d_est.input_names)
+    cands = [c for c in lti_candidates(bf.data, d_est, bf.est, bf.val, n, zero, bf.hold.hold,
+                                       skip=settle(zero)) if np.isfinite(c.bic)]
+    if not cands:
+        return None
+    best = _refine(min(cands, key=lambda c: c.bic), bf.data, d_est, bf.est, bf.val, None)
+    return BaseChoice(best.structure, best.theta, "lti", n, zero, cands,
+                      f"order {n}, no input delay", n)
 
 
 def _curves(sd) -> list[str]:
@@ -67,7 +91,11 @@ def best_final(sd, alts: list[tuple[Any, Any]]):
 
     if not alts:
         return sd, None
-    cand, alt = max(alts, key=lambda ca: ca[1].final.fit_percent)
+    # within MIN_FIT_GAIN of the best final fit, the fewest delay samples, then states: what
+    # the held-out part does not pay for is not kept
+    top = max(d.final.fit_percent for _, d in alts)
+    cand, alt = min((ca for ca in alts if ca[1].final.fit_percent >= top - MIN_FIT_GAIN),
+                    key=lambda ca: (sum(ca[0].delays), ca[0].states))
     a, b = sd.final.fit_percent, alt.final.fit_percent
     path = " -> ".join(f"{s.added or 'base'} {s.fit_percent:.2f} %" for s in alt.steps)
     what = (f"{cand.family}, {cand.states} state(s), input delays "
@@ -75,6 +103,7 @@ def best_final(sd, alts: list[tuple[Any, Any]]):
     if b >= a + MIN_FIT_GAIN:
         return alt, (f"with the static curve in, the linear part chosen again: from {what} "
                      f"{path}, against {a:.2f} % from the first base — kept (rigd identify "
-                     f"--order {cand.states} --add {' '.join(_curves(alt))} fits it)")
+                     f"--order {cand.states} --add {','.join(_curves(alt))} fits that order; "
+                     f"its delays are checked there without the curve)")
     return sd, (f"with the static curve in, the linear part tried again from {what}: "
                 f"{path}; the first base's {a:.2f} % kept")
