@@ -174,6 +174,9 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
         notes.append(f"{sub}: state-level effects screened on the mechanical n-DOF base as "
                      f"well (the general LTI base has no input delay or integrator: "
                      f"docs/diagnose.md): {why}")
+    rechosen = None
+    if not effects and refit and on is None:
+        sd, rechosen = _rebased(bf, sd, ys, run, sub, notes)
     if bf.order is not None:
         sd.order = bf.order.to_json()
         if on is not None:
@@ -181,6 +184,8 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
     sd.base = bf.to_json()
     if on is not None:
         sd.base["diagnosed_on"] = on
+    if rechosen is not None:
+        sd.base["rechosen_with_curve"] = rechosen
     notes += [f"{sub}: {n}" for n in sd.notes]
     for st, what in ((sd.steps[0], "base model"), (sd.final, "final model")):
         if what == "final model" and len(sd.steps) == 1:
@@ -193,14 +198,41 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
     return sd
 
 
-def _carried_worth(bf) -> dict[str, float] | None:
-    """What the input delays of a generic record's base are worth on held-out data
+def _rebased(bf, sd: SubDiagnosis, ys, run, sub: str, notes: list[str]):
+    """(``sd`` or the diagnosis from another linear candidate, what was chosen or None):
+    another candidate is diagnosed when a static curve was added, and kept when its final
+    model fits better (rigd.diagnose.rebase)."""
+    import copy
+
+    from rigd.diagnose import rebase
+
+    alts = rebase.alternatives(bf, sd)
+    if not alts:
+        return sd, None
+    runs = [(c, run(c.structure, c.theta, copy.copy(ys),
+                    _carried_worth(bf, c.structure, c.theta))) for c in alts]
+    kept, why = rebase.best_final(sd, runs)
+    notes.append(f"{sub}: {why}")
+    if kept is sd:
+        return sd, None
+    cand = next(c for c, d in runs if d is kept)
+    return kept, {"family": cand.family, "states": int(cand.states),
+                  "delays": [int(d) for d in getattr(cand.structure, "delays", [])],
+                  "fit_percent": round(float(kept.fit_percent), 3),
+                  "identify_base_fit_percent": round(float(sd.fit_percent), 3),
+                  "identify_base_final_fit_percent": round(float(sd.final.fit_percent), 3)}
+
+
+def _carried_worth(bf, structure=None, theta=None) -> dict[str, float] | None:
+    """What the input delays of a generic record's base (or of ``structure`` at ``theta``,
+    another base of it) are worth on held-out data
     (:func:`rigd.ident.lti.delay_worth.delay_worth`), for the ``delay`` it carries."""
     if bf.order is None:
         return None
     from rigd.ident.lti.delay_worth import delay_worth
 
-    pts = delay_worth(bf.structure, bf.theta, bf.data, bf.est, bf.val)
+    pts = delay_worth(structure or bf.structure, bf.theta if theta is None else theta,
+                      bf.data, bf.est, bf.val)
     return None if pts is None else {"delay": pts}
 
 

@@ -41,24 +41,22 @@ def _shares_checked(out):
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_tank_overflow_nothing_forced_unexplained_at_the_top(seed):
-    """Cascaded tanks with overflow: no catalogue effect is named; the residual is reported
-    as unexplained, localised at the top of the measured level (where it overflows)."""
+def test_tank_overflow_square_root_outflows_named_at_the_input_overflow_left_unexplained(seed):
+    """Cascaded tanks with overflow: the square-root outflows make the steady level
+    quadratic in the pump voltage (x₂ = (k₂k₄/k₁k₃)² u²) — a static curve at the input, the
+    Hammerstein form the benchmark is known for: ``static_nonlinearity`` named there and the
+    held-out error cut ≥ 3×, nothing else named. The overflow and the level-dependent time
+    constants are no static curve: the rest stays reported as structured and unexplained,
+    not forced onto another name."""
     rec = B.tank_overflow(seed=seed)
     d = diagnose_record(rec)
     out = d.to_json()
-    assert significant(d) == [], out["findings"][:3]
+    assert significant(d) == ["static_nonlinearity"], out["findings"][:3]
+    assert out["findings"][0]["site"] == "input", out["findings"][0]
+    assert 100 - out["fit_percent"] >= 3 * (100 - out["steps"][-1]["fit_percent"])
     un = out["unexplained"]
     _shares_checked(out)
     assert un and un[0]["where"]["residual"] == "structured", un
-    sat = [u for u in un if "amplitude_range" in u["where"]]
-    assert sat, [u["text"] for u in un]
-    lo, hi = sat[0]["where"]["amplitude_range"]
-    y = rec.col("level2")
-    # in the record's own units, in the top tenth of the measured range
-    top = y.min() + 0.9 * np.ptp(y)
-    assert top <= lo < hi <= y.max() + 1e-9, (lo, hi, top)
-    assert "saturation" in sat[0]["text"]
 
 
 @pytest.mark.parametrize("seed,fs", [(4, 200.0), (4, 1.0), (5, 200.0)])

@@ -2,6 +2,10 @@
 
 * :func:`hammerstein` — static input curve v = f(u), then second-order linear dynamics;
 * :func:`wiener` — linear dynamics x = G u, then a static output curve y = g(x);
+* :func:`wiener_two_outputs` — one input, two first-order lags of different time
+  constants, each read through its own static curve (a MIMO Wiener, per-output curves);
+* :func:`state_dependent_lag` — a first-order plant whose time constant depends on its own
+  state (Arrhenius-like: faster when hot), not block-oriented;
 * :func:`bouc_wen` — m ÿ + c ẏ + k y + z = u with ż = α ẏ − β(γ|ẏ| z + δ ẏ |z|)
   (hysteresis in the restoring force), RK4 on a grid 20× finer than the record.
 """
@@ -60,6 +64,51 @@ def wiener(curve: str = "saturation", f_hz: float = 0.5, zeta: float = 0.5, fs: 
                  closed_loop=False)
     return Generated(u, add_noise(clean, snr_db, rng), fs, ["voltage"], ["reading"],
                      {"voltage": "V", "reading": "mV"}, truth, clean)
+
+
+def wiener_two_outputs(curves=("saturation", "square"), taus_s=(30.0, 80.0),
+                       fs: float = 0.5, n: int = 3000, snr_db: float = 40.0, seed: int = 0,
+                       scale: float = 2.0) -> Generated:
+    """Inlet valve (%) → outlet temperature (K) and pressure (kPa): two first-order lags
+    (time constants ``taus_s``, s; gains 1) of the same input, each output read through its
+    own curve ``scale·g(x/scale)`` (``curves``); levels held 0.3–3 of the slower lag."""
+    rng = np.random.default_rng(seed)
+    slow = max(taus_s)
+    u = 40.0 + held_steps(n, rng, (max(1, int(0.3 * slow * fs)), int(3 * slow * fs)),
+                          amp=1.5 * scale)[:, 0]
+    x = simulate_ct(np.diag([-1.0 / t for t in taus_s]),
+                    np.array([[1.0 / t] for t in taus_s]), np.eye(2), np.zeros((2, 1)),
+                    u - 40.0, fs)
+    clean = np.column_stack([scale * CURVES[c](x[:, i] / scale) for i, c in enumerate(curves)])
+    clean = clean + np.array([350.0, 120.0])
+    truth = dict(kind="wiener", nonlinearity=dict(site="output", curve=list(curves),
+                 scale=scale), order=2, time_constants=list(taus_s), delays=[0.0],
+                 integrator=False, closed_loop=False)
+    return Generated(u[:, None], add_noise(clean, snr_db, rng), fs, ["valve"],
+                     ["temperature", "pressure"],
+                     {"valve": "%", "temperature": "K", "pressure": "kPa"}, truth, clean)
+
+
+def state_dependent_lag(tau_s: float = 20.0, activation: float = 1.2, fs: float = 2.0,
+                        n: int = 4000, snr_db: float = 40.0, seed: int = 0,
+                        sub: int = 20) -> Generated:
+    """Heating power (kW) → temperature rise (K): τ(x) ẋ = −x + u with τ(x) =
+    τ₀·exp(−activation·x/x_ref) (faster when hot, x_ref the steady state of the mean
+    input), Euler on a grid ``sub`` times finer; levels held 0.2–2 τ₀."""
+    rng = np.random.default_rng(seed)
+    u = 1.0 + held_steps(n, rng, (max(1, int(0.2 * tau_s * fs)), int(2 * tau_s * fs)),
+                         amp=0.8)[:, 0]
+    h, x, y = 1.0 / (fs * sub), 1.0, np.empty(n)
+    for i in range(n):
+        y[i] = x
+        for _ in range(sub):
+            x += h * (u[i] - x) / (tau_s * np.exp(-activation * (x - 1.0)))
+    clean = y[:, None]
+    truth = dict(kind="state_dependent_lag", nonlinearity=dict(site="state",
+                 effect="state-dependent time constant"), order=1, delays=[0.0],
+                 integrator=False, closed_loop=False)
+    return Generated(u[:, None], add_noise(clean, snr_db, rng), fs, ["power"], ["rise"],
+                     {"power": "kW", "rise": "K"}, truth, clean)
 
 
 @numba.njit(cache=True)

@@ -399,3 +399,24 @@ def test_a_model_file_naming_an_effect_its_base_cannot_carry_is_refused(tmp_path
     with pytest.raises(InputError, match="positions and velocities") as exc:
         load_model(path, resolve_effects=resolve)
     assert "m.yaml" in str(exc.value)
+
+
+def test_static_nonlinearity_of_degree_five_is_the_polynomial_written_out():
+    """A curve of another degree (powers 2 … 5 per input and per output, its own per
+    output on a 2 × 2 record) is the polynomial written out, in the parameters' order."""
+    import copy
+
+    nu, ny = 2, 2
+    data = _record(nu, ny)
+    base, tb = _mechanical(nu, ny)
+    u = np.asarray(data.inputs, float)
+    eff = copy.copy(REGISTRY["static_nonlinearity"])
+    eff.degree = 5
+    names = eff.param_names(base)
+    assert len(names) == 4 * (nu + ny) and names[:4] == [f"sn_in{k}_0" for k in (2, 3, 4, 5)]
+    a = np.array([[0.3, -0.2, 0.05, 0.01], [-0.1, 0.1, 0.02, -0.01]])
+    c = np.array([[0.05, 0.02, -0.01, 0.002], [0.0, 0.03, 0.0, -0.004]])
+    y = base.simulate(tb, replace_inputs(data, u + sum(a[:, k] * u ** (k + 2)
+                                                       for k in range(4))))
+    _close(compose(base, [eff]).simulate(np.r_[tb, a.ravel(), c.ravel()], data),
+           y + sum(c[:, k] * y ** (k + 2) for k in range(4)))
