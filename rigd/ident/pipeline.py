@@ -27,6 +27,7 @@ import numpy as np
 
 from rigd.errors import InputError
 from rigd.ident.iddata import channels_for, from_record
+from rigd.ident.pem import METHODS as FIT_METHODS
 from rigd.ident.prefilter import apply_prefilters
 
 #: fraction of samples used for estimation when no split is given
@@ -39,7 +40,7 @@ MAX_SAMPLES = 40_000
 #: a free-run simulation, which output error minimises (and ``rigd diagnose``'s default: its
 #: base model is then identify's). On the DaISy CSTR: PEM 86.30 %, OE 87.59 %, ARX 87.75 %.
 AUTO_METHOD = {"actuator": "pem", "bearing": "pem", "generic": "oe"}
-METHODS = ("auto", "pem", "oe")
+METHODS = ("auto", *FIT_METHODS)   # rigd.ident.pem.METHODS, plus "auto"
 
 
 def method_for(method: str, submodel: str) -> str:
