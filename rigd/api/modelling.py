@@ -513,7 +513,9 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
     rec = as_record(data, **load_kw)
     ro = as_record(runout) if runout is not None else None
     _check_parts(est_s, val_s, rec.n)
-    if method not in ("oe", "pem"):
+    from rigd.ident.pem import METHODS as FIT_METHODS
+
+    if method not in FIT_METHODS:
         raise InputError(f"unknown fit method {method!r} (known: oe, pem)", "--method")
     diag = diagnose_record(rec, runout=ro, submodels=submodels, est=est_s, val=val_s,
                            effects=names, refit=refit, hold=hold, split=split,
