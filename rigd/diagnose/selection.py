@@ -34,6 +34,10 @@ class Refit:
     yhat: np.ndarray
     fit_percent: float
     seconds: float
+    #: parameters the refit kept at their start (``Effect.refit_fixed``)
+    fixed: tuple[str, ...] = ()
+    #: the signature the refit was started from (an effect's alternative form, or None)
+    sig: Any = None
 
 
 @dataclass
@@ -45,6 +49,8 @@ class Step:
     structure: Any
     theta: np.ndarray
     yhat: np.ndarray
+    #: parameters its refit kept at their start; a refit of the step keeps them there too
+    fixed: tuple[str, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         return {"added": self.added, "fit_percent": round(float(self.fit_percent), 3)}
@@ -63,20 +69,43 @@ def val_err(ctx: Context, yhat: np.ndarray) -> float:
     return float(np.sum(e ** 2))
 
 
-def refit_effect(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe") -> Refit:
+def refit_effect(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe",
+                 kept: tuple[str, ...] = ()) -> Refit:
     """Fit ``ctx.structure`` extended by ``eff``, warm-started from the signature
-    (:func:`rigd.ident.pipeline.refit_with`, as ``rigd identify --add``)."""
+    (:func:`rigd.ident.pipeline.refit_with`, as ``rigd identify --add``); ``kept``: the
+    parameters the earlier steps' refits kept at their start stay there (a curve's other
+    sites). An effect that offers other forms of itself (``refit_alternatives(ctx, sig)``:
+    a curve's state site beside its input or output site) has each refitted too; one is
+    kept instead when it fits the held-out part better by ``MIN_FIT_GAIN`` points (its
+    signature then in ``Refit.sig``). A form marked ``extra["refines"]`` (a second curve
+    beside the first) is refitted only when the form kept so far gained ``MIN_FIT_GAIN``
+    points on the model: on a large base each refit costs minutes."""
+    t0 = time.perf_counter()
+    best = _refit_one(eff, ctx, sig, data_est, max_nfev, method, kept)
+    fp0 = float(np.mean(fit_percent(ctx.y[ctx.val], ctx.yhat[ctx.val])))
+    for alt in getattr(eff, "refit_alternatives", lambda c, s: [])(ctx, sig):
+        if alt.extra.get("refines") and best.fit_percent < fp0 + MIN_FIT_GAIN:
+            continue  # a refinement of a form that did not matter: not worth its refit
+        other = _refit_one(eff, ctx, alt, data_est, max_nfev, method, kept)
+        if other.fit_percent >= best.fit_percent + MIN_FIT_GAIN:
+            best = other
+    best.seconds = time.perf_counter() - t0
+    return best
+
+
+def _refit_one(eff, ctx: Context, sig, data_est, max_nfev, method: str,
+               kept: tuple[str, ...]) -> Refit:
     from rigd.ident.pipeline import refit_with
 
-    t0 = time.perf_counter()
     structure, theta, data = ctx.structure, ctx.theta, ctx.data
     # an effect may offer several starts (loop shapes): the fit with the lowest estimation
     # cost is kept (never chosen on the validation part)
     starts = (eff.refit_starts(ctx, sig) if hasattr(eff, "refit_starts")
               else [eff.warm_start(ctx, sig)])
     # parameters an effect keeps at their start in the refit (a redundant scale)
-    fixed = list(getattr(eff, "refit_fixed", lambda e, s=None: [])(eff.extend(structure),
-                                                                    sig)) or None
+    fixed = list(kept) + list(getattr(eff, "refit_fixed", lambda e, s=None: [])(
+        eff.extend(structure), sig))
+    fixed = fixed or None
     ext, best, th0 = refit_with(structure, theta, [eff], data_est, method, starts=starts,
                                 fixed=fixed, max_nfev=max_nfev)
     try:
@@ -93,7 +122,7 @@ def refit_effect(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe")
     if not np.all(np.isfinite(yw)):
         th, yw = th0, ctx.yhat
     fw = float(np.mean(fit_percent(ctx.y[ctx.val], yw[ctx.val])))
-    return Refit(ext, th, yw, fw, time.perf_counter() - t0)
+    return Refit(ext, th, yw, fw, 0.0, tuple(fixed or ()), sig)
 
 
 def _words(eff, ctx: Context, sig) -> tuple[str, dict[str, Any]]:
@@ -125,9 +154,10 @@ def _refitted_words(eff, ctx: Context, f: Finding, theta_e: np.ndarray) -> None:
 
 
 def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
-            cannot: list[CannotReveal] | None,
-            method: str = "oe") -> tuple[list[Finding], dict[str, Refit]]:
-    """Signature test (and refit) of each effect in ``names`` on the model of ``ctx``.
+            cannot: list[CannotReveal] | None, method: str = "oe",
+            kept: tuple[str, ...] = ()) -> tuple[list[Finding], dict[str, Refit]]:
+    """Signature test (and refit) of each effect in ``names`` on the model of ``ctx``
+    (``kept``: parameters every refit keeps at their start, :func:`refit_effect`).
 
     ``score`` is the share of *this* model's validation error energy the effect removes;
     effects the record cannot reveal go to ``cannot`` (when given) and are skipped.
@@ -164,8 +194,13 @@ def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             if getattr(eff, "costly_refit", False)
             else sig.score > 0.005 or sig.f_p < P_LEVEL)
         if refit and worth_refit:
-            ref = refit_effect(eff, ctx, sig, data_est, max_nfev, method)
+            ref = refit_effect(eff, ctx, sig, data_est, max_nfev, method, kept)
             refits[name] = ref
+            if ref.sig is not None and ref.sig is not sig:  # another form of it fits
+                sig = ref.sig
+                text, ev = _words(eff, ctx, sig)
+                f.explanation = text
+                f.evidence = dict(ev, signature_p=sig.f_p, signature_k=sig.k)
             gain = max(0.0, 1.0 - val_err(ctx, ref.yhat) / err) if err > 0 else 0.0
             f.fit_percent_with = ref.fit_percent
             f.score = gain
@@ -280,7 +315,8 @@ class Selection:
                 findings = []
                 break
             findings, self.round_refits = screen(ctx, rest, self.refit, self.data_est,
-                                                  self.max_nfev, None, self.method)
+                                                  self.max_nfev, None, self.method,
+                                                  step.fixed)
         return added, findings, err_cur
 
     def _add(self, ctx: Context, top: Finding, added: list[Finding], err_cur: float,
@@ -296,7 +332,8 @@ class Selection:
             top.evidence["found_after"] = [f.effect for f in added]
         top.evidence["step"] = len(added) + 1
         added.append(top)
-        step = Step(top.effect, ref.fit_percent, ref.structure, ref.theta, ref.yhat)
+        step = Step(top.effect, ref.fit_percent, ref.structure, ref.theta, ref.yhat,
+                    ref.fixed)
         hold = self.other_hold
         alt = try_hold(step, self.ctx0, hold, self.data_est, self.method) if hold else None
         if alt is not None:
@@ -309,7 +346,8 @@ class Selection:
             top.fit_percent_with = alt.fit_percent
             top.score = ((err_cur - val_err(ctx, alt.yhat)) / err_base if err_base > 0
                          else 0.0)
-            ref = Refit(alt.structure, alt.theta, alt.yhat, alt.fit_percent, ref.seconds)
+            ref = Refit(alt.structure, alt.theta, alt.yhat, alt.fit_percent, ref.seconds,
+                        alt.fixed)
             step, self.other_hold = alt, None
         self.refits[top.effect] = ref
         self.steps.append(step)
@@ -332,8 +370,7 @@ def try_hold(step: Step, ctx0: Context, hold: str, data_est,
         if isinstance(vars(obj).get("hold"), str):
             obj.hold = hold
         obj, seen = vars(obj).get("base"), seen + 1
-    eff = REGISTRY.get(step.added or "")
-    fixed = list(getattr(eff, "refit_fixed", lambda e: [])(st)) or None
+    fixed = list(step.fixed) or None  # what the step's own refit kept (a curve's sites)
     try:
         th = fit_model(st, data_est, theta0=step.theta, fixed=fixed, method=method).theta
         yh = np.asarray(st.simulate(th, ctx0.data), float)
@@ -342,4 +379,5 @@ def try_hold(step: Step, ctx0: Context, hold: str, data_est,
     if not np.all(np.isfinite(yh)):
         return None
     fp = float(np.mean(fit_percent(ctx0.y[ctx0.val], yh[ctx0.val])))
-    return Step(step.added, fp, st, th, yh) if fp >= step.fit_percent + MIN_FIT_GAIN else None
+    return (Step(step.added, fp, st, th, yh, step.fixed)
+            if fp >= step.fit_percent + MIN_FIT_GAIN else None)

@@ -132,12 +132,27 @@ TEMPLATES: dict[tuple[str, str], dict[str, Words]] = {
 # --- the domain-neutral entries -----------------------------------------------------------
 def _static(ev: dict[str, Any]) -> str:
     site = ev["site"]
+    if site == "input+output":
+        bends = dict(zip(ev.get("channels", [ev["channel"]]), ev["bend_at_spread"]))
+        parts = ", ".join(f"{c} by about {N.share(b)}" for c, b in bends.items())
+        return (f"the error is a smooth function of the levels of the input and of the model "
+                f"output: static curves at the input and at the output, bending {parts} at "
+                f"their spreads (Hammerstein–Wiener form); {_explains(ev)}")
     signal = "the input" if site == "input" else "the model output"
     bend = max(ev["bend_at_spread"] or [0.0])
     form = "Hammerstein" if site == "input" else "Wiener"
     return (f"the error is a smooth function of the level of {signal} ({ev['channel']}): a "
             f"static curve at the {site} bending it by about {N.share(bend)} at its spread "
             f"({form} form); {_explains(ev)}")
+
+
+def _static_state(ev: dict[str, Any]) -> str:
+    share = ev["signal_share"].get(ev["channel"], 0.0)
+    return (f"the error follows the levels of the signals inside the dynamics, not a curve "
+            f"before or after them: a static curve of {ev['channel']} ({N.share(share)} of "
+            f"the effect; every input and output carries one) fed back into the "
+            f"{ev['states']} states (Lur'e form: a rate that depends on a level); "
+            f"{_explains(ev)}")
 
 
 def _friction(ev: dict[str, Any], domain: str) -> str:
@@ -175,6 +190,8 @@ def _lag_path(ev: dict[str, Any]) -> str:
 NEUTRAL: dict[tuple[str, str], dict[str, Words]] = {
     ("static_nonlinearity", "static_nonlinearity.input"): {"*": _static},
     ("static_nonlinearity", "static_nonlinearity.output"): {"*": _static},
+    ("static_nonlinearity", "static_nonlinearity.input_output"): {"*": _static},
+    ("static_nonlinearity", "static_nonlinearity.state"): {"*": _static_state},
     ("friction", "friction.coulomb"): {d: (lambda ev, d=d: _friction(ev, d))
                                        for d in ("rotor", "mechanical", "process", "generic")},
     ("integrator", "integrator.in_base"): {"*": _integrator},

@@ -231,6 +231,15 @@ class Effect:
         """
         return None
 
+    def fixed_names(self, base: Any) -> list[str]:
+        """Parameters of this effect no fit moves (default: none)."""
+        return []
+
+    def owns_state(self, base: Any) -> bool:
+        """True when this state-level effect simulates the model itself on ``base``
+        (``state_simulate``); False when, on this base, it has no state part."""
+        return True
+
     def warm_start(self, ctx: Context, sig: SignatureFit) -> np.ndarray | None:
         """Effect parameters to start the refit from (default: theta0_effect)."""
         return None

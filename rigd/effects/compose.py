@@ -121,6 +121,12 @@ class Composed:
         #: scales of the data the structure is fitted on (bounds relative to the record)
         self.record: RecordScale | None = None
 
+    @property
+    def fixed_names(self) -> list[str]:
+        """Parameters no fit moves (``Effect.fixed_names``: e.g. the centres of a curve,
+        set from the estimation data); rigd.ident.pem.fit keeps them where they are."""
+        return [n for e in self.effect_list for n in e.fixed_names(self.base)]
+
     # --- composition --------------------------------------------------------------------
     def with_effect(self, effect: Any) -> Composed:
         """This model with one more effect (added last)."""
@@ -177,13 +183,15 @@ class Composed:
         for e, t in zip(self.effect_list, te):
             if "state" in e.sites:
                 blk = e.state_block(t, data)
-                fb = blk if fb is None else fb.plus(blk)
+                if blk is not None:  # None: the effect simulates its state model itself
+                    fb = blk if fb is None else fb.plus(blk)
         return fb
 
     def _core(self, tb: np.ndarray, te: list[np.ndarray], data: Any) -> Sim:
         """The base's simulation with the feedback blocks in it."""
         own = [(e, t) for e, t in zip(self.effect_list, te)
-               if "state" in e.sites and callable(getattr(e, "state_simulate", None))]
+               if "state" in e.sites and callable(getattr(e, "state_simulate", None))
+               and e.owns_state(self.base)]
         fb = self.feedback(np.concatenate([tb] + te), data)
         if own:
             if len(own) > 1:

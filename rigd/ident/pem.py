@@ -130,6 +130,7 @@ def _free(structure: Structure, fixed: list[str] | None, method: str) -> np.ndar
     unknown = fixed_set - set(structure.names)
     if unknown:
         raise InputError(f"cannot fix unknown parameter(s) {sorted(unknown)}")
+    fixed_set |= set(getattr(structure, "fixed_names", ()) or ())
     free = np.array([n not in fixed_set for n in structure.names])
     if method == "oe":
         free &= np.array([not n.startswith("bd_") for n in structure.names])

@@ -44,15 +44,17 @@ def _shares_checked(out):
 def test_tank_overflow_square_root_outflows_named_at_the_input_overflow_left_unexplained(seed):
     """Cascaded tanks with overflow: the square-root outflows make the steady level
     quadratic in the pump voltage (x₂ = (k₂k₄/k₁k₃)² u²) — a static curve at the input, the
-    Hammerstein form the benchmark is known for: ``static_nonlinearity`` named there and the
-    held-out error cut ≥ 3×, nothing else named. The overflow and the level-dependent time
+    Hammerstein form the benchmark is known for: ``static_nonlinearity`` named with its curve
+    there (alone, or with a second curve at the output — the Hammerstein–Wiener form, kept
+    when its refit fits the held-out part better by MIN_FIT_GAIN: 65 % with the input curve
+    alone, 84 % with both) and the held-out error cut ≥ 3×, nothing else named. The overflow and the level-dependent time
     constants are no static curve: the rest stays reported as structured and unexplained,
     not forced onto another name."""
     rec = B.tank_overflow(seed=seed)
     d = diagnose_record(rec)
     out = d.to_json()
     assert significant(d) == ["static_nonlinearity"], out["findings"][:3]
-    assert out["findings"][0]["site"] == "input", out["findings"][0]
+    assert out["findings"][0]["site"] in ("input", "input+output"), out["findings"][0]
     assert 100 - out["fit_percent"] >= 3 * (100 - out["steps"][-1]["fit_percent"])
     un = out["unexplained"]
     _shares_checked(out)

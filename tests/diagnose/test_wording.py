@@ -38,6 +38,11 @@ def test_every_code_has_words_in_every_domain(key, domain):
         ev["delay_samples"] = -2.0
     if code.endswith(".output"):
         ev["site"] = "output"
+    if code == "static_nonlinearity.input_output":
+        ev.update(site="input+output", channels=["u1", "y1"], bend_at_spread=[0.3, 0.1])
+    if code == "static_nonlinearity.state":
+        ev.update(site="state", channel="y2", signal_share={"u1": 0.2, "y1": 0.1, "y2": 0.7},
+                  states=5)
     if code == "integrator.added":
         ev["in_base"] = False
     text = W.explanation(effect, code, ev, domain)

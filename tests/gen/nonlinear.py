@@ -6,6 +6,8 @@
   constants, each read through its own static curve (a MIMO Wiener, per-output curves);
 * :func:`state_dependent_lag` — a first-order plant whose time constant depends on its own
   state (Arrhenius-like: faster when hot), not block-oriented;
+* :func:`radiant_furnace` — a heating element and its load losing heat by radiation
+  (σ T⁴ of each state fed back into its own balance: a Lur'e form of the outputs);
 * :func:`bouc_wen` — m ÿ + c ẏ + k y + z = u with ż = α ẏ − β(γ|ẏ| z + δ ẏ |z|)
   (hysteresis in the restoring force), RK4 on a grid 20× finer than the record.
 """
@@ -109,6 +111,37 @@ def state_dependent_lag(tau_s: float = 20.0, activation: float = 1.2, fs: float 
                  integrator=False, closed_loop=False)
     return Generated(u[:, None], add_noise(clean, snr_db, rng), fs, ["power"], ["rise"],
                      {"power": "kW", "rise": "K"}, truth, clean)
+
+
+def radiant_furnace(fs: float = 0.2, n: int = 4000, snr_db: float = 40.0, seed: int = 0,
+                    sub: int = 20) -> Generated:
+    """Heater power (kW) → element and load temperatures (°C): two heat balances,
+
+        C_e Ṫ_e = P − k (T_e − T_l) − a_e σ (T_e⁴ − T_a⁴),
+        C_l Ṫ_l = k (T_e − T_l) − a_l σ (T_l⁴ − T_a⁴),
+
+    (kelvin inside, T_a = 293 K), radiation the larger loss at the top of the range: the
+    time constants fall as the furnace heats. Euler on a grid ``sub`` times finer; power
+    levels 0.5–6 kW held 0.05–0.5 of the load's time constant."""
+    rng = np.random.default_rng(seed)
+    sigma, ta = 5.67e-8, 293.0
+    ce, cl, k, ae, al = 2.0e3, 2.0e4, 20.0, 0.05, 0.1
+    p = 3.25 + held_steps(n, rng, (max(1, int(40 * fs)), int(400 * fs)), amp=2.75)[:, 0]
+    h = 1.0 / (fs * sub)
+    te, tl = 900.0, 700.0
+    y = np.empty((n, 2))
+    for i in range(n):
+        y[i] = te - 273.15, tl - 273.15
+        for _ in range(sub):
+            q = k * (te - tl)
+            te += h * (1e3 * p[i] - q - ae * sigma * (te ** 4 - ta ** 4)) / ce
+            tl += h * (q - al * sigma * (tl ** 4 - ta ** 4)) / cl
+    truth = dict(kind="radiant_furnace", nonlinearity=dict(site="state",
+                 effect="radiative losses σT⁴ of each state"), order=2, delays=[0.0, 0.0],
+                 integrator=False, closed_loop=False)
+    return Generated(p[:, None], add_noise(y, snr_db, rng), fs, ["power"],
+                     ["element", "load"], {"power": "kW", "element": "°C", "load": "°C"},
+                     truth, y)
 
 
 @numba.njit(cache=True)

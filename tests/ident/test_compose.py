@@ -96,7 +96,8 @@ def _theta_e(name: str, nu: int, ny: int) -> np.ndarray:
 
 def _by_hand(base, tb, names, th_e, data):
     """The composition written out: input blocks from the last-added effect to the first,
-    the base with the summed feedback (or the one state model of its own), output blocks
+    the base with the summed feedback (or the one state model of its own, where the effect
+    has one on this base), output blocks
     from the first to the last, each seeing the inputs its own input side received."""
     effects = [REGISTRY[nm] for nm in names]
     seen, d = [], data
@@ -108,10 +109,11 @@ def _by_hand(base, tb, names, th_e, data):
     fb, own = None, None
     for e in effects:
         if "state" in e.sites:
-            if callable(getattr(e, "state_simulate", None)):
+            if callable(getattr(e, "state_simulate", None)) and e.owns_state(base):
                 own = e
             blk = e.state_block(th_e[e.name], data)
-            fb = blk if fb is None else fb.plus(blk)
+            if blk is not None:
+                fb = blk if fb is None else fb.plus(blk)
     if own is not None:
         y = own.state_simulate(base, tb, th_e[own.name], fb, d)
     elif fb is None:
@@ -228,6 +230,13 @@ def _composed_equals_written_out(base_of, nu, ny, seed, order):
     data = _record(nu, ny, seed=seed)
     base, tb = base_of(nu, ny)
     th_e = _params(order, nu, ny)
+    sn = REGISTRY["static_nonlinearity"]
+    if "static_nonlinearity" in order and sn.state_carried(base):
+        # the state site on a general LTI base: centres at the record's means, a small F
+        k = len(sn.param_names(base)) - th_e["static_nonlinearity"].size
+        rest = np.r_[np.mean(data.inputs, axis=0), np.mean(data.outputs, axis=0)]
+        f = 1e-3 * np.cos(np.arange(k - rest.size))
+        th_e["static_nonlinearity"] = np.r_[th_e["static_nonlinearity"], rest, f]
     th = np.concatenate([tb] + [th_e[nm] for nm in order])
     _close(compose(base, [REGISTRY[nm] for nm in order]).simulate(th, data),
            _by_hand(base, tb, order, th_e, data))
