@@ -47,9 +47,9 @@ def test_tank_overflow_square_root_outflows_named_at_the_input_overflow_left_une
     Hammerstein form the benchmark is known for: ``static_nonlinearity`` named with its curve
     there (alone, or with a second curve at the output — the Hammerstein–Wiener form, kept
     when its refit fits the held-out part better by MIN_FIT_GAIN: 65 % with the input curve
-    alone, 84 % with both) and the held-out error cut ≥ 3×, nothing else named. The overflow and the level-dependent time
-    constants are no static curve: the rest stays reported as structured and unexplained,
-    not forced onto another name."""
+    alone, 84 % with both) and the held-out error cut ≥ 3×, nothing else named. The overflow
+    and the level-dependent time constants are no static curve: the rest stays reported as
+    structured and unexplained, not forced onto another name."""
     rec = B.tank_overflow(seed=seed)
     d = diagnose_record(rec)
     out = d.to_json()
