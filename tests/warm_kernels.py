@@ -92,6 +92,7 @@ def group_models() -> None:
     from rigd.design.hinf_kernel import weighted_sigma
     from rigd.effects._signals import play
     from rigd.effects.hysteresis import bouc_wen
+    from rigd.effects.lure import simulate_lure
     from rigd.effects.restoring_hysteresis import bw_kernel, bw_operator
     from rigd.effects.state_level import simulate_state
     from rigd.ident.feedback import MechanicalFeedback
@@ -111,6 +112,13 @@ def group_models() -> None:
     A = np.array([[0.0, 1.0], [-1e4, -10.0]])
     simulate_state(A, np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]]), None, None,
                    np.array([[1.0]]), fs, u[:, :1])
+    from rigd.ident.model import LinearPart
+
+    for hold in ("zoh", "foh"):  # the Lur'e block of static_nonlinearity's state site
+        lp = LinearPart(A, np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]]), np.zeros((1, 1)),
+                        None, (1,), hold)
+        simulate_lure(lp, np.zeros(2), np.zeros(1), np.zeros((2, 4)), np.zeros(1),
+                      np.zeros(1), 3, u[:, :1], fs)
     x = np.ascontiguousarray(u[:, 0])
     play(x, 0.1)
     bouc_wen(x, 0.5)
