@@ -138,3 +138,26 @@ def test_the_fit_recovers_a_feedback_and_keeps_the_centres():
     e_lin = np.linalg.norm(y - m.simulate(lin.theta, d))
     assert np.linalg.norm(y - yh) < 0.05 * e_lin  # the block takes what no linear fit can
     assert res.theta[k:].shape == te.shape
+
+
+def test_identify_with_the_curve_round_trips_through_the_model_file(tmp_path):
+    """``rigd identify --add static_nonlinearity`` on a general LTI base fits the state site
+    too; the model file rebuilds the same model (compare from the file = compare of the
+    in-memory model), the centres stored beside F."""
+    from rigd import api
+    from tests.gen import nonlinear as NL
+
+    rec = NL.state_dependent_lag(seed=3, n=1500).record()
+    path = tmp_path / "m.yaml"
+    ident = api.identify(rec, add="static_nonlinearity", out=path, yardstick=False)
+    params = ident.parameters
+    assert any(n.startswith("sn_st") for n in params), sorted(params)
+    assert {"sn_cu_0", "sn_cy_0"} <= set(params)
+    from_file = api.compare(path, rec, part="validation", yardstick=False)
+    in_memory = api.compare(ident, rec, part="validation", yardstick=False)
+    fit = float(np.mean(from_file.summary()["fit_percent"]))
+    assert fit == float(np.mean(in_memory.summary()["fit_percent"]))
+    # identify's own figure (its initial state handled on the whole record) is within a hair
+    assert abs(fit - float(np.mean(ident.fit_percent))) < 0.1
+    plain = api.identify(rec, yardstick=False)
+    assert fit > float(np.mean(plain.fit_percent)) + 5.0  # the curve is worth its place
