@@ -166,6 +166,23 @@ def _std(sol, free: np.ndarray, scale: np.ndarray) -> np.ndarray:
     return std
 
 
+def _problem(structure: Structure, data: IdData, method: str, theta: np.ndarray,
+             fixed: list[str] | None, skip: int):
+    """(free mask, scale, residual function of the scaled free parameters) of the weighted
+    least-squares problem at ``theta``: what :func:`fit` solves and :func:`evaluate`
+    evaluates (the structure already bound to ``data``)."""
+    free = _free(structure, fixed, method)
+    scale = _fit_scale(structure, theta, data)
+    wy = 1.0 / np.maximum(data.y[skip:].std(axis=0), 1e-300)
+    return free, scale, _residual_fn(structure, data, method, scale, free, theta, wy, skip)
+
+
+def _fit_at(structure: Structure, theta: np.ndarray, data: IdData, skip: int) -> np.ndarray:
+    """Fit % per output of the simulation at ``theta`` (the first ``skip`` samples left out)."""
+    ysim = structure.simulate(theta, data)
+    return fit_percent(data.y[skip:], ysim[skip:])
+
+
 def fit(structure: Structure, data: IdData, *, method: str = "pem",
         theta0: np.ndarray | None = None, ftol: float = 1e-4, max_nfev: int | None = None,
         fixed: list[str] | None = None, skip: int = 0) -> FitResult:
@@ -205,11 +222,8 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
             method = "oe"
     if th0.shape != (npar,):
         raise InputError(f"start values have {th0.size} entries, the structure needs {npar}")
-    free = _free(structure, fixed, method)
-    scale = _fit_scale(structure, th0, data)
+    free, scale, fun = _problem(structure, data, method, th0, fixed, skip)
     lo, hi = _bounds(structure, npar)
-    wy = 1.0 / np.maximum(data.y[skip:].std(axis=0), 1e-300)
-    fun = _residual_fn(structure, data, method, scale, free, th0, wy, skip)
     z0 = th0[free] / scale[free]
     zlo, zhi = lo[free] / scale[free], hi[free] / scale[free]
     if np.any(np.isfinite(zlo) | np.isfinite(zhi)):
@@ -226,8 +240,7 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
     theta = th0.copy()
     theta[free] = sol.x * scale[free]
     std = _std(sol, free, scale)
-    ysim = structure.simulate(theta, data)
-    fp = fit_percent(data.y[skip:], ysim[skip:])
+    fp = _fit_at(structure, theta, data, skip)
     at_bound = np.zeros(npar, bool)  # trust-region reflective: the active bounds at the end
     at_bound[free] = np.asarray(getattr(sol, "active_mask", np.zeros(nfree)), float) != 0
     return FitResult(structure, theta, std, method, fp, float(sol.cost), int(sol.nfev),
@@ -263,10 +276,7 @@ def evaluate(structure: Structure, data: IdData, theta: np.ndarray, *, skip: int
     if callable(getattr(structure, "bind_record", None)):
         structure.bind_record(data)
     th = np.asarray(theta, float).copy()
-    free = _free(structure, None, "oe")
-    scale = _fit_scale(structure, th, data)
-    wy = 1.0 / np.maximum(data.y[skip:].std(axis=0), 1e-300)
-    fun = _residual_fn(structure, data, "oe", scale, free, th, wy, skip)
+    free, scale, fun = _problem(structure, data, "oe", th, None, skip)
     z = th[free] / scale[free]
     r0 = fun(z)
     jac = np.empty((r0.size, z.size))
@@ -277,8 +287,7 @@ def evaluate(structure: Structure, data: IdData, theta: np.ndarray, *, skip: int
         jac[:, k] = (fun(zk) - r0) / h
     cost = 0.5 * float(r0 @ r0)
     std = _std(SimpleNamespace(jac=jac, cost=cost), free, scale)
-    ysim = structure.simulate(th, data)
-    fp = fit_percent(data.y[skip:], ysim[skip:])
+    fp = _fit_at(structure, th, data, skip)
     return FitResult(structure, th, std, "oe", fp, cost, int(z.size + 1), status,
                      {"njev": 1, "success": True, "n_samples": data.n, "skip": skip,
                       "at_bound": np.zeros(len(th), bool)})
