@@ -34,13 +34,13 @@ def _spoilt(monkeypatch, how: dict):
     from the real refit's (``how[name](y, yhat) -> yhat``)."""
     real = S.refit_effect
 
-    def fake(eff, ctx, sig, data_est, max_nfev, method="oe"):
-        ref = real(eff, ctx, sig, data_est, max_nfev, method)
+    def fake(eff, ctx, sig, data_est, max_nfev, method="oe", kept=()):
+        ref = real(eff, ctx, sig, data_est, max_nfev, method, kept)
         if eff.name not in how:
             return ref
         yw = how[eff.name](ctx.y, ctx.yhat)
         fw = float(np.mean(fit_percent(ctx.y[ctx.val], yw[ctx.val])))
-        return S.Refit(ref.structure, ref.theta, yw, fw, ref.seconds)
+        return S.Refit(ref.structure, ref.theta, yw, fw, ref.seconds, ref.fixed, ref.sig)
 
     monkeypatch.setattr(S, "refit_effect", fake)
 
