@@ -32,6 +32,17 @@ from rigd.lti import zoh
 __all__ = ["simulate_lure", "terms", "state_responses"]
 
 
+@numba.njit(cache=True, inline="always")
+def _powers(phi, t, d, m):  # pragma: no cover - compiled
+    """d², d³, … d^(m+1) into phi[t:t+m]; the next free index."""
+    p = d
+    for _ in range(m):
+        p = p * d
+        phi[t] = p
+        t += 1
+    return t
+
+
 @numba.njit(cache=True)
 def _lure_kernel(Ad, Bd, Gf, C, D, yoff, x0, ue, us, cu, cy, degree, y):  # pragma: no cover
     n, nx = ue.shape[0], Ad.shape[0]
@@ -50,19 +61,9 @@ def _lure_kernel(Ad, Bd, Gf, C, D, yoff, x0, ue, us, cu, cy, degree, y):  # prag
             y[k, i] = acc
         t = 0
         for j in range(nu):
-            d = us[k, j] - cu[j]
-            p = d
-            for _ in range(m):
-                p = p * d
-                phi[t] = p
-                t += 1
+            t = _powers(phi, t, us[k, j] - cu[j], m)
         for i in range(ny):
-            d = y[k, i] - cy[i]
-            p = d
-            for _ in range(m):
-                p = p * d
-                phi[t] = p
-                t += 1
+            t = _powers(phi, t, y[k, i] - cy[i], m)
         ok = True
         for s in range(nx):
             acc = 0.0

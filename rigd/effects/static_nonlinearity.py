@@ -93,19 +93,23 @@ class StaticNonlinearity(Effect):
         ny, nu = dims(b)
         return int(b.nx) * (nu + ny) * (self.degree - 1) <= MAX_STATE_PARAMS
 
-    def _state_signals(self, ctx: Context, lp) -> np.ndarray:
-        """The terms of φ on ``ctx`` (n, (nu+ny)·(degree−1)): powers of the delayed inputs
-        and of the model output about their estimation-part means (rigd.effects.lure)."""
-        us = shift_inputs(np.ascontiguousarray(ctx.u, float), lp.delays)
-        cu, cy = np.mean(us[ctx.est], axis=0), np.mean(ctx.yhat[ctx.est], axis=0)
-        cols = [(us[:, c] - cu[c] if kind == "u" else ctx.yhat[:, c] - cy[c]) ** k
-                for kind, c, k in terms(ctx.nu, ctx.ny, self.degree)]
-        return np.column_stack(cols)
-
-    def _state_regs(self, ctx: Context) -> list[np.ndarray]:
+    @staticmethod
+    def _state_centres(ctx: Context):
+        """(base's linear part at ``ctx.theta``, its delayed inputs, centres cu, cy): the
+        estimation-part means of the delayed inputs and of the model output."""
         base = base_of(ctx.structure)
         lp = base.linear_part(np.asarray(ctx.theta, float)[:len(base.names)])
-        G = state_responses(lp, self._state_signals(ctx, lp), ctx.fs)
+        us = shift_inputs(np.ascontiguousarray(ctx.u, float), lp.delays)
+        return lp, us, np.mean(us[ctx.est], axis=0), np.mean(ctx.yhat[ctx.est], axis=0)
+
+    def _state_regs(self, ctx: Context) -> list[np.ndarray]:
+        """The first-order regressors of F: each term of φ on ``ctx`` (powers of the delayed
+        inputs and of the model output about their centres, rigd.effects.lure) fed into each
+        state of the base."""
+        lp, us, cu, cy = self._state_centres(ctx)
+        cols = [(us[:, c] - cu[c] if kind == "u" else ctx.yhat[:, c] - cy[c]) ** k
+                for kind, c, k in terms(ctx.nu, ctx.ny, self.degree)]
+        G = state_responses(lp, np.column_stack(cols), ctx.fs)
         return [G[:, :, t] for t in range(G.shape[-1])]
 
     # --- signature --------------------------------------------------------------------
@@ -305,11 +309,7 @@ class StaticNonlinearity(Effect):
             th[:m * (nu + ny)] = beta
         if nx:
             c = m * (nu + ny)
-            lp = base_of(ctx.structure).linear_part(
-                np.asarray(ctx.theta, float)[:len(base_of(ctx.structure).names)])
-            us = shift_inputs(np.ascontiguousarray(ctx.u, float), lp.delays)
-            th[c:c + nu] = np.mean(us[ctx.est], axis=0)
-            th[c + nu:c + nu + ny] = np.mean(ctx.yhat[ctx.est], axis=0)
+            _, _, th[c:c + nu], th[c + nu:c + nu + ny] = self._state_centres(ctx)
             if site == "state":
                 th[c + nu + ny:] = beta
                 th = self._shrunk(ctx, th, c + nu + ny)
