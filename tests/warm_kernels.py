@@ -113,12 +113,19 @@ def group_models() -> None:
     simulate_state(A, np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]]), None, None,
                    np.array([[1.0]]), fs, u[:, :1])
     from rigd.ident.model import LinearPart
+    from rigd.ident.simulate import predict_linear, simulate_linear
 
     for hold in ("zoh", "foh"):  # the Lur'e block of static_nonlinearity's state site
         lp = LinearPart(A, np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]]), np.zeros((1, 1)),
                         None, (1,), hold)
         simulate_lure(lp, np.zeros(2), np.zeros(1), np.zeros((2, 4)), np.zeros(1),
                       np.zeros(1), 3, u[:, :1], fs)
+        # a real-block modal model (rigd.ident.block_kernels): a pair and a real pole
+        Am = np.array([[-10.0, 50.0, 0.0], [-50.0, -10.0, 0.0], [0.0, 0.0, -5.0]])
+        lm = LinearPart(Am, np.ones((3, 1)), np.ones((1, 3)), np.zeros((1, 1)),
+                        np.zeros((3, 1)), (0,), hold)
+        ym = simulate_linear(lm, np.zeros(3), u[:, :1], fs)
+        predict_linear(lm, np.zeros(3), u[:, :1], ym, fs)
     x = np.ascontiguousarray(u[:, 0])
     play(x, 0.1)
     bouc_wen(x, 0.5)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rigd.ident import block_kernels as BK
 from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.sim_kernels import cubic_kernel, expm_kernel, lsim_kernel, predict_kernel
 from rigd.lti import foh, zoh
@@ -238,15 +239,23 @@ def simulate_linear(lp, x0, u, fs) -> np.ndarray:
 
     A, B are discretised exactly with the part's hold (:func:`rigd.lti.zoh`/:func:`foh`),
     the per-input delays are input shifts (:func:`shift_inputs`), then the compiled
-    :func:`lsim_kernel` runs; ``y = C x + D u``.
+    :func:`lsim_kernel` runs; ``y = C x + D u``. A block-diagonal A (real-block modal form)
+    is discretised and run block by block (:mod:`rigd.ident.block_kernels`: the same
+    matrices, O(nx) instead of O(nx²) per sample).
     """
     uu = np.ascontiguousarray(shift_inputs(np.ascontiguousarray(u, dtype=float), lp.delays))
     n, ny = uu.shape[0], lp.ny
-    Ad, Bd, ue = _discrete(np.asarray(lp.A, float), np.asarray(lp.B, float), 1.0 / fs,
-                           lp.hold, uu)
+    A = np.asarray(lp.A, float)
+    blk = BK.blocks(A) if np.all(np.isfinite(A)) else None
+    C = np.ascontiguousarray(lp.C, dtype=float)
+    x0 = np.ascontiguousarray(x0, dtype=float)
     y = np.empty((n, ny))
-    lsim_kernel(Ad, Bd, np.ascontiguousarray(lp.C, dtype=float),
-                np.ascontiguousarray(x0, dtype=float), ue, y)
+    if blk is not None:  # real-block modal form: block by block (rigd.ident.block_kernels)
+        Ad, Bd, ue = BK.discrete(A, lp.B, 1.0 / fs, lp.hold, blk[0], blk[1], uu)
+        BK.lsim_block_kernel(Ad, blk[0], blk[1], Bd, C, x0, ue, y)
+    else:
+        Ad, Bd, ue = _discrete(A, np.asarray(lp.B, float), 1.0 / fs, lp.hold, uu)
+        lsim_kernel(Ad, Bd, C, x0, ue, y)
     if np.any(lp.D):
         y += uu @ np.asarray(lp.D, float).T
     return y
@@ -258,8 +267,12 @@ def predict_linear(lp, x0, u, y, fs) -> np.ndarray | None:
     Ad − K C ≥ 1). Same discretisation and delays as :func:`simulate_linear`."""
     uu = np.ascontiguousarray(shift_inputs(np.ascontiguousarray(u, dtype=float), lp.delays))
     n, ny = uu.shape[0], lp.ny
-    Ad, Bd, ue = _discrete(np.asarray(lp.A, float), np.asarray(lp.B, float), 1.0 / fs,
-                           lp.hold, uu)
+    A = np.asarray(lp.A, float)
+    blk = BK.blocks(A) if np.all(np.isfinite(A)) else None
+    if blk is not None:
+        Ad, Bd, ue = BK.discrete(A, lp.B, 1.0 / fs, lp.hold, blk[0], blk[1], uu)
+    else:
+        Ad, Bd, ue = _discrete(A, np.asarray(lp.B, float), 1.0 / fs, lp.hold, uu)
     C = np.ascontiguousarray(lp.C, dtype=float)
     Kd = np.zeros((lp.nx, ny)) if lp.K is None else np.ascontiguousarray(lp.K, dtype=float)
     if not np.all(np.isfinite(Ad)) or (lp.nx and np.max(np.abs(np.linalg.eigvals(
@@ -268,6 +281,10 @@ def predict_linear(lp, x0, u, y, fs) -> np.ndarray | None:
     direct = uu @ np.asarray(lp.D, float).T if np.any(lp.D) else None
     ym = np.asarray(y, float) if direct is None else np.asarray(y, float) - direct
     yhat = np.empty((n, ny))
-    predict_kernel(Ad, Bd, Kd, C, np.ascontiguousarray(x0, dtype=float), ue,
-                   np.ascontiguousarray(ym), yhat)
+    x0 = np.ascontiguousarray(x0, dtype=float)
+    if blk is not None:
+        BK.predict_block_kernel(Ad, blk[0], blk[1], Bd, Kd, C, x0, ue,
+                                np.ascontiguousarray(ym), yhat)
+    else:
+        predict_kernel(Ad, Bd, Kd, C, x0, ue, np.ascontiguousarray(ym), yhat)
     return yhat if direct is None else yhat + direct
