@@ -41,6 +41,7 @@ from rigd.diagnose.selection import Refit, Step
 from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.ident.figures import fit_percent
 from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
+from rigd.ident.pipeline import MAX_REFIT_FREE, held_base
 from rigd.ident.thresholds import MIN_FIT_GAIN
 
 #: most effects added by the forward selection
@@ -186,6 +187,12 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                                        record_meta)
     notes: list[str] = [f"domain: {dom.name} ({dom.why})"]
     names = S.offered(effects, submodel, dom, structure, est, n, notes)
+    held = held_base(structure, method)
+    if held and refit:
+        notes.append(f"the base has {len(held)} free parameters besides its output offsets "
+                     f"(more than {MAX_REFIT_FREE}): each effect is refitted with the base "
+                     "held, so its gain in fit is a lower bound (rigd identify --add refits "
+                     "the same way)")
     sel = S.Selection(ctx0, context, refit, data_est, max_nfev, method, max_steps,
                       other_hold, [], notes)
     sd = _stepwise(sel, ctx0, dom, names, carried_worth)

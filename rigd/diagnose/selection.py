@@ -95,7 +95,7 @@ def refit_effect(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe",
 
 def _refit_one(eff, ctx: Context, sig, data_est, max_nfev, method: str,
                kept: tuple[str, ...]) -> Refit:
-    from rigd.ident.pipeline import refit_with
+    from rigd.ident.pipeline import held_base, refit_with
 
     structure, theta, data = ctx.structure, ctx.theta, ctx.data
     # an effect may offer several starts (loop shapes): the fit with the lowest estimation
@@ -105,6 +105,7 @@ def _refit_one(eff, ctx: Context, sig, data_est, max_nfev, method: str,
     # parameters an effect keeps at their start in the refit (a redundant scale)
     fixed = list(kept) + list(getattr(eff, "refit_fixed", lambda e, s=None: [])(
         eff.extend(structure), sig))
+    fixed += held_base(structure, method, fixed)  # a large base is held (MAX_REFIT_FREE)
     fixed = fixed or None
     ext, best, th0 = refit_with(structure, theta, [eff], data_est, method, starts=starts,
                                 fixed=fixed, max_nfev=max_nfev)

@@ -123,7 +123,7 @@ def _residual_fn(structure: Structure, data: IdData, method: str, scale: np.ndar
     return res
 
 
-def _free(structure: Structure, fixed: list[str] | None, method: str) -> np.ndarray:
+def free_mask(structure: Structure, fixed: list[str] | None, method: str) -> np.ndarray:
     """Mask of the parameters the fit moves: not ``fixed``, and for output error neither
     the disturbance (``bd_*``) nor the noise parameters, which play no role in a simulation."""
     fixed_set = set(fixed or [])
@@ -171,7 +171,7 @@ def _problem(structure: Structure, data: IdData, method: str, theta: np.ndarray,
     """(free mask, scale, residual function of the scaled free parameters) of the weighted
     least-squares problem at ``theta``: what :func:`fit` solves and :func:`evaluate`
     evaluates (the structure already bound to ``data``)."""
-    free = _free(structure, fixed, method)
+    free = free_mask(structure, fixed, method)
     scale = _fit_scale(structure, theta, data)
     wy = 1.0 / np.maximum(data.y[skip:].std(axis=0), 1e-300)
     return free, scale, _residual_fn(structure, data, method, scale, free, theta, wy, skip)

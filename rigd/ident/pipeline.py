@@ -313,6 +313,30 @@ def mechanical_modes(order: str | int, dofs: int) -> str | int:
     return n // 2
 
 
+#: Most free parameters of the model that effects are added to which the refit moves with
+#: the effects. Beyond it (a carried high-order reference: a 113-state model of a 3-input,
+#: 6-output furnace has ≈ 1,200) the refit holds that model's parameters at their values and
+#: fits the effects' and the output offsets only (:func:`held_base`): each finite-difference
+#: Jacobian of a full refit costs one simulation per parameter and each trust-region step an
+#: SVD of the (samples·outputs × parameters) Jacobian — one effect's refit took > 10 min.
+MAX_REFIT_FREE = 300
+
+
+def held_base(structure, method: str, fixed: Sequence[str] | None = None) -> list[str]:
+    """Parameters of ``structure`` that a refit with effects holds: [] when it has at most
+    :data:`MAX_REFIT_FREE` free parameters (``method``'s, ``fixed`` not counted); else
+    every free one except its output offsets (the effects' gain in fit is then a lower
+    bound: the base does not adapt to them)."""
+    from rigd.ident.pem import free_mask
+
+    names = list(structure.names)
+    free = free_mask(structure, [n for n in (fixed or ()) if n in set(names)], method)
+    if int(free.sum()) <= MAX_REFIT_FREE:
+        return []
+    off = set(getattr(structure, "offset_index", []) or [])
+    return [n for i, n in enumerate(names) if free[i] and i not in off]
+
+
 def refit_with(structure, theta: np.ndarray, effects: Sequence[Any], data_est, method: str,
                starts: Sequence[np.ndarray | None] = (None,), fixed=None,
                max_nfev: int | None = None):
@@ -331,8 +355,10 @@ def refit_with(structure, theta: np.ndarray, effects: Sequence[Any], data_est, m
     starts : sequence
         Start values of the added parameters (None: the effects' own ``theta0``); each is
         fitted, the lowest estimation cost kept.
-    fixed : list of int, optional
-        Parameters kept at their start.
+    fixed : list of str, optional
+        Parameters kept at their start. On a ``structure`` of more than
+        :data:`MAX_REFIT_FREE` free parameters its own are kept too (:func:`held_base`;
+        the result's ``info["held_base"]`` counts them).
 
     Returns
     -------
@@ -340,6 +366,10 @@ def refit_with(structure, theta: np.ndarray, effects: Sequence[Any], data_est, m
         None when no start could be fitted.
     """
     from rigd.ident.pem import fit
+
+    held = held_base(structure, method, fixed)
+    if held:
+        fixed = list(fixed or []) + [n for n in held if n not in set(fixed or [])]
 
     ext = structure
     for e in effects:
@@ -363,6 +393,8 @@ def refit_with(structure, theta: np.ndarray, effects: Sequence[Any], data_est, m
             continue
         if np.isfinite(res.cost) and (best is None or res.cost < best.cost):
             best = res
+    if best is not None:
+        best.info["held_base"] = len(held)
     return ext, best, th0
 
 

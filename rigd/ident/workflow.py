@@ -242,6 +242,12 @@ def _submodel(sm: str, bf, structure, res) -> Submodel:
         warn.append("the model's simulated response is not finite on this record (the "
                     "fit diverged; its fit is not a number): do not use this model")
     warn += _refit_warnings(bf, structure, fv)
+    if res.info.get("held_base"):
+        from rigd.ident.pipeline import MAX_REFIT_FREE
+
+        warn.append(f"the base model's {res.info['held_base']} free parameters (more than "
+                    f"{MAX_REFIT_FREE}) were held in the refit with the effects: only the "
+                    "effects' parameters and the output offsets moved")
     if warn:
         readouts = dict(readouts, warnings=warn)
     order_info = bf.order.to_json() if bf.order is not None else None
