@@ -150,9 +150,9 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
     ys = (measure(bf.data.u, bf.data.y, bf.est, bf.val, float("nan"), bf.data.fs)
           if yardstick else None)
 
-    def run(structure, theta, ys, worth=None):
+    def run(structure, theta, ys, worth=None, only=None):
         return diagnose_data(bf.data, sub, structure=structure, est=bf.est, val=bf.val,
-                             effects=effects, refit=refit, max_steps=max_steps,
+                             effects=only or effects, refit=refit, max_steps=max_steps,
                              base_theta=theta, method=bf.settings.method,
                              carried_worth=worth,
                              offsets=offsets, start=bf.window[0], yardstick=ys,
@@ -200,8 +200,11 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
 
 def _rebased(bf, sd: SubDiagnosis, ys, run, sub: str, notes: list[str]):
     """(``sd`` or the diagnosis from another linear candidate, what was chosen or None):
-    another candidate is diagnosed when a static curve was added, and kept when its final
-    model fits better (rigd.diagnose.rebase)."""
+    when a static curve was added, each other candidate is diagnosed with the effects
+    ``sd`` added (a forward selection over them only: one refit or two per candidate, not
+    the catalogue's screening), the best kept when its final model fits better
+    (rigd.diagnose.rebase.best_final); the kept one is then diagnosed over the whole
+    catalogue and must still beat ``sd`` by the same margin."""
     import copy
 
     from rigd.diagnose import rebase
@@ -209,13 +212,18 @@ def _rebased(bf, sd: SubDiagnosis, ys, run, sub: str, notes: list[str]):
     alts = rebase.alternatives(bf, sd)
     if not alts:
         return sd, None
-    runs = [(c, run(c.structure, c.theta, copy.copy(ys),
-                    _carried_worth(bf, c.structure, c.theta))) for c in alts]
+    added = [s.added for s in sd.steps[1:] if s.added]
+    worth = {id(c): _carried_worth(bf, c.structure, c.theta) for c in alts}
+    runs = [(c, run(c.structure, c.theta, copy.copy(ys), worth[id(c)], only=added))
+            for c in alts]
     kept, why = rebase.best_final(sd, runs)
+    if kept is not sd:   # the whole catalogue on the candidate kept
+        cand = next(c for c, d in runs if d is kept)
+        kept, why = rebase.best_final(sd, [(cand, run(cand.structure, cand.theta,
+                                                      copy.copy(ys), worth[id(cand)]))])
     notes.append(f"{sub}: {why}")
     if kept is sd:
         return sd, None
-    cand = next(c for c, d in runs if d is kept)
     return kept, {"family": cand.family, "states": int(cand.states),
                   "delays": [int(d) for d in getattr(cand.structure, "delays", [])],
                   "fit_percent": round(float(kept.fit_percent), 3),

@@ -7,8 +7,10 @@ diagnosis then named the delay beside the curve. A block-oriented model's linear
 chosen *with* its curves, as MATLAB's ``nlhw`` estimates them together; here, when the forward
 selection added an effect of an input or output site, the diagnosis is run again from
 general LTI bases of one and two more states (their delays checked at that order,
-:func:`alternatives`) and the one whose final model fits the held-out part best is kept if it
-beats the first by at least ``MIN_FIT_GAIN`` points (:func:`best_final`) — the rule that
+:func:`alternatives`) over the effects the first diagnosis added, and the one whose final
+model fits the held-out part best is kept if it beats the first by at least ``MIN_FIT_GAIN``
+points (:func:`best_final`; rigd.diagnose.diagnosis then diagnoses it over the whole
+catalogue, which must still beat the first) — the rule that
 already decides between the general LTI and the mechanical base
 (rigd.diagnose.diagnosis.better_on_mechanical).
 """

@@ -46,3 +46,36 @@ def test_no_alternatives_without_a_curve_or_with_an_order_asked():
     assert rebase.alternatives(bf_asked, _diag(30.0, 90.0)) == []
     bf_mech = NS(order=NS(asked="auto", family="mechanical", states=2))
     assert rebase.alternatives(bf_mech, _diag(30.0, 90.0)) == []
+
+
+def test_alternatives_refit_the_added_effects_and_only_the_kept_one_gets_the_catalogue(
+        monkeypatch):
+    """rigd.diagnose.diagnosis._rebased: each alternative base is diagnosed over the effects
+    the first diagnosis added (``only``); the whole catalogue runs once, on the candidate
+    kept, and its final fit must still beat the first diagnosis."""
+    from rigd.diagnose import diagnosis
+
+    first = _diag(30.0, 86.3, added=("static_nonlinearity",))
+    a3, a4 = _cand(3, [0]), _cand(4, [0])
+    for c in (a3, a4):
+        c.theta = None
+    monkeypatch.setattr(rebase, "alternatives", lambda bf, sd: [a3, a4])
+    monkeypatch.setattr(diagnosis, "_carried_worth", lambda *a, **k: None)
+    finals = {(3, True): 97.6, (4, True): 97.7, (3, False): 97.9}
+    calls = []
+
+    def run(structure, theta, ys, worth=None, only=None):
+        st = 3 if structure is a3.structure else 4
+        calls.append((st, only))
+        return _diag(14.0, finals[(st, only is not None)])
+
+    notes: list[str] = []
+    kept, info = diagnosis._rebased(NS(), first, None, run, "generic", notes)
+    assert calls[:2] == [(3, ["static_nonlinearity"]), (4, ["static_nonlinearity"])]
+    assert calls[2:] == [(3, None)]          # the catalogue on the fewest states only
+    assert kept.final.fit_percent == 97.9 and info["states"] == 3
+    # the whole catalogue no better than the first: the first diagnosis stays
+    finals[(3, False)] = 86.3
+    calls.clear()
+    kept, info = diagnosis._rebased(NS(), first, None, run, "generic", notes)
+    assert kept is first and info is None and len(calls) == 3
