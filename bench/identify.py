@@ -27,7 +27,7 @@ def _record(n: int = 30000, seed: int = 0):
 
 
 def run() -> dict:
-    from rigd.ident.mechanical import bearing_structure
+    from rigd.ident.greybox.rotor import bearing_structure
     from rigd.ident.pem import fit
 
     data = _record()

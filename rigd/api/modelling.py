@@ -188,7 +188,7 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
         Write the model file here.
     order : "auto" or int
         Generic records: modes of the base model, or ``auto`` (chosen from the data,
-        :func:`rigd.ident.order.choose_order`).
+        :func:`rigd.ident.greybox.order.choose_order`).
     yardstick : bool
         Fit a plain ARX and a subspace model on the same split and report what they reach
         (``.yardstick``, ``"yardstick"`` in the JSON; docs/diagnose.md "Yardstick").

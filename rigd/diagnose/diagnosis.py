@@ -94,7 +94,7 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
     which).
 
     ``order`` (generic records): ``"auto"`` — the number of modes is chosen from the data
-    (:func:`rigd.ident.order.choose_order`), so the effects are sought on the best linear
+    (:func:`rigd.ident.greybox.order.choose_order`), so the effects are sought on the best linear
     model of the class; or the number of modes.
 
     ``yardstick``: fit a plain ARX and a subspace model on the same split

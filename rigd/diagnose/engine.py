@@ -40,7 +40,7 @@ from rigd.diagnose import unexplained as U
 from rigd.diagnose.selection import Refit, Step
 from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.ident.figures import fit_percent
-from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
+from rigd.ident.greybox.submodels import DEFAULT_HOLD, structure_for
 from rigd.ident.pipeline import MAX_REFIT_FREE, held_base
 from rigd.ident.thresholds import MIN_FIT_GAIN
 

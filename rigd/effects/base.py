@@ -247,9 +247,10 @@ class Effect:
 
 def is_mechanical(structure: Any) -> bool:
     """True for a mechanical base (``continuous`` gives x = [p, ṗ], the structure says
-    ``mechanical = True``) whose simulator takes the state feedback (rigd.ident.mechanical and
-    the modal structures built on it), with effects composed around it or not. A general LTI
-    model has ``continuous`` too, in modal states: not mechanical."""
+    ``mechanical = True``) whose simulator takes the state feedback
+    (rigd.ident.greybox.mechanical and the modal structures built on it), with effects
+    composed around it or not. A general LTI model has ``continuous`` too, in modal states:
+    not mechanical."""
     return "mechanical" in carries(structure)
 
 

@@ -28,7 +28,7 @@ RESOLUTION = 1.0 / 32
 #: at least this many (half-overlapping) Welch segments of the estimation part
 MIN_SEGMENTS = 3
 #: frequency bounds of the mode, relative: above two periods of the estimation part, below
-#: this share of the Nyquist frequency (as rigd.ident.order)
+#: this share of the Nyquist frequency (as rigd.ident.greybox.order)
 F_MAX_NYQUIST = 0.95
 
 

@@ -1,6 +1,6 @@
 """The Lur'e feedback block of a mechanical base: what state-level effects feed back.
 
-A mechanical base p̈ + D ṗ + K p = B u (states x = [p, ṗ], ``rigd.ident.mechanical``) carries
+A mechanical base p̈ + D ṗ + K p = B u (states x = [p, ṗ], ``rigd.ident.greybox.mechanical``) carries
 state-level effects as a feedback w = φ(C_f x) into its force input (Lur'e form):
 
     p̈ + (D + ΔD) ṗ + (K + ΔK) p + k₃∘p³ + k₃ᶜ∘(|p|² − p²)∘p + F_c∘tanh(ṗ / v_ε) = (B + ΔB) u

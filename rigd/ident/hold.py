@@ -14,7 +14,7 @@ Resolution, the same for ``rigd identify`` and ``rigd diagnose`` (one convention
 2. declared by the record: metadata ``intersample: zoh`` (all inputs) or a mapping
    ``intersample: {r_x: zoh, r_y: zoh, u_x: foh, u_y: foh}`` (the sub-model's inputs must agree);
 3. a rigd recording (metadata ``rigd_version``, kept by ``rigd export``): the physics is known,
-   :data:`rigd.ident.mechanical.DEFAULT_HOLD` (references ZOH, measured positions FOH);
+   :data:`rigd.ident.greybox.submodels.DEFAULT_HOLD` (references ZOH, measured positions FOH);
 4. otherwise — data this project did not make — chosen from the data: the base model is
    fitted by output error on the estimation part with each hold, and the hold with the better
    fit is kept; the sub-model's default wins unless the other is better by
@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 
 from rigd.errors import InputError
+from rigd.ident.greybox.submodels import DEFAULT_HOLD, structure_for
 from rigd.ident.iddata import IdData
-from rigd.ident.mechanical import DEFAULT_HOLD, structure_for
 from rigd.ident.thresholds import HOLD_MARGIN_POINTS
 
 HOLDS = ("zoh", "foh")

@@ -39,7 +39,7 @@ from pydantic import Field
 
 from rigd.configio import StrictModel, dump_yaml, read_yaml, validate
 from rigd.errors import InputError
-from rigd.ident.mechanical import structure_for
+from rigd.ident.greybox.submodels import structure_for
 from rigd.ident.model import base_of
 from rigd.plain import plain
 
@@ -69,7 +69,7 @@ class StructureSpec(StrictModel):
     nu: int | None = None
     hold: str | None = None
     effects: list[str] = Field(default_factory=list)
-    #: parallel modes beyond one per output (generic, rigd.ident.parallel)
+    #: parallel modes beyond one per output (generic, rigd.ident.greybox.parallel)
     extra_modes: int = Field(0, ge=0)
     #: generic: a constant offset per output is a parameter (``yoff_i``; absent in files
     #: written before it existed, which rebuild without it)

@@ -27,7 +27,7 @@ import numpy as np
 
 from rigd.configio import dump_yaml, read_yaml
 from rigd.errors import InputError
-from rigd.ident.mechanical import bearing_structure
+from rigd.ident.greybox.rotor import bearing_structure
 
 OP_TOL = (50.0, 0.1)  # rpm, bar: same operating point
 

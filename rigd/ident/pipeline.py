@@ -72,7 +72,7 @@ class FitSettings:
         modes with ``mechanical``.
     mechanical : bool
         Generic records: keep the mechanical n-DOF base (plus parallel modes,
-        :func:`rigd.ident.order.choose_order`) — for effects that act on a mechanical state
+        :func:`rigd.ident.greybox.order.choose_order`) — for effects that act on a mechanical state
         (``identify --add cubic_stiffness``).
     init : ModelFile, optional
         Start values of the base fit (``--init``).
@@ -218,8 +218,8 @@ def fit_base(record, submodel: str, settings: FitSettings) -> BaseFit:
 
     ``record`` is the whole record; the window of :func:`analysis_window` is taken here.
     """
+    from rigd.ident.greybox.submodels import structure_for
     from rigd.ident.hold import choose_hold
-    from rigd.ident.mechanical import structure_for
     from rigd.ident.pem import fit
 
     settings.check()
@@ -251,13 +251,13 @@ def _generic_base(mech, res, data, es: slice, vs: slice, hold: str, settings: Fi
     choose_base`: general LTI, process or the mechanical n-DOF model ``mech``, fitted as
     ``res``). With ``settings.mechanical`` (an asked effect acts on a mechanical state: a
     stiffness, a restoring force) the base stays mechanical, with the parallel modes the
-    data need (:func:`rigd.ident.order.choose_order`).
+    data need (:func:`rigd.ident.greybox.order.choose_order`).
     """
     from rigd.ident.pem import evaluate, fit
 
     est_data = data.slice(es.start, es.stop)
     if settings.mechanical:
-        from rigd.ident.order import choose_order
+        from rigd.ident.greybox.order import choose_order
 
         modes = mechanical_modes(settings.order, mech.n)
         try:

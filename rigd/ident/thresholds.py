@@ -1,6 +1,6 @@
 """Every significance threshold of identification and diagnosis, in one place.
 
-Each constant is used by name wherever the rule applies (rigd.ident.order, rigd.ident.hold,
+Each constant is used by name wherever the rule applies (rigd.ident.greybox.order, rigd.ident.hold,
 rigd.effects.detectability, rigd.diagnose.engine, rigd.diagnose.unexplained,
 rigd.diagnose.probes); none is defined twice. It lives in :mod:`rigd.ident` (the lowest of
 those layers) so that every layer can import it. Fit points are points of

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigd.ident.mechanical import actuator_structure, bearing_structure
+from rigd.ident.greybox.rotor import actuator_structure, bearing_structure
 from rigd.ident.modelfile import ModelFile, Submodel
 from rigd_drivers.sim import truth as simtruth
 

@@ -13,8 +13,8 @@ import plant  # tests/diagnose/plant.py
 from rigd.data.record import Record
 from rigd.diagnose.diagnosis import diagnose_record
 from rigd.diagnose.engine import diagnose_data
+from rigd.ident.greybox.submodels import structure_for
 from rigd.ident.iddata import IdData
-from rigd.ident.mechanical import structure_for
 from rigd.ident.workflow import prepare
 
 N6 = int(6 * F.FS)  # 6 s at 5 kHz

@@ -24,7 +24,7 @@ import pytest
 from rigd.diagnose.diagnosis import diagnose_record
 from rigd.diagnose.engine import diagnose_data
 from rigd.experiments.signals import multilevel
-from rigd.ident.mechanical import MechanicalStructure
+from rigd.ident.greybox.mechanical import MechanicalStructure
 from rigd.ident.workflow import prepare
 
 sim = pytest.importorskip("rigd.loop.sim")

@@ -7,7 +7,8 @@ import pytest
 
 import plant  # tests/diagnose/plant.py
 from rigd.diagnose.engine import diagnose_data
-from rigd.ident.mechanical import MechanicalStructure, structure_for
+from rigd.ident.greybox.mechanical import MechanicalStructure
+from rigd.ident.greybox.submodels import structure_for
 
 
 def decoupled_bearing():

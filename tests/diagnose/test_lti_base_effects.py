@@ -11,9 +11,9 @@ from rigd.diagnose import wording as W
 from rigd.effects import REGISTRY
 from rigd.effects.base import is_mechanical
 from rigd.effects.context import Context
+from rigd.ident.greybox.mechanical import generic_structure
 from rigd.ident.iddata import IdData
 from rigd.ident.lti.statespace import StateSpaceModel
-from rigd.ident.mechanical import generic_structure
 
 FS = 100.0
 N = 1500

@@ -32,7 +32,7 @@ import plant  # tests/diagnose/plant.py
 from rigd.data.record import Record
 from rigd.diagnose.diagnosis import diagnose_record
 from rigd.diagnose.engine import diagnose_data
-from rigd.ident.mechanical import structure_for
+from rigd.ident.greybox.submodels import structure_for
 
 SILVERBOX = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
 SILVERBOX_FS = 610.3515625
@@ -200,7 +200,7 @@ def test_valve_hysteresis_rescaled_same_diagnosis(valve, su, sy, sr):
 # every unit changed at once (input, output, rate and Ω)
 # --------------------------------------------------------------------------------------
 def _decoupled():
-    from rigd.ident.mechanical import MechanicalStructure
+    from rigd.ident.greybox.mechanical import MechanicalStructure
 
     eye = np.eye(2, dtype=bool)
     return MechanicalStructure("bearing", eye, eye, eye, eye, "", ["x", "y"], ["x", "y"],

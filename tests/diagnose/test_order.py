@@ -1,5 +1,5 @@
-"""Base model of the right order (rigd.ident.order, rigd.ident.lti.subspace): subspace estimate,
-output-error refinement, number of modes by validation fit; model files and compare."""
+"""Base model of the right order (rigd.ident.greybox.order, rigd.ident.lti.subspace): subspace
+estimate, output-error refinement, number of modes by validation fit; model files and compare."""
 
 import json
 

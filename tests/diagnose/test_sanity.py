@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rigd.cli import main
-from rigd.ident.mechanical import generic_structure
+from rigd.ident.greybox.mechanical import generic_structure
 from rigd.ident.sanity import model_warnings
 
 

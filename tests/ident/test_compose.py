@@ -20,9 +20,9 @@ from rigd.effects.base import is_mechanical
 from rigd.effects.compose import Composed, carries, compose
 from rigd.effects.runout import HARMONICS
 from rigd.ident.feedback import MechanicalFeedback
+from rigd.ident.greybox.mechanical import generic_structure
 from rigd.ident.iddata import IdData, replace_inputs
 from rigd.ident.lti.statespace import StateSpaceModel
-from rigd.ident.mechanical import generic_structure
 from rigd.ident.simulate import simulate_mechanical
 
 FS = 200.0

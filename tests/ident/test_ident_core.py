@@ -6,8 +6,8 @@ import pytest
 from ident_helpers import ACT_GAIN, ACT_POLES, B_TRUE, D_TRUE, K_TRUE, rotor_record
 
 from rigd.ident.feedback import MechanicalFeedback
+from rigd.ident.greybox.rotor import actuator_structure, bearing_structure
 from rigd.ident.iddata import from_record
-from rigd.ident.mechanical import actuator_structure, bearing_structure
 from rigd.ident.pem import fit, fit_percent
 from rigd.ident.simulate import simulate_mechanical
 

@@ -11,8 +11,8 @@ import pytest
 
 from rigd.effects import extend, resolve
 from rigd.ident.figures import fit_percent
+from rigd.ident.greybox.rotor import actuator_structure, bearing_structure
 from rigd.ident.iddata import IdData
-from rigd.ident.mechanical import actuator_structure, bearing_structure
 from rigd.ident.modelfile import ModelFile, Submodel, load_model
 
 FS = 5000.0

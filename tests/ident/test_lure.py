@@ -110,7 +110,7 @@ def test_the_site_exists_where_the_base_carries_it():
     assert len(nst) == m.nx * 3 * 2 and SN.fixed_names(m) == ["sn_cu_0", "sn_cy_0", "sn_cy_1"]
     big = StateSpaceModel(["u1", "u2"], ["y1", "y2"], FS, n_real=MAX_STATE_PARAMS // 8 + 1)
     assert not [n for n in SN.param_names(big) if n.startswith("sn_st")]
-    from rigd.ident.mechanical import generic_structure
+    from rigd.ident.greybox.mechanical import generic_structure
 
     mech = generic_structure(["u"], ["y"])
     assert not [n for n in SN.param_names(mech) if n.startswith(("sn_st", "sn_c"))]

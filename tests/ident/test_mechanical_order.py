@@ -1,4 +1,4 @@
-"""The mechanical n-DOF base's own order search (rigd.ident.order.choose_order) on a record
+"""The mechanical n-DOF base's own order search (rigd.ident.greybox.order.choose_order) on a record
 with more inputs than outputs: each parallel mode is one mode, whatever the number of inputs
 (issue 20: "with two or more inputs no mode can ever be added"). Records from tests/gen
 (scipy/numpy only, never rigd's own models)."""
@@ -8,10 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rigd.ident.greybox.mechanical import generic_structure
+from rigd.ident.greybox.order import choose_order
+from rigd.ident.greybox.parallel import ParallelModes
 from rigd.ident.iddata import IdData
-from rigd.ident.mechanical import generic_structure
-from rigd.ident.order import choose_order
-from rigd.ident.parallel import ParallelModes
 from tests.gen.linear import THREE_MODES, structure_2in_3modes
 
 

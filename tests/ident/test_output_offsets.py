@@ -15,7 +15,8 @@ from scipy import signal
 
 from rigd.data.record import Record
 from rigd.ident.compare import compare_model
-from rigd.ident.mechanical import generic_structure, structure_for
+from rigd.ident.greybox.mechanical import generic_structure
+from rigd.ident.greybox.submodels import structure_for
 from rigd.ident.modelfile import load_model, rebuild_structure
 from rigd.ident.workflow import identify_record
 

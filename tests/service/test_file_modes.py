@@ -44,7 +44,7 @@ def test_controller_file(tmp_path, umask):
 
 
 def test_model_file(tmp_path, umask):
-    from rigd.ident.mechanical import actuator_structure
+    from rigd.ident.greybox.rotor import actuator_structure
     from rigd.ident.modelfile import ModelFile, Submodel, load_model
 
     ast = actuator_structure()

@@ -1,4 +1,6 @@
-"""Mechanical grey-box structures: bearing (Eqs. 5-7), actuator (Eqs. 8-10), generic n-DOF.
+"""Mechanical grey-box structures: the n-DOF model and the generic one of other rigs' records;
+the rotor's bearing (Eqs. 5-7) and actuator (Eqs. 8-10) are built on it in
+:mod:`rigd.ident.greybox.rotor`.
 
 All three are the mass-normalised model of Eqs. 4-6,
 
@@ -7,9 +9,11 @@ All three are the mass-normalised model of Eqs. 4-6,
 with D ≜ 𝓜⁻¹(𝓓 − Ω𝓖), K ≜ 𝓜⁻¹𝓚, B ≜ 𝓜⁻¹𝓑_p (Eq. 6) and the disturbance gain 𝓑_d = [0; B_d].
 They differ only in which entries are free:
 
-* :func:`bearing_structure` — 𝔐_b, all of D, K, B, B_d (2×2) and x0 (4): 20 parameters;
-* :func:`actuator_structure` — 𝔐_a, diagonal (decoupled second-order valves, Eq. 8):
-  k_a, b_a, d_a, b_{d,a} per axis and x_{a0} (4): 12 parameters (Eq. 10);
+* :func:`rigd.ident.greybox.rotor.bearing_structure` — 𝔐_b, all of D, K, B, B_d (2×2) and
+  x0 (4): 20 parameters;
+* :func:`rigd.ident.greybox.rotor.actuator_structure` — 𝔐_a, diagonal (decoupled
+  second-order valves, Eq. 8): k_a, b_a, d_a, b_{d,a} per axis and x_{a0} (4): 12 parameters
+  (Eq. 10);
 * :func:`generic_structure` — any n outputs, nu inputs (records from other rigs), with a
   constant offset per output (``yoff_i``, y = p + y_off): a record from elsewhere rarely starts
   at rest at its own zero, so the output's zero is estimated with the model rather than taken
@@ -22,10 +26,10 @@ from __future__ import annotations
 import numpy as np
 
 from rigd.ident.feedback import MechanicalFeedback
+from rigd.ident.greybox.parallel import ParallelModes
 from rigd.ident.iddata import IdData
 from rigd.ident.initial import mechanical_initial
 from rigd.ident.model import LinearPart
-from rigd.ident.parallel import ParallelModes
 from rigd.ident.readouts import linear_readouts
 from rigd.ident.simulate import mechanical_abc, predict_mechanical, simulate_mechanical
 from rigd.ident.structure import Structure
@@ -88,7 +92,7 @@ class MechanicalStructure(Structure):
         self.offset_index = list(range(self._off, len(names)))
         #: parameters of the mechanical part (the parallel modes' come after them)
         self.nb = len(names)
-        #: the order search's parallel modes (rigd.ident.parallel), None without them
+        #: the order search's parallel modes (rigd.ident.greybox.parallel), None without them
         self.parallel = (ParallelModes(extra_modes, self.input_names, self.output_names)
                          if extra_modes else None)
         if self.parallel is not None:
@@ -103,7 +107,7 @@ class MechanicalStructure(Structure):
         return 0 if self.parallel is None else self.parallel.m
 
     def with_modes(self, m: int) -> MechanicalStructure:
-        """The same structure with ``m`` parallel modes (rigd.ident.parallel)."""
+        """The same structure with ``m`` parallel modes (rigd.ident.greybox.parallel)."""
         return type(self)(*self._args, extra_modes=m)
 
     @property
@@ -112,7 +116,7 @@ class MechanicalStructure(Structure):
         return list(range(self._x0 + self.n, self._x0 + 2 * self.n))
 
     def set_record(self, fs: float, n_est: int) -> None:
-        """Bounds of the parallel modes relative to the record (rigd.ident.parallel)."""
+        """Bounds of the parallel modes relative to the record (rigd.ident.greybox.parallel)."""
         if self.parallel is not None:
             self.parallel.set_record(fs, n_est)
 
@@ -299,90 +303,18 @@ class MechanicalStructure(Structure):
         return d
 
 
-class ActuatorStructure(MechanicalStructure):
-    """𝔐_a (Eqs. 8-10): decoupled second-order valves, u_j = κ_j p1 p2 /((s+p1)(s+p2)) r_j.
-
-    Per axis: ü + d_a u̇ + k_a u = b_a r, so k_a = p1 p2, d_a = p1 + p2, b_a = κ k_a.
-    """
-
-    def readouts(self, theta):
-        K, D, B, _, _ = self.unpack(theta)
-        out = {"axes": {}}
-        for i, ax in enumerate(("x", "y")[:self.n]):
-            k, d, b = K[i, i], D[i, i], B[i, i]
-            roots = np.roots([1.0, d, k])
-            poles = sorted((-roots).tolist(), key=lambda z: abs(z))
-            poles = [float(p.real) if abs(complex(p).imag) < 1e-9 else complex(p) for p in poles]
-            ent = {"gain": float(b / k) if k != 0 else float("nan"),
-                   "f_n_hz": float(np.sqrt(abs(k)) / (2 * np.pi)),
-                   "zeta": float(d / (2 * np.sqrt(abs(k)))) if k != 0 else float("nan")}
-            if all(isinstance(p, float) for p in poles):
-                ent["poles_rad_s"] = poles
-            else:
-                ent["poles_rad_s"] = [str(p) for p in poles]
-            out["axes"][ax] = ent
-        return out
-
-
-def bearing_structure(hold: str = "zoh") -> MechanicalStructure:
-    """𝔐_b (Eqs. 5-7): u = [u_x, u_y] (V) -> p = [e_x, e_y] (µm), 20 parameters.
-
-    ``hold``: how the input behaves between samples. u is a *measured* valve position (a
-    continuous signal), for which ``"foh"`` (linear between samples) is right and is what
-    ``rigd identify`` uses (:data:`DEFAULT_HOLD`); the plain default ``"zoh"`` is the raw
-    simulator convention (inputs held), kept for callers that compensate themselves.
-    """
-    full = np.ones((2, 2), bool)
-    return MechanicalStructure("bearing", full, full, full, full, "", ["x", "y"], ["x", "y"],
-                               ["u_x", "u_y"], ["e_x", "e_y"], x0_name="x0_", hold=hold)
-
-
-def actuator_structure(hold: str = "zoh") -> ActuatorStructure:
-    """𝔐_a (Eqs. 8-10): r = [r_x, r_y] (V) -> u = [u_x, u_y] (V), 12 parameters.
-
-    r is the commanded reference, held over each loop period (zero-order hold).
-    """
-    eye = np.eye(2, dtype=bool)
-    return ActuatorStructure("actuator", eye, eye, eye, eye, "a_", ["x", "y"], ["x", "y"],
-                             ["r_x", "r_y"], ["u_x", "u_y"], x0_name="xa0_", hold=hold)
-
-
 def generic_structure(inputs: list[str], outputs: list[str], hold: str = "zoh",
                       output_offsets: bool = True) -> MechanicalStructure:
     """n-DOF M p̈ + D ṗ + K p = B u (mass-normalised), y = p + y_off, for records from
     other rigs.
 
     The inputs of other rigs are usually measured, smooth signals: ``rigd identify`` takes
-    them as linear between samples (``hold="foh"``, :data:`DEFAULT_HOLD`). ``output_offsets``:
-    estimate the outputs' zero with the model (module docstring); False only for model files
-    written before it existed.
+    them as linear between samples (``hold="foh"``,
+    :data:`rigd.ident.greybox.submodels.DEFAULT_HOLD`). ``output_offsets``: estimate the
+    outputs' zero with the model (module docstring); False only for model files written
+    before it existed.
     """
     n, nu = len(outputs), len(inputs)
     return MechanicalStructure("generic", np.ones((n, n), bool), np.ones((n, n), bool),
                                np.ones((n, nu), bool), np.ones((n, n), bool), "", None, None,
                                inputs, outputs, hold=hold, output_offsets=output_offsets)
-
-
-#: Input hold per sub-model used by ``rigd identify``: commanded references are held (ZOH),
-#: measured signals (valve positions, other rigs' inputs) are linear between samples (FOH).
-DEFAULT_HOLD = {"actuator": "zoh", "bearing": "foh", "generic": "foh"}
-
-
-def structure_for(submodel: str, data: IdData | None = None, spec: dict | None = None,
-                  hold: str | None = None):
-    """Base structure of a sub-model (``actuator``, ``bearing``, ``generic``).
-
-    ``hold``: ``"zoh"``/``"foh"``; default: the spec's (model files), else ``"zoh"`` (pass
-    ``DEFAULT_HOLD[submodel]`` for what ``rigd identify`` uses).
-    """
-    hold = hold or (spec or {}).get("hold") or "zoh"
-    if submodel == "actuator":
-        return actuator_structure(hold)
-    if submodel == "bearing":
-        return bearing_structure(hold)
-    if submodel == "generic":
-        if spec is not None:
-            return generic_structure(list(spec["inputs"]), list(spec["outputs"]), hold,
-                                     bool(spec.get("output_offsets", False)))
-        return generic_structure(data.input_names, data.output_names, hold)
-    raise ValueError(f"unknown sub-model {submodel!r}")

@@ -2,7 +2,7 @@
 
 A record from another rig may carry more modes than it has outputs (a flexible structure
 measured at one point). The generic mechanical structure (one DOF per output,
-:func:`rigd.ident.mechanical.generic_structure`) then takes ``m`` parallel modes, each
+:func:`rigd.ident.greybox.mechanical.generic_structure`) then takes ``m`` parallel modes, each
 ω²/(s² + 2ζω s + ω²) from every input to every output with its own gains, and their free
 response from initial values. Per mode k (named from 2, the base's being 1):
 
@@ -13,7 +13,7 @@ response from initial values. Per mode k (named from 2, the base's being 1):
 :class:`ParallelModes` holds the parametrisation (names, start values, bounds relative to the
 record, step sizes) and what the structure adds: the output (:func:`rigd.ident.simulate.
 parallel_modes` plus the free response) and the blocks of the whole linear part. The
-structure (rigd.ident.mechanical.MechanicalStructure with ``extra_modes``) passes it the
+structure (rigd.ident.greybox.mechanical.MechanicalStructure with ``extra_modes``) passes it the
 modes' slice of θ; state-level effects act on the mechanical part's [p, ṗ] only.
 """
 

@@ -2,8 +2,8 @@
 
 A record from another rig may carry more modes than it has outputs (a flexible structure
 measured at one point): the generic mechanical structure (one DOF per output,
-:func:`rigd.ident.mechanical.generic_structure`) with ``m`` parallel modes
-(``base.with_modes(m)``, :mod:`rigd.ident.parallel`), each ω²/(s² + 2ζω s + ω²) from every
+:func:`rigd.ident.greybox.mechanical.generic_structure`) with ``m`` parallel modes
+(``base.with_modes(m)``, :mod:`rigd.ident.greybox.parallel`), each ω²/(s² + 2ζω s + ω²) from every
 input to every output with its own gains (``modeK_f_hz``, ``modeK_zeta``,
 ``modeK_g_<in>_<out>``).
 
