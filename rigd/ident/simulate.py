@@ -234,27 +234,36 @@ def shift_inputs(u: np.ndarray, delays) -> np.ndarray:
     return out
 
 
+def _linear_discrete(lp, u, fs):
+    """(delayed inputs uu, Ad, Bd, u_eff, blocks) of a linear part: its per-input delays as
+    input shifts (:func:`shift_inputs`) and A, B discretised exactly with its hold — block by
+    block when A is block-diagonal (real-block modal form, :mod:`rigd.ident.block_kernels`;
+    ``blocks`` = (starts, count)), else whole (:func:`_discrete`; ``blocks`` None)."""
+    uu = np.ascontiguousarray(shift_inputs(np.ascontiguousarray(u, dtype=float), lp.delays))
+    A = np.asarray(lp.A, float)
+    blk = BK.blocks(A) if np.all(np.isfinite(A)) else None
+    if blk is not None:
+        Ad, Bd, ue = BK.discrete(A, lp.B, 1.0 / fs, lp.hold, blk[0], blk[1], uu)
+        return uu, Ad, Bd, ue, blk
+    Ad, Bd, ue = _discrete(A, np.asarray(lp.B, float), 1.0 / fs, lp.hold, uu)
+    return uu, Ad, Bd, ue, None
+
+
 def simulate_linear(lp, x0, u, fs) -> np.ndarray:
     """Simulated output (n, ny) of a :class:`rigd.ident.model.LinearPart` from state ``x0``.
 
-    A, B are discretised exactly with the part's hold (:func:`rigd.lti.zoh`/:func:`foh`),
-    the per-input delays are input shifts (:func:`shift_inputs`), then the compiled
-    :func:`lsim_kernel` runs; ``y = C x + D u``. A block-diagonal A (real-block modal form)
-    is discretised and run block by block (:mod:`rigd.ident.block_kernels`: the same
-    matrices, O(nx) instead of O(nx²) per sample).
+    A, B are discretised exactly with the part's hold (:func:`rigd.lti.zoh`/:func:`foh`;
+    block by block for a real-block modal A, :func:`_linear_discrete`), the per-input delays
+    are input shifts (:func:`shift_inputs`), then the compiled :func:`lsim_kernel` (or
+    :func:`rigd.ident.block_kernels.block_kernel`) runs; ``y = C x + D u``.
     """
-    uu = np.ascontiguousarray(shift_inputs(np.ascontiguousarray(u, dtype=float), lp.delays))
-    n, ny = uu.shape[0], lp.ny
-    A = np.asarray(lp.A, float)
-    blk = BK.blocks(A) if np.all(np.isfinite(A)) else None
+    uu, Ad, Bd, ue, blk = _linear_discrete(lp, u, fs)
+    y = np.empty((uu.shape[0], lp.ny))
     C = np.ascontiguousarray(lp.C, dtype=float)
     x0 = np.ascontiguousarray(x0, dtype=float)
-    y = np.empty((n, ny))
-    if blk is not None:  # real-block modal form: block by block (rigd.ident.block_kernels)
-        Ad, Bd, ue = BK.discrete(A, lp.B, 1.0 / fs, lp.hold, blk[0], blk[1], uu)
-        BK.lsim_block_kernel(Ad, blk[0], blk[1], Bd, C, x0, ue, y)
+    if blk is not None:
+        BK.block_kernel(Ad, blk[0], blk[1], Bd, np.zeros((lp.nx, 0)), C, x0, ue, y, y)
     else:
-        Ad, Bd, ue = _discrete(A, np.asarray(lp.B, float), 1.0 / fs, lp.hold, uu)
         lsim_kernel(Ad, Bd, C, x0, ue, y)
     if np.any(lp.D):
         y += uu @ np.asarray(lp.D, float).T
@@ -265,26 +274,19 @@ def predict_linear(lp, x0, u, y, fs) -> np.ndarray | None:
     """One-step-ahead prediction (n, ny) of a linear part with innovation gain ``lp.K``
     (discrete, nx × ny); ``None`` if the predictor is unstable (spectral radius of
     Ad − K C ≥ 1). Same discretisation and delays as :func:`simulate_linear`."""
-    uu = np.ascontiguousarray(shift_inputs(np.ascontiguousarray(u, dtype=float), lp.delays))
-    n, ny = uu.shape[0], lp.ny
-    A = np.asarray(lp.A, float)
-    blk = BK.blocks(A) if np.all(np.isfinite(A)) else None
-    if blk is not None:
-        Ad, Bd, ue = BK.discrete(A, lp.B, 1.0 / fs, lp.hold, blk[0], blk[1], uu)
-    else:
-        Ad, Bd, ue = _discrete(A, np.asarray(lp.B, float), 1.0 / fs, lp.hold, uu)
+    uu, Ad, Bd, ue, blk = _linear_discrete(lp, u, fs)
     C = np.ascontiguousarray(lp.C, dtype=float)
-    Kd = np.zeros((lp.nx, ny)) if lp.K is None else np.ascontiguousarray(lp.K, dtype=float)
+    Kd = (np.zeros((lp.nx, lp.ny)) if lp.K is None
+          else np.ascontiguousarray(lp.K, dtype=float))
     if not np.all(np.isfinite(Ad)) or (lp.nx and np.max(np.abs(np.linalg.eigvals(
             Ad - Kd @ C)))) >= 1.0:
         return None
     direct = uu @ np.asarray(lp.D, float).T if np.any(lp.D) else None
     ym = np.asarray(y, float) if direct is None else np.asarray(y, float) - direct
-    yhat = np.empty((n, ny))
-    x0 = np.ascontiguousarray(x0, dtype=float)
+    yhat = np.empty((uu.shape[0], lp.ny))
+    x0, ym = np.ascontiguousarray(x0, dtype=float), np.ascontiguousarray(ym)
     if blk is not None:
-        BK.predict_block_kernel(Ad, blk[0], blk[1], Bd, Kd, C, x0, ue,
-                                np.ascontiguousarray(ym), yhat)
+        BK.block_kernel(Ad, blk[0], blk[1], Bd, Kd, C, x0, ue, ym, yhat)
     else:
-        predict_kernel(Ad, Bd, Kd, C, x0, ue, np.ascontiguousarray(ym), yhat)
+        predict_kernel(Ad, Bd, Kd, C, x0, ue, ym, yhat)
     return yhat if direct is None else yhat + direct
