@@ -95,7 +95,7 @@ def refit_effect(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe",
 
 def _refit_one(eff, ctx: Context, sig, data_est, max_nfev, method: str,
                kept: tuple[str, ...]) -> Refit:
-    from rigd.ident.pipeline import held_base, refit_with
+    from rigd.ident.pipeline import refit_with
 
     structure, theta, data = ctx.structure, ctx.theta, ctx.data
     # an effect may offer several starts (loop shapes): the fit with the lowest estimation
@@ -105,10 +105,9 @@ def _refit_one(eff, ctx: Context, sig, data_est, max_nfev, method: str,
     # parameters an effect keeps at their start in the refit (a redundant scale)
     fixed = list(kept) + list(getattr(eff, "refit_fixed", lambda e, s=None: [])(
         eff.extend(structure), sig))
-    fixed += held_base(structure, method, fixed)  # a large base is held (MAX_REFIT_FREE)
     fixed = fixed or None
-    ext, best, th0 = refit_with(structure, theta, [eff], data_est, method, starts=starts,
-                                fixed=fixed, max_nfev=max_nfev)
+    ext, best, th0, fixed = refit_with(structure, theta, [eff], data_est, method,
+                                       starts=starts, fixed=fixed, max_nfev=max_nfev)
     try:
         th = best.theta if best is not None else th0
         yw = np.asarray(ext.simulate(th, data), float)
@@ -123,7 +122,7 @@ def _refit_one(eff, ctx: Context, sig, data_est, max_nfev, method: str,
     if not np.all(np.isfinite(yw)):
         th, yw = th0, ctx.yhat
     fw = float(np.mean(fit_percent(ctx.y[ctx.val], yw[ctx.val])))
-    return Refit(ext, th, yw, fw, 0.0, tuple(fixed or ()), sig)
+    return Refit(ext, th, yw, fw, 0.0, fixed, sig)
 
 
 def _words(eff, ctx: Context, sig) -> tuple[str, dict[str, Any]]:

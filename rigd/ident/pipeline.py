@@ -362,14 +362,13 @@ def refit_with(structure, theta: np.ndarray, effects: Sequence[Any], data_est, m
 
     Returns
     -------
-    (extended structure, FitResult or None, th0 of the last start)
-        None when no start could be fitted.
+    (extended structure, FitResult or None, th0 of the last start, names kept fixed)
+        None when no start could be fitted; the names: ``fixed`` and the held base's.
     """
     from rigd.ident.pem import fit
 
-    held = held_base(structure, method, fixed)
-    if held:
-        fixed = list(fixed or []) + [n for n in held if n not in set(fixed or [])]
+    held = held_base(structure, method, fixed)   # names not in ``fixed`` already
+    fixed = (list(fixed or []) + held) or None
 
     ext = structure
     for e in effects:
@@ -395,7 +394,7 @@ def refit_with(structure, theta: np.ndarray, effects: Sequence[Any], data_est, m
             best = res
     if best is not None:
         best.info["held_base"] = len(held)
-    return ext, best, th0
+    return ext, best, th0, tuple(fixed or ())
 
 
 def effects_for(effects: Sequence[Any], submodel: str) -> list[Any]:

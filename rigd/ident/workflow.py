@@ -218,7 +218,7 @@ def _with_effects(bf, applied: list[Any], sm: str, init: ModelFile | None, metho
                          f"{', '.join(e.name for e in applied)}: {exc}", "--add") from None
     th_init = start_values(composed, init, sm, bf.est_data)
     starts = [None if th_init is None else th_init[nb:]]
-    structure, res2, _ = refit_with(structure, res.theta, applied, bf.est_data, method,
+    structure, res2, *_ = refit_with(structure, res.theta, applied, bf.est_data, method,
                                     starts=starts)
     if res2 is None:
         raise InputError(f"the {sm} model with {', '.join(e.name for e in applied)} "

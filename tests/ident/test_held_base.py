@@ -60,9 +60,10 @@ def test_delay_refitted_on_a_held_large_base():
     off = base.offset_index
     th_base[off] = 0.0  # offsets to be refitted
     fp0 = float(np.mean(fit_percent(y, base.simulate(th_base, data))))
-    ext, res, _ = refit_with(base, th_base, [REGISTRY["delay"]], data, "oe",
-                             starts=[np.array([1.5])])
+    ext, res, _, kept = refit_with(base, th_base, [REGISTRY["delay"]], data, "oe",
+                                   starts=[np.array([1.5])])
     assert res is not None and res.info["held_base"] == len(held_base(base, "oe"))
+    assert kept == tuple(held_base(base, "oe"))  # what a later refit of the step keeps
     nb = len(base.names)
     keep = np.ones(nb, bool)
     keep[off] = False
