@@ -26,6 +26,7 @@ SLOW_DRIVER = 11        # a slow driver failed (device unreachable) or its data 
 OPERATOR_STOP = 12      # safe state requested by the operator / service
 LOOP_DIED = 13          # the loop thread died or a cycle raised: outputs set safe, loop stopped
 OPERATOR_SAFE = 14      # the operator's safe-state button (`rigd ctl safe`, the console)
+LOOP_STALL = 15         # no cycle for longer than the stall bound (loop or watchdog saw it)
 
 #: code -> (name, one-line explanation)
 FAULTS: dict[int, tuple[str, str]] = {
@@ -49,6 +50,8 @@ FAULTS: dict[int, tuple[str, str]] = {
                 "the loop thread died or a cycle raised; outputs set safe, loop stopped"),
     OPERATOR_SAFE: ("operator_safe",
                     "safe state requested by the operator (safe command); reset to leave it"),
+    LOOP_STALL: ("loop_stall",
+                 "the loop stood still longer than its stall bound (no cycle ran)"),
 }
 
 #: fast-driver status bits (``drv_status`` input channel)
