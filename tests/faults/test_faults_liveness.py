@@ -136,7 +136,7 @@ def emulator(tmp_path):
     emus = []
 
     def make():
-        emu = EmulatorProcess(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.05,
+        emu = EmulatorProcess(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.5,
                               tx_buffer_s=0.5)
         emus.append(emu)
         return emu
@@ -266,3 +266,55 @@ def test_plc_killed_and_back(tmp_path):
         plc.stop()
     assert code in (0, 1), d.log()
     _assert_contiguous(read_frames(rec), n0)
+
+
+def test_front_end_heartbeat_holds_on_a_replaying_host(tmp_path):
+    """The front-end's host heartbeat on a pseudo-terminal pair: enabled drive frames whose
+    host counter advances are applied; the same frame replayed (a frozen host whose link
+    repeats it) is no heartbeat — the device holds its safe voltage within its host timeout
+    while the frames keep arriving; an advancing frame drives it again; silence holds too."""
+    import threading
+
+    from emuproc import EmulatorProcess
+
+    from rigd_drivers.serial import protocol as sp
+
+    emu = EmulatorProcess(str(tmp_path / "frontend"), fs=5000.0, hold_timeout=0.2)
+    fd = os.open(emu.port, os.O_RDWR | os.O_NOCTTY)
+    buf = np.zeros(sp.DRIVE_FRAME, np.uint8)
+    frame = {"seq": 1, "advance": True, "send": True}
+    stop = threading.Event()
+
+    def host():
+        drive = np.array([6.0, 4.0, 6.5, 3.5])
+        while not stop.wait(0.005):
+            if frame["advance"]:
+                frame["seq"] += 1
+            if frame["send"]:
+                sp.encode_drive(buf, frame["seq"], True, drive)
+                os.write(fd, buf.tobytes())
+            try:
+                os.read(fd, 65536)       # drain the sensor frames
+            except BlockingIOError:
+                pass
+
+    os.set_blocking(fd, False)
+    t = threading.Thread(target=host, daemon=True)
+    t.start()
+    try:
+        _until(lambda: not emu.holding, "the device to apply the host's drive")
+        np.testing.assert_allclose(emu.applied, [6.0, 4.0, 6.5, 3.5], atol=1e-3)
+        frame["advance"] = False                       # the host froze, its link replays
+        n = emu.repeated_frames
+        _until(lambda: emu.holding, "the device to hold on a replaying host")
+        np.testing.assert_allclose(emu.applied, emu.hold_v)
+        assert emu.repeated_frames > n, "frames kept arriving while it held"
+        frame["advance"] = True
+        _until(lambda: not emu.holding, "the device to apply an advancing host again")
+        frame["send"] = False                          # silence
+        _until(lambda: emu.holding, "the device to hold on a silent host")
+    finally:
+        stop.set()
+        t.join(5)
+        os.close(fd)
+        emu.stop()
