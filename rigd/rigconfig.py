@@ -80,8 +80,8 @@ class SupervisorConfig(StrictModel):
     overrun_storm_window_s: float | None = Field(None, gt=0, le=600)
     #: ... beyond this latches overrun_storm, s (null: the stall bound; 0: off)
     overrun_storm_lost_s: float | None = Field(None, ge=0, le=60)
-    #: the former count rule (that many overruns within the window, whatever their size):
-    #: null = off (the lost-time rule above replaces it)
+    #: the former count rule (that many overruns within the window, whatever their size),
+    #: used instead of the lost-time rule when set; null = the lost-time rule
     overrun_storm_count: int | None = Field(None, ge=1)
     slow_stale_s: float = Field(2.0, gt=0)              #: slow-driver data older -> fault
     #: bound for a slow driver's *first* good poll, counted from the loop's start (connect and

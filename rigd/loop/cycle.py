@@ -52,6 +52,7 @@ from rigd.loop.layout import (
     P_KFF,
     P_KN,
     P_KP,
+    P_GRACE_N,
     P_LOST_DECAY,
     P_PEQ_ALPHA,
     P_PERIOD_NS,
@@ -114,6 +115,7 @@ from rigd.loop.safeword import (
     W_LOOP_GAP_NS,
     W_REQ,
     W_SEQ,
+    W_STALL_FROM,
     W_STALL_REQ,
 )
 
@@ -344,22 +346,26 @@ def watch_cycle(prm, st, sw, now_ns):
     """Liveness of the real-time cycle, measured by the cycle itself (:mod:`rigd.loop.liveness`).
 
     ``now_ns`` is this cycle's wake-up (``CLOCK_MONOTONIC``); the previous one is in the safe
-    word (``W_CYCLE_NS``, what other processes read the loop's age from). The control time
-    lost since the previous cycle — the gap beyond one period, during which the outputs were
-    held — goes into a leaky bucket (decay ``exp(-T/W)`` per cycle); a single gap beyond the
-    stall bound latches ``loop_stall``, a bucket beyond the storm bound ``overrun_storm``.
-    O(1): three loads, a multiply, a compare, two stores.
+    word (``W_CYCLE_NS``, what other processes read the loop's age from). A gap between two
+    cycles longer than the stall bound latches ``loop_stall``. The control time lost since the
+    previous cycle — the gap beyond two periods: a cycle up to one period late is a late
+    update, beyond that the outputs stood with no update at all — goes into a leaky bucket
+    (decay ``exp(-T/W)`` per cycle); beyond the storm bound it latches ``overrun_storm``.
+    O(1): a few loads and stores, a multiply, two compares.
     """
     prev = sw[W_CYCLE_NS]
     sw[W_CYCLE_NS] = now_ns
     lost = st[S_LOST_NS] * prm[P_LOST_DECAY]
-    if prev > 0:
-        gap = float(now_ns - prev) - prm[P_PERIOD_NS]
-        if gap > 0.0:
-            lost += gap
-            if prm[P_STALL_NS] > 0.0 and gap > prm[P_STALL_NS]:
-                sw[W_LOOP_GAP_NS] = int(gap)
-                latch(st, FC.LOOP_STALL, -1)
+    if prev > 0 and st[S_SEQ] >= prm[P_GRACE_N]:   # not during the start-up grace
+        gap = float(now_ns - prev)
+        # up to one period late is a late update (jitter); beyond, no update at all
+        absent = gap - 2.0 * prm[P_PERIOD_NS]
+        if absent > 0.0:
+            lost += absent
+        if prm[P_STALL_NS] > 0.0 and gap > prm[P_STALL_NS]:
+            sw[W_LOOP_GAP_NS] = int(gap)
+            sw[W_STALL_FROM] = int(st[S_SEQ]) - 1
+            latch(st, FC.LOOP_STALL, -1)
     st[S_LOST_NS] = lost
     if prm[P_STORM_NS] > 0.0 and lost > prm[P_STORM_NS]:
         latch(st, FC.OVERRUN_STORM, -1)

@@ -57,7 +57,8 @@ P_STALL_NS = P_KD_MAT + 4
 P_LOST_DECAY = P_STALL_NS + 1   # per-cycle decay of the lost-control-time bucket, exp(-T/W)
 P_STORM_NS = P_LOST_DECAY + 1   # lost control time in the bucket that latches overrun_storm, ns
 P_PERIOD_NS = P_STORM_NS + 1    # the loop period, ns
-N_PRM = P_PERIOD_NS + 1
+P_GRACE_N = P_PERIOD_NS + 1     # cycles from the start not measured (start-up transient)
+N_PRM = P_GRACE_N + 1
 
 # --- state --------------------------------------------------------------------------------
 S_SEQ = 0           # number of the next cycle (= frames produced so far)

@@ -22,7 +22,9 @@ fastest envelope; ``supervisor.plant_tau_s``, or the fast driver's nominal plant
   bucket holds more than ``overrun_storm_lost_s`` (default: the stall bound) — the loop lost,
   within the plant's memory, as much control as one stall that matters. Late cycles that are
   late by microseconds add microseconds; a busy machine's jitter does not trip it, a loop that
-  is absent for a tenth of the time does.
+  is absent for a tenth of the time does. (A config that sets the former
+  ``overrun_storm_count`` gets the count rule instead: that many overruns within the window.)
+* Neither is measured during the loop's first :data:`GRACE_S` (its start-up transient).
 """
 
 from __future__ import annotations
@@ -37,6 +39,9 @@ from rigd.loop import layout as L
 DEFAULT_TAU_S = 0.02
 #: overrun-storm bucket time constant, in plant time constants
 STORM_WINDOW_TAUS = 10.0
+#: the loop's first cycles are not measured, s: the start-up transient (first calls of every
+#: code path, the service's processes starting; K∞ is off until enabled) is no stall
+GRACE_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -83,8 +88,12 @@ def derive(supervisor, fast_driver=None) -> LivenessBounds:
     stall = tau if supervisor.stall_s is None else float(supervisor.stall_s)
     window = (STORM_WINDOW_TAUS * tau if supervisor.overrun_storm_window_s is None
               else float(supervisor.overrun_storm_window_s))
-    lost = stall if supervisor.overrun_storm_lost_s is None else float(
-        supervisor.overrun_storm_lost_s)
+    if supervisor.overrun_storm_lost_s is not None:
+        lost = float(supervisor.overrun_storm_lost_s)
+    elif supervisor.overrun_storm_count is not None:
+        lost = 0.0        # the former count rule is configured: it replaces this one
+    else:
+        lost = stall
     return LivenessBounds(tau, source, stall, window, lost)
 
 
@@ -95,3 +104,4 @@ def fill(prm, bounds: LivenessBounds, fs: float) -> None:
     prm[L.P_STALL_NS] = bounds.stall_s * 1e9
     prm[L.P_LOST_DECAY] = math.exp(-period / bounds.storm_window_s)
     prm[L.P_STORM_NS] = bounds.storm_lost_s * 1e9
+    prm[L.P_GRACE_N] = round(GRACE_S * fs)
