@@ -318,3 +318,48 @@ def test_front_end_heartbeat_holds_on_a_replaying_host(tmp_path):
         t.join(5)
         os.close(fd)
         emu.stop()
+
+
+def test_status_reads_its_own_writes_after_safe_under_siege(tmp_path):
+    """Right after ``rigd ctl safe`` returns "latched at cycle N", ``rigd ctl status --json``
+    shows that fault and a cycle >= N — with 100 browser streams on ``rigd web`` and 60 idle
+    clients holding the daemon's socket (its 64 slots less the web's subscription and the
+    few `rigd ctl` needs: a query is refused at the door when every slot is taken, by
+    design), three times over (reset in between)."""
+    import re
+    import socket as so
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "web"))
+    from test_safe_under_siege import _head, _open_stream, _Siege
+    from webproc import daemon_and_web
+
+    streams, idle, siege = [], [], None
+    with daemon_and_web(tmp_path, daemon_args=("--client-idle-s", str(20 * PROCESS_S))) \
+            as (d, web):
+        try:
+            for _ in range(100):
+                streams.append(_open_stream(web.url, web.token))
+            assert all(_head(s).startswith(b"HTTP/1.1 200") for s in streams)
+            for _ in range(60):
+                c = so.socket(so.AF_UNIX, so.SOCK_STREAM)
+                c.connect(d.sock)
+                idle.append(c)
+            siege = _Siege(streams)
+            siege.start()
+            for _ in range(3):
+                r = _ctl(d, "safe")
+                assert r.returncode == 0, r.stderr
+                n = int(re.search(r"latched at cycle (\d+)", r.stdout).group(1))
+                st = _status(d)              # at once: no wait for a snapshot
+                assert st["fault"]["name"] == "operator_safe", (st["fault"], n)
+                assert st["fault"]["seq"] == n and st["seq"] >= n, (st["seq"], st["fault"], n)
+                assert st["controller"]["enabled"] is False
+                assert _ctl(d, "reset").returncode == 0
+                st = _status(d)
+                assert st["fault"]["code"] == 0, st["fault"]
+        finally:
+            if siege is not None:
+                siege.stop()
+            for s in streams + idle:
+                s.close()
