@@ -30,6 +30,7 @@ Every experiment run writes into a NEW directory (never reused, nothing overwrit
 from __future__ import annotations
 
 import datetime as _dt
+import errno
 import hashlib
 import json
 import os
@@ -44,6 +45,11 @@ from rigd.data.manifest import MANIFEST
 from rigd.errors import InputError
 from rigd.fileio import atomic_write_text
 from rigd.owner import this_process
+
+#: a run folder's reserve (dot-name: not listed), given back when the disk fills or the run
+#: ends, and its size, bytes
+RESERVE = ".rigd-reserve"
+RESERVE_BYTES = 1 << 20
 
 
 def now_iso() -> str:
@@ -190,6 +196,32 @@ class Manifest:
             "fault": self.fault,
         }
 
+    @property
+    def reserve_path(self) -> Path:
+        return self.run_dir / RESERVE
+
+    def reserve(self) -> None:
+        """Set :data:`RESERVE_BYTES` aside in the run folder: a disk that fills during the
+        run still takes the manifests that list what was kept (see :meth:`write`)."""
+        try:
+            with open(self.reserve_path, "xb") as fh:
+                fh.write(b"\0" * RESERVE_BYTES)
+        except OSError:
+            pass                     # no reserve: the writes below are tried all the same
+
+    def release(self) -> None:
+        """Give the reserve back (the run is over)."""
+        self.reserve_path.unlink(missing_ok=True)
+
     def write(self) -> None:
-        """Write ``manifest.json`` atomically (never a half-written manifest)."""
-        atomic_write_text(self.path, json.dumps(self.to_dict(), indent=2, default=str) + "\n")
+        """Write ``manifest.json`` atomically (never a half-written manifest); on a full disk
+        the reserve is given back and the write tried again."""
+        text = json.dumps(self.to_dict(), indent=2, default=str) + "\n"
+        try:
+            atomic_write_text(self.path, text)
+        except OSError as exc:
+            if exc.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG) or \
+                    not self.reserve_path.exists():
+                raise
+            self.release()
+            atomic_write_text(self.path, text)

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from rigd.data.manifest import MANIFEST
-from rigd.experiments.manifest import now_iso
+from rigd.experiments.manifest import RESERVE, now_iso
 from rigd.fileio import atomic_write_text, rename_new
 from rigd.owner import PROCESS_ENDED, alive, holders, stale_runs
 
@@ -114,6 +114,7 @@ def recover_run(run_dir: str | Path) -> dict[str, Any]:
     man["message"] = (f"{why}; {done} of {len(man.get('points') or [])} point(s) done; "
                       + (f"kept incomplete: {', '.join(kept)}" if kept
                          else "no record was being written"))
+    (rd / RESERVE).unlink(missing_ok=True)       # its space set aside for the manifest
     atomic_write_text(path, json.dumps(man, indent=2, default=str) + "\n")
     return {**out, "status": PROCESS_ENDED, "message": man["message"],
             "files": [e for e in man["files"] if e.get("complete") is False]}

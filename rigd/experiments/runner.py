@@ -150,6 +150,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         ops = [exp.spec.operating_point]
     for op in ops:
         man.add_point(op.omega_rpm if op else None, op.p_inj_bar if op else None)
+    man.reserve()
     man.write()
     if on_start:
         on_start(man)
@@ -296,6 +297,7 @@ def _finish(man: Manifest, status: str, current: dict[str, Any] | None, why: str
             p["status"] = "missing"
     man.status = status
     man.finished = now_iso()
+    man.release()
     done = sum(p["status"] == "done" for p in man.points)
     miss = man.missing
     man.message = (f"{why}; " if why else "") + (

@@ -126,6 +126,26 @@ class ExperimentHost:
                     "experiment run recovered" if not r.get("skipped")
                     else "experiment run not recovered", **r)
 
+    def _recover_lost(self, proc: Any) -> None:
+        """The experiment process ended (killed) and left its run ``running``: recover that
+        run at once (its record kept and listed incomplete, state ``interrupted (process
+        ended)``), as the next start would."""
+        rd = self._state.get("run_dir")
+        if self._state.get("state") != "failed" or not rd or proc.is_alive():
+            return
+        try:
+            got = call_in_helper("rigd.experiments.recovery", "recover_run", str(rd),
+                                 timeout_s=RECOVERY_LIMIT_S)
+        except Exception as exc:  # noqa: BLE001 - the next start tries again
+            if self.log is not None:
+                self.log.error("experiment run not recovered", run_dir=rd, error=repr(exc))
+            return
+        if not got.get("skipped"):
+            self._state.update(state=got["status"],
+                               message=f"{self._state.get('message')}; {got['message']}")
+            if self.log is not None:
+                self.log.info("experiment run recovered", **got)
+
     def wait_recovered(self, timeout: float = RECOVERY_LIMIT_S) -> None:
         """Block until the start's recovery (if any) is over."""
         t = self._recovery
@@ -311,6 +331,7 @@ class ExperimentHost:
         finally:
             self._fail("the experiment process ended without its result")  # if still open
             proc.join(5.0)            # reaped (it exits after its last word)
+            self._recover_lost(proc)
             over.set()
             started.set()
             conn.close()
