@@ -8,7 +8,8 @@ wrote it is gone (:func:`rigd.owner.stale_runs`: host, pid and start time). For 
   folder) is checked readable (h5py, SWMR), renamed to its final name (never over a file)
   and listed in ``files`` with ``complete: false``, ``incomplete_reason`` and ``n_frames``
   (the frames on disk); the file itself is marked so where it can be opened for writing
-  (:func:`rigd.recording.incomplete.mark_incomplete`). An unreadable one stays as it is,
+  (:func:`rigd.recording.incomplete.mark_incomplete`). A file its writer closed with every
+  expected frame (``complete`` true) is listed as it is; an unreadable one stays as it is,
   listed with ``readable: false``. Nothing is deleted;
 * the points it was running become ``missing``; the run's state becomes
   ``interrupted (process ended)`` with a message naming what was kept.
@@ -55,7 +56,7 @@ def _point_of(man: dict[str, Any], part: Path, meta: dict[str, Any]) -> dict[str
 def recover_run(run_dir: str | Path) -> dict[str, Any]:
     """Recover one run folder (see module docstring); ``{"run_dir", "status", "message",
     "files"}`` (``status`` unchanged and ``skipped`` set when it is not recoverable now)."""
-    from rigd.recording.incomplete import mark_incomplete
+    from rigd.recording.incomplete import describe, mark_incomplete
 
     rd = Path(run_dir)
     path = rd / MANIFEST
@@ -76,20 +77,25 @@ def recover_run(run_dir: str | Path) -> dict[str, Any]:
                 return {**out, "status": "running",
                         "skipped": f"{part.name} is still held open by pid {holders(part)}"}
             time.sleep(0.1)
-    kept = []
+    kept, names = [], []
     for part in sorted(parts):
         final = _final_name(part)
         try:
             rename_new(part, final)
         except FileExistsError:
             final = part
-        info = mark_incomplete(final, why)
+        names.append(final.name)
+        info = describe(final)
+        whole = info.get("complete") is True       # closed by its writer with every frame
+        if not whole:
+            info = mark_incomplete(final, why)
         meta = info.get("meta") or {}
         pt = _point_of(man, part, meta)
         entry = {"path": final.name, "point": pt["index"] if pt else meta.get("point"),
                  **{k: v for k, v in meta.items() if k != "point"},
-                 "n_frames": info.get("n_frames"), "complete": False,
-                 "incomplete_reason": info.get("incomplete_reason") or why}
+                 "n_frames": info.get("n_frames")}
+        if not whole:
+            entry.update(complete=False, incomplete_reason=info.get("incomplete_reason") or why)
         if not info.get("readable"):
             entry["readable"] = False
             entry["error"] = info.get("error")
@@ -101,7 +107,8 @@ def recover_run(run_dir: str | Path) -> dict[str, Any]:
         secs = (f", {info['n_frames'] / fs:.1f} s" if info.get("n_frames") is not None
                 and isinstance(fs, (int, float)) and fs > 0 else "")
         kept.append(f"{final.name} ({info.get('n_frames')} frames{secs}"
-                    f"{'' if info.get('readable') else ', unreadable'})")
+                    f"{'' if info.get('readable') else ', unreadable'}"
+                    f"{', whole' if whole else ''})")
     for p in man.get("points") or []:
         if p.get("status") == "running":
             p.update(status="missing", error=why, finished=None)
@@ -112,12 +119,12 @@ def recover_run(run_dir: str | Path) -> dict[str, Any]:
     man["finished"] = man.get("finished") or now_iso()
     man["recovered"] = now_iso()
     man["message"] = (f"{why}; {done} of {len(man.get('points') or [])} point(s) done; "
-                      + (f"kept incomplete: {', '.join(kept)}" if kept
+                      + (f"records kept: {', '.join(kept)}" if kept
                          else "no record was being written"))
     (rd / RESERVE).unlink(missing_ok=True)       # its space set aside for the manifest
     atomic_write_text(path, json.dumps(man, indent=2, default=str) + "\n")
     return {**out, "status": PROCESS_ENDED, "message": man["message"],
-            "files": [e for e in man["files"] if e.get("complete") is False]}
+            "files": names}
 
 
 def recover_runs(root: str | Path) -> list[dict[str, Any]]:
