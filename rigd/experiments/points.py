@@ -86,9 +86,11 @@ class RecordFault(FaultError):
     """A recording failed (disk full, its writer died): the loop latched
     ``recorder_overflow``; the record is kept as far as it was flushed."""
 
-    def __init__(self, text: str):
-        self.fault = {"seq": None, "code": None, "name": "recorder_overflow", "text": text}
-        super().__init__(text)
+    def __init__(self, text: str, fault: dict[str, Any] | None = None):
+        self.fault = dict(fault) if fault and fault.get("code") else \
+            {"seq": None, "code": None, "name": "recorder_overflow", "text": text}
+        at = f" at cycle {self.fault['seq']}" if self.fault.get("seq") is not None else ""
+        super().__init__(f"{self.fault['name']} latched{at}: {text}")
 
 
 #: longest wait for the writer to let go of a cut-short record before it is marked, s (the
@@ -233,7 +235,11 @@ class PointRunner:
                                         stop_on_fault=True)
         except RecordingFailed as err:
             self.keep_partial(str(err), err.n_flushed)
-            raise RecordFault(str(err)) from None
+            try:
+                fault = (self.loop.status() or {}).get("fault")
+            except Exception:  # noqa: BLE001 - the fault is named either way
+                fault = None
+            raise RecordFault(str(err), fault) from None
         with self.critical():
             rename_new(part, path)
             self._pending = None

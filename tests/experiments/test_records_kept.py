@@ -41,7 +41,7 @@ class _Interrupting:
         return getattr(self._loop, name)
 
     def run_segment(self, exc, *, events=(), **kw):
-        if kw.get("record") is None:
+        if not hasattr(kw.get("record"), "path"):      # not a file recording
             return self._loop.run_segment(exc, events=events, **kw)
 
         def interrupt():
