@@ -17,6 +17,7 @@ from rigd.loop.app import build_loop
 from rigd.owner import PROCESS_ENDED, stale_runs
 from rigd.recording.h5sink import open_recording
 from rigd.rigconfig import default_config
+from rigd.web.runs import summarize
 
 FS = 5000.0
 PRBS = {"kind": "prbs", "operating_point": {"omega_rpm": 0, "p_inj_bar": 4.0},
@@ -125,5 +126,8 @@ def test_recovery_replays_a_dead_process_run(tmp_path):
     assert data["points"][0]["status"] == "missing"
     assert data["points"][0]["files"] == [f["path"]] and data["points"][0]["recording"] is None
     assert "p000_w0_p4_prbs.h5" in data["message"]
+    runs_tab = summarize(run)                  # the web console's Runs tab
+    assert runs_tab["status"] == PROCESS_ENDED and runs_tab["incomplete"] == [f["path"]]
+    assert runs_tab["records"] == [f["path"]]
     assert read_manifest(alive)["status"] == "running"       # a live owner's run: untouched
     assert stale_runs(root) == [] and recover_runs(root) == []

@@ -177,7 +177,7 @@ def test_experiment_process_killed_its_run_recovered_by_the_daemon(kills):
     f, fr = _one_record(run)
     # the segment played on in the daemon: every frame flushed before the kill, and more
     assert len(fr) == f["n_frames"] >= kills["exp_before"]
-    assert kills["exp_faults"] == [] and np.all(fr[:, REC["fault"]] == 0)
+    assert kills["exp_faults"]["faults"] == [] and np.all(fr[:, REC["fault"]] == 0)
 
 
 def test_daemon_killed_10s_into_a_30s_prbs_next_start_lists_a_readable_record(kills):
@@ -195,7 +195,7 @@ def test_daemon_killed_10s_into_a_30s_prbs_next_start_lists_a_readable_record(ki
     assert man["points"][0]["status"] == "missing" and man["missing"] == [0]
     # no fault was latched before the kill; the next start runs clean
     assert np.all(fr[:, REC["fault"]] == 0)
-    assert kills["next_status"]["fault"]["code"] == 0 and kills["next_faults"] == []
+    assert kills["next_status"]["fault"]["code"] == 0 and kills["next_faults"]["faults"] == []
 
 
 def test_both_killed_the_next_start_replays_the_journal(kills):
@@ -263,7 +263,7 @@ def test_disk_full_during_an_experiment_keeps_and_lists_the_record(tmp_path):
         # the frames on disk: all the writer flushed, at least all the test saw flushed
         assert len(fr) >= f["n_frames"] >= max(seen) > 0, (len(fr), f, max(seen))
         assert f"({f['n_frames']} frames" in f["incomplete_reason"]
-        assert any(x["code"] == FC.RECORDER_OVERFLOW for x in faults), faults
+        assert any(x["code"] == FC.RECORDER_OVERFLOW for x in faults["faults"]), faults
         assert st["recorder"]["state"] == "failed", st["recorder"]
         # a reset clears the fault, not what status says of the recording
         rec = after_reset["recorder"]
