@@ -30,6 +30,7 @@ waiting for it to complete).
 
 from __future__ import annotations
 
+import json
 import mmap
 import multiprocessing
 import os
@@ -132,6 +133,11 @@ class ExperimentHost:
         ended)``), as the next start would."""
         rd = self._state.get("run_dir")
         if self._state.get("state") != "failed" or not rd or proc.is_alive():
+            return
+        try:                      # cheap: JSON only; the recovery reads HDF5 in a helper
+            if json.loads((Path(rd) / "manifest.json").read_text()).get("status") != "running":
+                return
+        except (OSError, ValueError):
             return
         try:
             got = call_in_helper("rigd.experiments.recovery", "recover_run", str(rd),
