@@ -1,10 +1,11 @@
 """Write and read the figure artefacts (``docs/figures/*.json``) with their provenance.
 
-Provenance is taken when the figures are saved, right after they were measured: the host (CPU
-model, cores, the load average — the 1-minute figure covers the measurement of a section or of
-the demo's last minute, the 5-minute one the whole demo), the commit and whether the tree had
-changes, the UTC date, the Python and package versions. ``RIGD_HOST_NOTE`` adds words about
-the host (``"shared machine, other jobs running"``).
+Provenance is taken when the figures are saved, right after they were measured: the host
+(CPU model, cores, the load average — the 1-minute figure covers the measurement of a section
+or the demo's last minute, the 5-minute one the whole demo), the commit and whether the code,
+the configs or the pins had uncommitted changes (``tree_changed``), the UTC date, the Python
+and package versions. ``RIGD_HOST_NOTE`` adds words about the host (``"shared machine, other
+jobs running"``).
 """
 
 from __future__ import annotations
@@ -23,6 +24,9 @@ from tools.figures import FIGURES_DIR
 #: packages whose versions move the figures (numerics, the loop's compiler, the web stack)
 PACKAGES = ("rigd", "numpy", "scipy", "numba", "control", "h5py", "matplotlib", "plotly",
             "starlette", "uvicorn", "pydantic")
+
+#: the paths whose uncommitted changes would make the recorded commit not what was measured
+CODE_PATHS = ("rigd", "drivers", "bench", "config", "pyproject.toml", "constraints.txt")
 
 #: the demo summary's keys kept as figures (the rest of summary.json is the run's own record)
 DEMO_KEYS = ("run_time_s", "plant", "design_method", "controller_order", "gamma",
@@ -63,9 +67,8 @@ def provenance(root: Path) -> dict[str, Any]:
             "state": f"{state}: load average {load[0]:g} on {cores} cores"
                      + (f"; {note}" if note else "")}
     commit = _git(root, "rev-parse", "HEAD")
-    dirty = _git(root, "status", "--porcelain", "--untracked-files=no", "--", ".",
-                 f":(exclude){FIGURES_DIR.as_posix()}", ":(exclude)docs/figures.md",
-                 ":(exclude)README.md")
+    # changes to what is measured (the code, configs, pins), not to docs or tests
+    dirty = _git(root, "status", "--porcelain", "--untracked-files=no", "--", *CODE_PATHS)
     packages = {}
     for name in PACKAGES:
         try:
