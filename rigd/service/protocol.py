@@ -349,7 +349,7 @@ class Dispatcher:
                 from rigd.controller import from_wire
 
                 ctrl = from_wire(args.controller.model_dump(), source=path,
-                                 expected_fs_hz=float(loop.fs))
+                                 expected_fs_hz=getattr(loop, "fs", None))
             else:
                 ctrl = unpack_controller(payload)
             self._applied(cmd, loop.load_controller(ctrl, **when))
