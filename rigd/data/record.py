@@ -169,21 +169,7 @@ class Record:
             bad |= b
         if first is None:
             return
-        runs = valid_stretches(~bad)
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(np.int8), [0]])))
-        a, b = int(edges[0]), int(edges[1])
-        o = self.first_sample
-        by = f", used by {use}" if use else ""
-        pick = ""
-        if runs:
-            c, d = max(runs, key=lambda r: r[1] - r[0])
-            pick = (f"; the longest valid stretch is --range {o + c}:{o + d} "
-                    f"({(d - c) / self.fs:.3g} s)")
-        raise InputError(
-            f"{int(bad.sum())} invalid samples (NaN: no valid data from the driver, the "
-            f"record's fault column says why) in column {first!r}{by}, in {len(edges) // 2} "
-            f"stretch(es), the first at samples {o + a}:{o + b} (t {a / self.fs:.4g}-"
-            f"{b / self.fs:.4g} s); choose a valid stretch with --range{pick}", self.source)
+        raise invalid_samples_error(bad, self.fs, self.first_sample, first, use, self.source)
 
     def matrix(self, names: tuple[str, ...] | list[str]) -> np.ndarray:
         """Columns stacked as an (n_samples, len(names)) float64 array."""
@@ -211,3 +197,24 @@ def valid_stretches(valid: np.ndarray) -> list[tuple[int, int]]:
     samples), in order."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(valid, np.int8), [0]])))
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def invalid_samples_error(bad: np.ndarray, fs: float, offset: int, column: str, use: str,
+                          source: str) -> InputError:
+    """The one-line refusal of a recording whose samples ``bad`` (True: invalid, NaN) are in
+    use: the count, the first invalid stretch and the longest valid one as a ``--range``
+    (sample indices from ``offset``, times at ``fs``)."""
+    runs = valid_stretches(~bad)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(np.int8), [0]])))
+    a, b = int(edges[0]), int(edges[1])
+    by = f", used by {use}" if use else ""
+    pick = ""
+    if runs:
+        c, d = max(runs, key=lambda r: r[1] - r[0])
+        pick = f"; the longest valid stretch is --range {offset + c}:{offset + d} " \
+               f"({(d - c) / fs:.3g} s)"
+    return InputError(
+        f"{int(bad.sum())} invalid samples (NaN: no valid data from the driver, the record's "
+        f"fault column says why) in column {column!r}{by}, in {len(edges) // 2} stretch(es), "
+        f"the first at samples {offset + a}:{offset + b} (t {(offset + a) / fs:.4g}-"
+        f"{(offset + b) / fs:.4g} s); choose a valid stretch with --range{pick}", source)

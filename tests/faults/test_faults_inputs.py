@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import json
 import os
-import pwd
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -62,14 +62,31 @@ def _open_dir() -> Path:
     return d
 
 
-def _as_nobody():
-    pw = pwd.getpwnam("nobody")
+#: run as root, then act as ``nobody``: what the interpreter needs is imported first (the
+#: interpreter's own files may lie where nobody cannot read them, e.g. under /root)
+AS_NOBODY = """
+import base64, binascii, json, os, pwd, socket, sys
+import control, numpy, pydantic, yaml
+import rigd.cli, rigd.cli.ctl, rigd.service.client, rigd.controller, rigd.configio
+pw = pwd.getpwnam("nobody")
+os.setgroups([])
+os.setgid(pw.pw_gid)
+os.setuid(pw.pw_uid)
+assert os.geteuid() == pw.pw_uid
+if sys.argv[1] == "raw":          # the socket spoken to directly: a path alone
+    s = socket.socket(socket.AF_UNIX)
+    s.connect(sys.argv[2])
+    s.sendall((json.dumps({"id": 1, "cmd": "controller.load", "path": sys.argv[3]})
+               + "\\n").encode())
+    print(s.makefile().readline().strip())
+    sys.exit(0)
+sys.exit(rigd.cli.main(sys.argv[1:]))
+"""
 
-    def drop():
-        os.setgroups([])
-        os.setgid(pw.pw_gid)
-        os.setuid(pw.pw_uid)
-    return drop
+
+def _as_nobody(*args, cwd):
+    return subprocess.run([sys.executable, "-c", AS_NOBODY, *args], capture_output=True,
+                          text=True, timeout=PROCESS_S, cwd=str(cwd))
 
 
 def _stable_controller(path):
@@ -87,17 +104,7 @@ def test_ctl_load_as_another_uid_prints_nothing_of_a_file_it_cannot_read():
         secret = tmp / "web-token"
         secret.write_text(SECRET + "\n")
         secret.chmod(0o600)                           # root's; nobody may not read it
-        cache = tmp / "numba-cache"
-        cache.mkdir(mode=0o777)
-        cache.chmod(0o777)
-        env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), HOME=str(tmp))
-
-        def ctl_as_nobody(*args):
-            return subprocess.run([RIGD, "ctl", "--socket", d.sock, *args],
-                                  capture_output=True, text=True, timeout=PROCESS_S,
-                                  preexec_fn=_as_nobody(), env=env, cwd=str(tmp))
-
-        r = ctl_as_nobody("load", str(secret))
+        r = _as_nobody("ctl", "--socket", d.sock, "load", str(secret), cwd=tmp)
         assert r.returncode == 2, (r.stdout, r.stderr)
         assert SECRET[:4] not in r.stdout + r.stderr, r.stderr
         assert "ermission denied" in r.stderr, r.stderr
@@ -105,20 +112,12 @@ def test_ctl_load_as_another_uid_prints_nothing_of_a_file_it_cannot_read():
         # a file it may read but is no controller: refused naming the file, not quoting it
         host = Path("/etc/hostname")
         if host.is_file() and host.read_text().strip():
-            r = ctl_as_nobody("load", str(host))
+            r = _as_nobody("ctl", "--socket", d.sock, "load", str(host), cwd=tmp)
             assert r.returncode == 2 and str(host) in r.stderr, r.stderr
             assert host.read_text().strip() not in r.stderr, r.stderr
-        # the daemon's own socket, spoken to directly by that uid with the path alone: the
+        # the daemon's socket spoken to directly by that uid with the path alone: the
         # daemon does not open it for the client (its rights never read for another's)
-        probe = (
-            "import json, socket, sys\n"
-            "s = socket.socket(socket.AF_UNIX); s.connect(sys.argv[1])\n"
-            "s.sendall((json.dumps({'id': 1, 'cmd': 'controller.load', 'path': sys.argv[2]})"
-            " + '\\n').encode())\n"
-            "print(s.makefile().readline().strip())\n")
-        r = subprocess.run([str(Path(RIGD).parent / "python"), "-c", probe, d.sock, str(secret)],
-                           capture_output=True, text=True, timeout=PROCESS_S,
-                           preexec_fn=_as_nobody(), env=env, cwd=str(tmp))
+        r = _as_nobody("raw", d.sock, str(secret), cwd=tmp)
         reply = json.loads(r.stdout)
         assert reply["ok"] is False and "content is missing" in reply["error"], reply
         assert SECRET[:4] not in r.stdout
@@ -309,3 +308,38 @@ def _valid_after_nan(rec, ch) -> bool:
         return False
     bad = np.flatnonzero(~np.isfinite(fr[:, REC[ch]]))
     return bool(bad.size) and len(fr) - bad[-1] > 2500
+
+
+def test_a_dead_daemon_is_exit_3_and_safe_says_not_taken(tmp_path):
+    """kill -9 of the daemon: a client connected to it gets ``the daemon ended`` (exit
+    status 3 for the CLI, not the bad-input 2), and ``rigd ctl safe`` says at once that SAFE
+    was NOT taken (the SAFE word's daemon is gone: nothing will take the request)."""
+    import signal
+
+    from rigd.errors import EXIT_DAEMON_GONE, DaemonGone
+    from rigd.service.client import ControlClient
+
+    d = Daemon(tmp_path, make_config(tmp_path))
+    try:
+        d.wait_notify("READY=1")
+        client = ControlClient(d.sock, timeout=60).connect()
+        assert client.call("ping")["pong"]
+        kids = [pid for pid, _, _ in d.processes() if pid != d.proc.pid]
+        d.proc.send_signal(signal.SIGKILL)
+        d.proc.wait(60)
+        for pid in kids:             # its socket process ends with it (the connection closes)
+            _wait(lambda pid=pid: not Path(f"/proc/{pid}").exists()
+                  or "Z" in Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1][:3],
+                  what=f"child {pid} to end")
+        with pytest.raises(DaemonGone, match="the daemon ended"):
+            client.request("status")
+        client.close()
+        t0 = time.monotonic()
+        r = subprocess.run([RIGD, "ctl", "--socket", d.sock, "--timeout", "300", "safe"],
+                           capture_output=True, text=True, timeout=PROCESS_S)
+        waited = time.monotonic() - t0
+        assert r.returncode == EXIT_DAEMON_GONE, (r.stdout, r.stderr)
+        assert "SAFE was NOT taken" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+        assert waited < 300, "it did not wait for the SAFE word's deadline"
+    finally:
+        d.stop()

@@ -16,6 +16,7 @@ import threading
 
 import pytest
 from fakeloop import GatedLoop, controller_beside, gated_frontend
+
 from rigd.service.client import controller_args
 
 

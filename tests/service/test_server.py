@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from fakeloop import FakeLoop  # noqa: E402  (tests/service on sys.path via rootdir conftest)
 
+from rigd.controller import Controller, to_wire
 from rigd.errors import InputError
 from rigd.service.client import ControlClient, ControlError
 from rigd.service.protocol import Dispatcher, RequestError, parse_request
 from rigd.service.server import RESERVED, ControlServer
-from rigd.controller import Controller, to_wire
 
 
 @pytest.fixture()
