@@ -155,6 +155,26 @@ class Gates:
     nominal_source: str = ""
 
 
+def gates_from(opts: dict[str, Any] | None) -> Gates | None:
+    """:class:`Gates` from the rig config's ``controller_gates`` as plain values
+    (:meth:`rigd.rigconfig.LoadedConfig.gate_options`: ``max_gain``, ``nominal_plant``
+    path); the nominal plant read here. None without options.
+
+    Raises
+    ------
+    InputError
+        The nominal plant file is missing or invalid (named, with the config key).
+    """
+    if not opts:
+        return None
+    path = opts.get("nominal_plant")
+    try:
+        plant = load_plant(path) if path else None
+    except InputError as exc:
+        raise InputError(f"controller_gates.nominal_plant: {exc}") from None
+    return Gates(max_gain=opts.get("max_gain"), nominal=plant, nominal_source=str(path or ""))
+
+
 def load_plant(path: str | Path):
     """Read a plant model file (:class:`PlantModelFile`) as a python-control StateSpace.
 

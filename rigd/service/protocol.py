@@ -363,10 +363,8 @@ class Dispatcher:
         if cmd == "experiment.start":
             if payload is not None:
                 return self.experiments.start(experiment=payload, run_dir=args.run_dir)
-            if args.text is not None:
-                raise RequestError(f"{cmd}: an experiment file's text is read by the socket "
-                                   f"process; send it an inline 'spec' here")
-            return self.experiments.start(spec=args.spec, run_dir=args.run_dir)
+            # in-process only (tests, no socket process): the experiments object reads it
+            return self.experiments.start(path=args.path, spec=args.spec, run_dir=args.run_dir)
         if cmd == "experiment.status":
             return self.experiments.status()
         if cmd == "experiment.stop":

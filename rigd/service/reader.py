@@ -44,26 +44,20 @@ _GATES: dict[tuple, Any] = {}
 def gates_for(opts: dict[str, Any] | None):
     """The :class:`rigd.controller.Gates` of the rig config's ``controller_gates`` (as
     :meth:`rigd.rigconfig.LoadedConfig.gate_options` gives them), the nominal plant read once
-    per file; None without options.
+    per file (:func:`rigd.controller.gates_from`); None without options.
 
     Raises
     ------
     InputError
-        The nominal plant file is missing or invalid (named, with the config key).
+        The nominal plant file is missing or invalid.
     """
-    from rigd.controller import Gates, load_plant
+    from rigd.controller import gates_from
 
     if not opts:
         return None
     key = (opts.get("max_gain"), opts.get("nominal_plant"))
     if key not in _GATES:
-        path = opts.get("nominal_plant")
-        try:
-            plant = load_plant(path) if path else None
-        except InputError as exc:
-            raise InputError(f"controller_gates.nominal_plant: {exc}") from None
-        _GATES[key] = Gates(max_gain=opts.get("max_gain"), nominal=plant,
-                            nominal_source=str(path or ""))
+        _GATES[key] = gates_from(opts)
     return _GATES[key]
 
 

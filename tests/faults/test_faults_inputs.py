@@ -48,7 +48,7 @@ def _wait(pred, timeout=PROCESS_S, what="condition", every=0.05):
     end = time.monotonic() + timeout
     while True:
         v = pred()
-        if v:
+        if v is not None and v is not False:
             return v
         if time.monotonic() > end:
             raise AssertionError(f"timed out waiting for {what}")
