@@ -312,9 +312,12 @@ class _SlowLoop(_StubLoop):
 def busy(loads: int = 5, slow_s: float = 2.0, clients: int = 20, rate: float = 400.0,
          probe_period_s: float = 0.01) -> dict:
     """``status`` latency while a slow command is pending (see the module docstring)."""
+    from rigd.controller import Controller, to_wire
     from rigd.service.bridge import SocketFrontend
     from rigd.service.protocol import Dispatcher
 
+    wire = to_wire(Controller(np.array([[0.5]]), np.zeros((1, 2)), np.zeros((2, 1)),
+                              np.zeros((2, 2)), 5000.0))
     data = {"status": {"running": True, "seq": 1}, "timing": {"cycles": 1}, "faults": [],
             "experiment": {"state": "idle"}}
     loop = _SlowLoop(data, slow_s)
@@ -329,14 +332,6 @@ def busy(loads: int = 5, slow_s: float = 2.0, clients: int = 20, rate: float = 4
     outcomes: list[dict] = []      # every load: applied, refused (why) or lost
     with tempfile.TemporaryDirectory(prefix="rigd-socket-busy-") as d:
         path = str(Path(d) / "rigd.sock")
-        # a real controller file: the socket process reads and validates it before the
-        # command goes to the daemon (a path that does not exist is refused there, and
-        # never reaches the loop — what hung this bench for 20 minutes)
-        from rigd.controller import save_controller
-
-        kfile = str(Path(d) / "k.yaml")
-        save_controller(kfile, [[0.99]], [[0.001, 0.0005]], [[1.0], [0.5]],
-                        [[0.0, 0.0], [0.0, 0.0]], fs_hz=5000.0)
         fe = SocketFrontend(path, 0o660, disp.handle_line, snapshot).start()
         try:
             if not fe.ready.wait(60):
@@ -354,7 +349,9 @@ def busy(loads: int = 5, slow_s: float = 2.0, clients: int = 20, rate: float = 4
                 a = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
                 a.settimeout(60)
                 a.connect(path)
-                a.sendall((json.dumps({"id": i, "cmd": "controller.load", "path": kfile,
+                # the controller's content, as `rigd ctl load` sends it (no path to open)
+                a.sendall((json.dumps({"id": i, "cmd": "controller.load",
+                                       "path": "/bench/k.yaml", "controller": wire,
                                        "timeout_s": LOAD_DEADLINE_S}) + "\n").encode())
                 # the load reaches the loop, or is answered first (refused), or neither
                 # within its deadline (lost): every wait here is bounded

@@ -77,6 +77,8 @@ class SocketFrontend:
     word : callable, optional
         Called once the socket is bound (the SAFE word file goes beside it): returns the
         loop's SAFE word handle (:class:`rigd.loop.safeword.WordHandle`) or None.
+    gates : dict, optional
+        The config's ``controller_gates`` as plain values, for the socket process's checks.
     """
 
     def __init__(self, path: str, mode: int, handle_command: Callable[[bytes], bytes],
@@ -85,7 +87,8 @@ class SocketFrontend:
                  helper_priority: int | None = None, ring=None,
                  safe_generation: Callable[[], int] | None = None,
                  fs_hz: float | None = None, runs_root: str | None = None,
-                 idle_s: float | None = None, word: Callable[[], Any] | None = None):
+                 idle_s: float | None = None, gates: dict[str, Any] | None = None,
+                 word: Callable[[], Any] | None = None):
         self.path = str(path)
         self.mode = mode
         self.handle_command = handle_command
@@ -95,7 +98,8 @@ class SocketFrontend:
         self.log = log
         self.helper_priority = helper_priority
         self.opts = {"path": self.path, "nice": nice, "max_clients": max_clients,
-                     "ring": ring, "fs_hz": fs_hz, "runs_root": runs_root, "idle_s": idle_s}
+                     "ring": ring, "fs_hz": fs_hz, "runs_root": runs_root, "idle_s": idle_s,
+                     "gates": gates}
         #: called once the socket is bound: the loop's SAFE word handle for the socket
         #: process (status and ping read the loop's liveness from it), or None
         self._word_fn = word
