@@ -428,7 +428,7 @@ class Daemon:
                 self.notifier.ready(f"loop running at {getattr(self.loop, 'fs', 0):g} Hz")
                 self.log.info("ready", seq=seq, socket=getattr(self.args, "socket", None))
             now = time.monotonic()
-            if wd > 0 and running and advancing and now - last_wd >= wd:
+            if wd > 0 and running and advancing and self._cycling() and now - last_wd >= wd:
                 self.notifier.watchdog()
                 last_wd = now
             self._drain_faults()
@@ -437,6 +437,17 @@ class Daemon:
                 self.notifier.status(text)
                 last_status = text
         self._drain_faults()
+
+    def _cycling(self) -> bool:
+        """Is the loop's last cycle younger than its stall bound (the SAFE word; True when
+        it is not watched)? WATCHDOG=1 is fed by the loop's progress, not by this thread."""
+        from rigd.loop.safeword import W_STALL_BOUND_NS, age_s
+
+        w = getattr(getattr(self.loop, "safe", None), "word", None)
+        if w is None:
+            return True
+        bound, age = int(w[W_STALL_BOUND_NS]), age_s(w)
+        return bound <= 0 or age is None or age * 1e9 <= bound
 
     def _drain_faults(self) -> None:
         q = self._faults
