@@ -23,6 +23,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -62,9 +63,17 @@ def _flushed(run):
     if not parts:
         return 0
     try:
-        return len(read_frames(parts[0]))
+        with open_recording(parts[0]) as f:     # SWMR: the extent of its last flush
+            return int(f["frames"].shape[0])
     except (OSError, KeyError):
         return 0
+
+
+def _watch_flushed(run, seen, done):
+    """Note the frames flushed to the run's record until ``done`` (what the
+    writer had made safe before the fault, seen from outside), every 50 ms."""
+    while not done.wait(0.05):
+        seen.append(_flushed(run))
 
 
 def _gone(pid):
@@ -125,7 +134,7 @@ def kills(tmp_path_factory):
     try:
         a.wait_notify("READY=1")
         run = runs / "exp-killed"
-        pid, seen["exp_before"] = _start_experiment(a, _spec(tmp, "exp-killed", 3.0), run,
+        pid, seen["exp_before"] = _start_experiment(a, _spec(tmp, "exp-killed", 20.0), run,
                                                     int(1.0 * FS))
         os.kill(pid, signal.SIGKILL)
         assert wait_for(lambda: a.ctl_json("experiment")["state"] not in ("running",
@@ -232,18 +241,20 @@ def test_disk_full_during_an_experiment_keeps_and_lists_the_record(tmp_path):
         cfg = make_config(tmp_path, clock={"spin_us": 0.0}, recorder={"flush_interval_s": 0.1})
         d = Daemon(tmp_path, cfg, "--runs-dir", str(runs), fsize_limit=disk is None)
         run = runs / "full"
-        seen = []
+        seen = [0]
         try:
             d.wait_notify("READY=1")
             if disk is None:          # no mount here: a file-size limit, as the writer sees it
                 d.limit_fsize(3 * 1024 * 1024, d.writer_pid())
+            done = threading.Event()
+            watch = threading.Thread(target=_watch_flushed, args=(run, seen, done), daemon=True)
+            watch.start()
             d.ctl("start", str(_spec(tmp_path, "full", 30.0)), "--run-dir", str(run))
-
-            def over():
-                seen.append(_flushed(run))
-                return d.ctl_json("experiment")["state"] not in ("starting", "running")
-
-            assert wait_for(over, PROCESS_S), d.hang_report()
+            over = wait_for(lambda: d.ctl_json("experiment")["state"] not in (
+                "starting", "running"), PROCESS_S)
+            done.set()
+            watch.join(PROCESS_S)
+            assert over, d.hang_report()
             exp = d.ctl_json("experiment")
             st = d.ctl_json("status")
             faults = d.ctl_json("faults")
