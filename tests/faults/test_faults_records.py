@@ -89,14 +89,18 @@ def _gone(pid):
 
 
 def _start_experiment(d, spec, run, at_frames):
-    """Start ``spec`` into ``run``; wait until ``at_frames`` frames of its record are flushed.
-    Returns (experiment process pid, frames flushed then)."""
-    d.ctl("start", str(spec), "--run-dir", str(run))
-    assert wait_for(lambda: d.ctl_json("experiment")["state"] != "starting", PROCESS_S)
-    exp = d.ctl_json("experiment")
-    assert exp["state"] == "running", exp
-    assert wait_for(lambda: _flushed(run) >= at_frames, PROCESS_S), d.hang_report()
-    return exp["pid"], _flushed(run)
+    """Start ``spec`` into ``run``; wait until ``at_frames`` frames of its record are flushed,
+    watching the run folder itself (a `rigd ctl` call takes seconds on a loaded machine: the
+    record must not end meanwhile). Returns (experiment process pid: the manifest's owner,
+    frames flushed then, the `rigd ctl start` process)."""
+    ctl = subprocess.Popen([RIGD, "ctl", "--socket", d.sock, "start", str(spec), "--run-dir",
+                            str(run)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           text=True)
+    assert wait_for(lambda: _flushed(run) >= at_frames or ctl.poll() not in (None, 0),
+                    PROCESS_S), d.hang_report()
+    n = _flushed(run)
+    assert n >= at_frames, (ctl.communicate(timeout=PROCESS_S), d.log())
+    return _manifest(run)["owner"]["pid"], n, ctl
 
 
 def _dir(tmp, name):
@@ -134,20 +138,22 @@ def kills(tmp_path_factory):
     try:
         a.wait_notify("READY=1")
         run = runs / "exp-killed"
-        pid, seen["exp_before"] = _start_experiment(a, _spec(tmp, "exp-killed", 20.0), run,
-                                                    int(1.0 * FS))
+        pid, seen["exp_before"], ctl = _start_experiment(
+            a, _spec(tmp, "exp-killed", 20.0), run, int(1.0 * FS))
         os.kill(pid, signal.SIGKILL)
+        assert ctl.wait(PROCESS_S) == 0
         assert wait_for(lambda: a.ctl_json("experiment")["state"] not in ("running",
                                                                           "failed"), PROCESS_S)
         seen["exp_state"] = a.ctl_json("experiment")
         seen["exp_faults"] = a.ctl_json("faults")
         # 2. the daemon killed 10 s into a 30 s PRBS
         run = runs / "daemon-killed"
-        exp_pid, seen["daemon_before"] = _start_experiment(
+        exp_pid, seen["daemon_before"], ctl = _start_experiment(
             a, _spec(tmp, "daemon-killed", 30.0), run, int(10.0 * FS))
         seen["daemon_before_s"] = seen["daemon_before"] / FS
     finally:
         _kill_daemon(a)
+    ctl.wait(PROCESS_S)
     assert wait_for(lambda: _gone(exp_pid), PROCESS_S)   # it finishes its run, then ends
     # the next start
     b = Daemon(_dir(tmp, "b"), cfg, "--runs-dir", str(runs))
@@ -159,11 +165,12 @@ def kills(tmp_path_factory):
         seen["next_faults"] = b.ctl_json("faults")
         # 3. the experiment process and the daemon killed together
         run = runs / "both-killed"
-        pid, seen["both_before"] = _start_experiment(b, _spec(tmp, "both-killed", 20.0), run,
-                                                     int(2.0 * FS))
+        pid, seen["both_before"], ctl = _start_experiment(
+            b, _spec(tmp, "both-killed", 20.0), run, int(2.0 * FS))
         os.kill(pid, signal.SIGKILL)
     finally:
         _kill_daemon(b)
+    ctl.wait(PROCESS_S)
     seen["journal_left"] = _manifest(runs / "both-killed")["status"]
     c = Daemon(_dir(tmp, "c"), cfg, "--runs-dir", str(runs))
     try:
