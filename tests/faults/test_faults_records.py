@@ -41,6 +41,10 @@ from rigd.recording.h5sink import open_recording  # noqa: E402
 FS = 5000.0
 ENDED = "interrupted (process ended)"
 
+#: hang bound per test, s: the kill fixture starts three daemons one after the other (a
+#: daemon's READY alone took minutes at load average 20 on the shared 2-core machine)
+pytestmark = pytest.mark.timeout(3 * PROCESS_S)
+
 
 def prbs(name, duration_s):
     return {"kind": "prbs", "name": name, "operating_point": {"omega_rpm": 0, "p_inj_bar": 4.0},
