@@ -34,6 +34,7 @@ from typing import Any, TextIO
 import numpy as np
 import yaml
 
+from rigd.data import compressed
 from rigd.data.record import BAD_CELLS_KEPT, Record
 from rigd.errors import InputError
 
@@ -318,12 +319,12 @@ def read_csv(path: str | Path) -> Record:
     """
     spath = str(path)
     try:
-        fh = open(path, encoding="utf-8", newline="")  # noqa: SIM115 - `with fh:` below
+        fh = compressed.open_text(path)
     except FileNotFoundError:
         raise _err(spath, None, "no such file") from None
     except OSError as exc:
         raise _err(spath, None, f"cannot read: {exc.strerror or exc}") from None
-    with fh:
+    with fh, compressed.damaged_as_input_error(spath):
         meta, where, names, hline, rest = read_header(fh, spath)
         fs, meta = check_meta(meta, where, names, spath, hline)
         blocks: list[np.ndarray] = []

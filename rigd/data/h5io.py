@@ -62,11 +62,13 @@ class Recording:
     frames: Any          #: the h5py dataset (N, C)
     n: int               #: number of valid (flushed) rows
 
-    def blocks(self, rows: int = 65536, columns: list[int] | None = None
-               ) -> Iterator[np.ndarray]:
-        """Yield float64 row blocks of at most ``rows`` rows (bounded memory)."""
-        for s in range(0, self.n, rows):
-            block = self.frames[s:min(s + rows, self.n)]
+    def blocks(self, rows: int = 65536, columns: list[int] | None = None,
+               start: int = 0, stop: int | None = None) -> Iterator[np.ndarray]:
+        """Yield float64 row blocks of at most ``rows`` rows (bounded memory) of the frames
+        ``start:stop``."""
+        end = self.n if stop is None else min(stop, self.n)
+        for s in range(max(0, start), end, rows):
+            block = self.frames[s:min(s + rows, end)]
             if columns is not None:
                 block = block[:, columns]
             yield np.asarray(block, dtype=np.float64)
