@@ -22,21 +22,18 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from daemon_helpers import PROCESS_S, RIGD, Daemon, make_config
+from faultkit import read_frames, wait_for
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "service"))
-from daemon_helpers import PROCESS_S, RIGD, Daemon, make_config  # noqa: E402
-from faultkit import read_frames, wait_for  # noqa: E402
-
-from rigd.frame import REC  # noqa: E402
-from rigd.loop import faults as FC  # noqa: E402
-from rigd.recording.h5sink import open_recording  # noqa: E402
+from rigd.frame import REC
+from rigd.loop import faults as FC
+from rigd.recording.h5sink import open_recording
 
 FS = 5000.0
 ENDED = "interrupted (process ended)"
