@@ -56,7 +56,7 @@ lint: $(STAMP)
 # cache is empty and otherwise every worker and every daemon the tests start compiled the same
 # kernels at the same time (minutes of CPU each on 2 cores); after it they load them.
 REALTIME_TESTS := tests/service tests/loop tests/web tests/browser \
-                  tests/experiments/test_daemon_experiment.py
+                  tests/experiments/test_daemon_experiment.py tests/faults
 PYTEST_WORKERS ?= 2
 TEST_NICE ?= 10
 ONE_BLAS_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
