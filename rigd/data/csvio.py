@@ -425,8 +425,10 @@ def write_blocks(fh: TextIO, fs: float, meta: dict[str, Any], names: list[str],
     return n
 
 
-def write_csv(path: str | Path, record: Record, *, block_rows: int = BLOCK_ROWS) -> int:
-    """Write ``record`` as an interchange CSV atomically; returns the number of rows."""
+def write_csv(path: str | Path, record: Record, *, block_rows: int = BLOCK_ROWS,
+              replace: bool = True) -> int:
+    """Write ``record`` as an interchange CSV atomically; returns the number of rows
+    (``replace=False``: FileExistsError rather than replace a file)."""
     from rigd.fileio import atomic_open
 
     names = list(record.columns)
@@ -439,5 +441,5 @@ def write_csv(path: str | Path, record: Record, *, block_rows: int = BLOCK_ROWS)
             yield np.column_stack([record.columns[k][s:s + block_rows] for k in names]
                                   ).astype(np.float64, copy=False)
 
-    with atomic_open(path, "w", encoding="utf-8", newline="\n") as fh:
+    with atomic_open(path, "w", replace=replace, encoding="utf-8", newline="\n") as fh:
         return write_blocks(fh, record.fs, record.meta, names, blocks(), str(path))
