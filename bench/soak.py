@@ -180,6 +180,8 @@ def soak(minutes: float = 30.0, realtime: bool = False, clients: int = 10, seed:
     if realtime:  # a shared VM misses deadlines; overruns are reported, not tripped on
         cfg["supervisor"]["overrun_storm_count"] = 10**9
     (tmp / "rig.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    from rigd.service.client import controller_args
+
     ks = _controllers(tmp)
     sock, runs = str(tmp / "rigd.sock"), tmp / "runs"
     env = dict(os.environ)
@@ -248,7 +250,7 @@ def soak(minutes: float = 30.0, realtime: bool = False, clients: int = 10, seed:
                     counts["op_changes"] += 1
                 elif r < 0.80:
                     k_i ^= 1
-                    op.call("controller.load", path=ks[k_i])
+                    op.call("controller.load", **controller_args(ks[k_i]))
                     actions.append((seq, "load", k_i))
                     counts["controller_swaps"] += 1
                 elif not running:

@@ -310,9 +310,12 @@ class _SlowLoop(_StubLoop):
 def busy(loads: int = 5, slow_s: float = 2.0, clients: int = 20, rate: float = 400.0,
          probe_period_s: float = 0.01) -> dict:
     """``status`` latency while a slow command is pending (see the module docstring)."""
+    from rigd.controller import Controller, to_wire
     from rigd.service.bridge import SocketFrontend
     from rigd.service.protocol import Dispatcher
 
+    wire = to_wire(Controller(np.array([[0.5]]), np.zeros((1, 2)), np.zeros((2, 1)),
+                              np.zeros((2, 2)), 5000.0))
     data = {"status": {"running": True, "seq": 1}, "timing": {"cycles": 1}, "faults": [],
             "experiment": {"state": "idle"}}
     loop = _SlowLoop(data, slow_s)
@@ -343,8 +346,10 @@ def busy(loads: int = 5, slow_s: float = 2.0, clients: int = 20, rate: float = 4
                 a = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
                 a.settimeout(60)
                 a.connect(path)
+                # the controller's content, as `rigd ctl load` sends it (no path to open)
                 a.sendall((json.dumps({"id": i, "cmd": "controller.load",
-                                       "path": "/bench/k.yaml"}) + "\n").encode())
+                                       "path": "/bench/k.yaml", "controller": wire})
+                           + "\n").encode())
                 while not loop.pending.wait(0.005):
                     pass
                 while loop.pending.is_set():

@@ -158,6 +158,9 @@ def validate(loaded: LoadedYaml, model: type[M], *, section: tuple[Any, ...] = (
         msg = err["msg"]
         if err["type"] == "extra_forbidden":
             msg = "unknown key"
+        elif isinstance(err.get("input"), str):
+            # never quoted: a file's text may be a secret (a token file named as a controller)
+            msg = f"{msg} (got a string of {len(err['input'])} characters)"
         elif ("input" in err and err["type"] != "missing"
               and not isinstance(err["input"], (dict, list))):
             msg = f"{msg} (got {err['input']!r})"

@@ -21,6 +21,7 @@ loop — with the plant model given by the caller or, failing that, the design m
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -92,6 +93,8 @@ class Controller:
     fs_hz: float
     source: str = "<memory>"
     meta: dict[str, Any] = field(default_factory=dict)
+    #: the file's design model G_p(z) as (A, B, C, D) at ``fs_hz`` (None: the file has none)
+    design_plant: tuple | None = None
 
     @property
     def order(self) -> int:
@@ -115,6 +118,123 @@ def _as_matrix(name: str, rows: Matrix, where: str) -> np.ndarray:
     if not np.all(np.isfinite(m)):
         raise InputError(f"{name} contains NaN or Inf", where)
     return m
+
+
+#: default of ``controller_gates.max_gain_v_per_um`` (rig config): K∞'s largest gain over
+#: frequency, V/µm — a 0.1 µm error would then drive the whole 10 V range (the shipped design
+#: peaks near 5 V/µm)
+MAX_GAIN_V_PER_UM = 100.0
+#: the nominal plant model shipped with rigd (the paper's rig at 4000 rpm, 7 bar: the design
+#: model of config/controller.yaml): ``controller_gates.nominal_plant``'s default
+NOMINAL_PLANT = Path(__file__).with_name("nominal_plant.yaml")
+#: frequencies at which the gain is evaluated, 0 .. Nyquist
+_N_FREQ = 512
+
+
+class PlantModelFile(StrictModel):
+    """A plant model file (``controller_gates.nominal_plant``): G_p from r = [r_x, r_y] (V)
+    to p = [e_x, e_y] (µm); discrete at ``fs_hz`` (zero-order hold), or continuous when
+    ``fs_hz`` is absent."""
+
+    A: Matrix
+    B: Matrix
+    C: Matrix
+    D: Matrix
+    fs_hz: float | None = Field(None, gt=0)
+    note: str | None = None
+
+
+@dataclass(frozen=True)
+class Gates:
+    """What a controller must pass beyond the file checks (the rig config's
+    ``controller_gates``): its peak gain at most ``max_gain`` V/µm, and — when its file has no
+    ``design_plant`` — a stable closed loop on ``nominal`` (control.StateSpace, or None)."""
+
+    max_gain: float | None = MAX_GAIN_V_PER_UM
+    nominal: Any = None
+    nominal_source: str = ""
+
+
+def gates_from(opts: dict[str, Any] | None) -> Gates | None:
+    """:class:`Gates` from the rig config's ``controller_gates`` as plain values
+    (:meth:`rigd.rigconfig.LoadedConfig.gate_options`: ``max_gain``, ``nominal_plant``
+    path); the nominal plant read here. None without options.
+
+    Raises
+    ------
+    InputError
+        The nominal plant file is missing or invalid (named, with the config key).
+    """
+    if not opts:
+        return None
+    path = opts.get("nominal_plant")
+    try:
+        plant = load_plant(path) if path else None
+    except InputError as exc:
+        raise InputError(f"controller_gates.nominal_plant: {exc}") from None
+    return Gates(max_gain=opts.get("max_gain"), nominal=plant, nominal_source=str(path or ""))
+
+
+def load_plant(path: str | Path):
+    """Read a plant model file (:class:`PlantModelFile`) as a python-control StateSpace.
+
+    Raises
+    ------
+    InputError
+        Naming the file and the key (never quoting the file's content).
+    """
+    import control
+
+    spec = validate(read_yaml(path, None, limit=MAX_CONTROLLER_BYTES, what="plant model file"),
+                    PlantModelFile)
+    where = str(path)
+    mats = [_as_matrix(k, getattr(spec, k), where) for k in "ABCD"]
+    try:
+        G = control.ss(*mats, 0 if spec.fs_hz is None else 1.0 / spec.fs_hz)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"not a valid state space: {exc}", where) from None
+    if G.ninputs != 2 or G.noutputs != 2:
+        raise InputError(f"the plant model must have 2 inputs (r_x, r_y) and 2 outputs (e_x, "
+                         f"e_y), got {G.ninputs} and {G.noutputs}", where)
+    return G
+
+
+def peak_gain(A, B, C, D) -> tuple[float, float]:
+    """Largest singular value of K(e^{jω}) = C (e^{jω} I - A)⁻¹ B + D over ``_N_FREQ``
+    frequencies from 0 to Nyquist, and the normalised frequency ω/π where it is reached;
+    ``inf`` when it overflows (entries like 1e300)."""
+    n = A.shape[0]
+    w = np.linspace(0.0, np.pi, _N_FREQ)
+    with np.errstate(all="ignore"):
+        if n:
+            z = np.exp(1j * w)[:, None, None] * np.eye(n) - A
+            H = C @ np.linalg.solve(z, np.broadcast_to(B, (len(w), n, 2))) + D
+        else:
+            H = np.broadcast_to(D.astype(complex), (len(w), 2, 2))
+        if not np.all(np.isfinite(H)):
+            return math.inf, 0.0
+        sv = np.linalg.svd(H, compute_uv=False)[:, 0]
+    k = int(np.argmax(sv))
+    return float(sv[k]), float(w[k] / np.pi)
+
+
+def check_gates(A, B, C, D, *, fs_hz: float, where: str, gates: Gates | None,
+                has_design_plant: bool) -> None:
+    """Raise :class:`InputError` unless the controller passes ``gates`` (:class:`Gates`)."""
+    if gates is None:
+        return
+    if gates.max_gain is not None:
+        g, f = peak_gain(A, B, C, D)
+        if not g <= gates.max_gain:
+            at = "" if not math.isfinite(g) else f" at {f * fs_hz / 2:.0f} Hz"
+            what = "overflows (entries of B, C or D too large)" if not math.isfinite(g) \
+                else f"{g:.4g} V/µm{at}"
+            raise InputError(f"K∞ gain {what} exceeds controller_gates.max_gain_v_per_um = "
+                             f"{gates.max_gain:g} (rig config)", where)
+    if not has_design_plant and gates.nominal is not None:
+        closed_loop_check(A, B, C, D, fs_hz=fs_hz, where=where, plant=gates.nominal,
+                          on=f"the nominal plant {gates.nominal_source} (the file has no "
+                             f"design_plant)")
 
 
 def check_controller(A, B, C, D, *, fs_hz: float, expected_fs_hz: float | None,
@@ -149,23 +269,36 @@ def check_controller(A, B, C, D, *, fs_hz: float, expected_fs_hz: float | None,
         if rho >= 1.0:
             raise InputError(f"K∞(z) is unstable: spectral radius of A is {rho:.6f} >= 1", where)
     if plant is not None:
-        import control
+        closed_loop_check(A, B, C, D, fs_hz=fs_hz, where=where, plant=plant)
 
-        K = control.ss(A, B, C, D, 1.0 / fs_hz)
-        G = plant if plant.dt else control.c2d(plant, 1.0 / fs_hz, "zoh")
-        if G.ninputs != 2 or G.noutputs != 2:
-            raise InputError("plant model must be 2x2 for the closed-loop check", where)
-        L = control.feedback(G * K, np.eye(2), sign=-1)
-        poles = L.poles()
-        rho = float(np.max(np.abs(poles))) if len(poles) else 0.0
-        if rho >= 1.0:
-            raise InputError(f"closed loop with this controller is unstable on the given plant "
-                             f"(largest |pole| = {rho:.6f})", where)
+
+def closed_loop_check(A, B, C, D, *, fs_hz: float, where: str, plant,
+                      on: str = "the given plant") -> None:
+    """Raise :class:`InputError` unless the negative-feedback loop of K∞ (A, B, C, D at
+    ``fs_hz``) with ``plant`` (control.StateSpace, discrete or continuous) is stable; ``on``
+    names the plant in the message."""
+    import control
+
+    K = control.ss(A, B, C, D, 1.0 / fs_hz)
+    G = plant if plant.dt else control.c2d(plant, 1.0 / fs_hz, "zoh")
+    if G.ninputs != 2 or G.noutputs != 2:
+        raise InputError("plant model must be 2x2 for the closed-loop check", where)
+    if G.dt is not True and abs(float(G.dt) - 1.0 / fs_hz) > 1e-9 / fs_hz:
+        G = control.c2d(control.d2c(G, "zoh"), 1.0 / fs_hz, "zoh")
+    L = control.feedback(G * K, np.eye(2), sign=-1)
+    poles = L.poles()
+    rho = float(np.max(np.abs(poles))) if len(poles) else 0.0
+    if not rho < 1.0:
+        raise InputError(f"closed loop with this controller is unstable on {on} "
+                         f"(largest |pole| = {rho:.6f})", where)
 
 
 def load_controller(path: str | Path, *, expected_fs_hz: float | None = None,
-                    plant=None, text: str | None = None) -> Controller:
-    """Read, validate and check a controller YAML (see module docstring).
+                    plant=None, text: str | None = None,
+                    gates: Gates | None = None) -> Controller:
+    """Read, validate and check a controller YAML (see module docstring); with ``gates``
+    (:class:`Gates`, the rig config's ``controller_gates``) also its peak gain and, when the
+    file has no ``design_plant``, its closed loop on the nominal plant.
 
     Raises
     ------
@@ -181,19 +314,103 @@ def load_controller(path: str | Path, *, expected_fs_hz: float | None = None,
     D = _as_matrix("D", spec.D, where)
     if spec.closed_loop_stable is False:
         raise InputError("controller is marked closed_loop_stable: false by its design", where)
-    if plant is None and spec.design_plant is not None:
-        import control
-
+    design = None
+    if spec.design_plant is not None:
         dp = spec.design_plant
-        mats = [_as_matrix(f"design_plant.{k}", getattr(dp, k), where) for k in "ABCD"]
-        try:
-            plant = control.ss(*mats, 1.0 / spec.fs_hz)
-        except (ValueError, TypeError) as exc:
-            raise InputError(f"design_plant is not a valid state space: {exc}", where) from None
+        design = tuple(_as_matrix(f"design_plant.{k}", getattr(dp, k), where) for k in "ABCD")
+    if plant is None and design is not None:
+        plant = design_statespace(design, spec.fs_hz, where)
     check_controller(A, B, C, D, fs_hz=spec.fs_hz, expected_fs_hz=expected_fs_hz,
                      where=where, plant=plant)
+    check_gates(A, B, C, D, fs_hz=spec.fs_hz, where=where, gates=gates,
+                has_design_plant=plant is not None)
     meta = spec.model_dump(exclude={"A", "B", "C", "D", "design_plant"})
-    return Controller(A, B, C, D, spec.fs_hz, where, meta)
+    return Controller(A, B, C, D, spec.fs_hz, where, meta, design)
+
+
+def design_statespace(mats, fs_hz: float, where: str):
+    """A file's design plant (A, B, C, D) as a discrete python-control StateSpace at
+    ``fs_hz``; InputError if it is not one."""
+    import control
+
+    try:
+        return control.ss(*mats, 1.0 / fs_hz)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"design_plant is not a valid state space: {exc}", where) from None
+
+
+# --- the controller as it crosses a socket: its matrices, never its file -----------------
+def _wire_matrix(m: np.ndarray) -> dict[str, Any]:
+    import base64
+
+    m = np.ascontiguousarray(m, dtype="<f8")
+    return {"shape": [int(m.shape[0]), int(m.shape[1])],
+            "f64": base64.b64encode(m.tobytes()).decode("ascii")}
+
+
+def _unwire_matrix(name: str, d: dict[str, Any], where: str) -> np.ndarray:
+    import base64
+    import binascii
+
+    try:
+        rows, cols = (int(x) for x in d["shape"])
+        raw = base64.b64decode(d["f64"], validate=True)
+    except (KeyError, TypeError, ValueError, binascii.Error):
+        raise InputError(f"{name}: not a matrix (shape [rows, cols] and f64: base64 of "
+                         f"little-endian float64)", where) from None
+    if rows < 0 or cols < 0 or rows > MAX_ORDER + 2 or cols > MAX_ORDER + 2 \
+            or len(raw) != 8 * rows * cols:
+        raise InputError(f"{name}: {len(raw)} bytes do not hold a {rows}x{cols} float64 "
+                         f"matrix of at most {MAX_ORDER + 2} rows and columns", where)
+    m = np.frombuffer(raw, dtype="<f8").reshape(rows, cols).astype(np.float64)
+    if not np.all(np.isfinite(m)):
+        raise InputError(f"{name} contains NaN or Inf", where)
+    return m
+
+
+def to_wire(ctrl: Controller) -> dict[str, Any]:
+    """A loaded controller as plain JSON values for the control socket: ``fs_hz``, the four
+    matrices (base64 float64, exact) and the design plant's (or ``None``) — what the client
+    sends instead of a path (the daemon opens no file a client names)."""
+    out: dict[str, Any] = {"fs_hz": float(ctrl.fs_hz)}
+    for k in "ABCD":
+        out[k] = _wire_matrix(getattr(ctrl, k))
+    dp = ctrl.design_plant
+    out["design_plant"] = None if dp is None else dict(zip("ABCD", map(_wire_matrix, dp)))
+    return out
+
+
+def from_wire(wire: dict[str, Any], *, source: str, expected_fs_hz: float | None,
+              gates: Gates | None = None) -> Controller:
+    """:func:`to_wire`'s values back to a :class:`Controller`, with every check a file gets
+    (rate, shapes, order, finite, stable K∞, the closed loop on its design plant) and
+    ``gates``.
+
+    Raises
+    ------
+    InputError
+        Naming ``source`` (the client's label for its file) and the problem.
+    """
+    where = source
+    try:
+        fs_hz = float(wire["fs_hz"])
+    except (KeyError, TypeError, ValueError):
+        raise InputError("fs_hz: a number is needed", where) from None
+    if not (math.isfinite(fs_hz) and fs_hz > 0):
+        raise InputError("fs_hz must be a positive number", where)
+    A, B, C, D = (_unwire_matrix(k, wire.get(k), where) for k in "ABCD")
+    if A.size == 0:
+        A, B, C = np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((2, 0))
+    design = None
+    if wire.get("design_plant") is not None:
+        dp = wire["design_plant"]
+        design = tuple(_unwire_matrix(f"design_plant.{k}", dp.get(k), where) for k in "ABCD")
+    plant = design_statespace(design, fs_hz, where) if design is not None else None
+    check_controller(A, B, C, D, fs_hz=fs_hz, expected_fs_hz=expected_fs_hz, where=where,
+                     plant=plant)
+    check_gates(A, B, C, D, fs_hz=fs_hz, where=where, gates=gates,
+                has_design_plant=plant is not None)
+    return Controller(A, B, C, D, fs_hz, where, {}, design)
 
 
 def for_loop(controller, fs_hz: float) -> Controller:

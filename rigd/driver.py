@@ -44,6 +44,18 @@ GROUP = "rigd.drivers"
 UNCONFIGURED, INACTIVE, ACTIVE = "unconfigured", "inactive", "active"
 
 
+#: ``drv_status`` bits (input channel ``IN_STATUS``) every fast driver means the same by; the
+#: loop names them in the fault list (:func:`rigd.loop.faults.status_words`). Bits 2-7 are the
+#: device's own, bits 10-15 the driver's own (its :meth:`Driver.status_text` names them).
+STATUS_ENCODER = 1 << 0      # encoder signal lost
+STATUS_SENSOR = 1 << 1       # sensor / ADC fault
+STATUS_TIMEOUT = 1 << 8      # no fresh frame within the driver's timeout
+STATUS_DISCONNECT = 1 << 9   # the device is disconnected (the driver reconnects)
+#: while one of these bits is set the frame holds no fresh data: the loop runs on the held
+#: values and records the channels the driver provides as invalid (NaN; docs/data.md)
+STATUS_NO_DATA = STATUS_TIMEOUT | STATUS_DISCONNECT
+
+
 class Driver(ABC):  # noqa: B024 - abstract by intent: only FastDriver/SlowDriver are made
     """Common part of every driver.
 
@@ -123,6 +135,10 @@ class Driver(ABC):  # noqa: B024 - abstract by intent: only FastDriver/SlowDrive
     def counters(self) -> dict[str, int]:
         """Error/health counters for status reports (CRC errors, timeouts, reconnects...)."""
         return {}
+
+    #: words for this driver's own ``drv_status`` bits (bit value -> condition), used in the
+    #: fault list beside the shared bits' (rigd.loop.faults.status_words)
+    status_names: ClassVar[dict[int, str]] = {}
 
     def status_text(self, bits: int) -> str:
         """One line saying what this driver's ``drv_status`` bits mean, "" if it has no words

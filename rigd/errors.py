@@ -2,7 +2,8 @@
 
 Every command-line entry point catches :class:`InputError` and prints its one-line message on
 stderr with exit status 2 (no traceback). The message names *where* (file, line, key or request)
-and *what* is wrong.
+and *what* is wrong. :class:`DaemonGone` (the daemon ended, or a request it never took) is not
+bad input: exit status 3 (:data:`EXIT_DAEMON_GONE`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,17 @@ class InputError(Exception):
         self.message = message
         self.where = where
         super().__init__(f"{where}: {message}" if where else message)
+
+
+#: exit status of a client whose daemon ended (or is not there to take the request)
+EXIT_DAEMON_GONE = 3
+
+
+class DaemonGone(InputError):
+    """The daemon ended (its process is gone, its socket refuses or closed without a reply)
+    or never took the request: not bad input — exit status :data:`EXIT_DAEMON_GONE`."""
+
+    exit_status = EXIT_DAEMON_GONE
 
 
 class FaultError(RuntimeError):

@@ -18,6 +18,7 @@ from pydantic import Field, field_validator, model_validator
 
 from rigd.bounded import MAX_CONFIG_BYTES
 from rigd.configio import LoadedYaml, StrictModel, read_text, read_yaml, validate
+from rigd.controller import MAX_GAIN_V_PER_UM, NOMINAL_PLANT
 from rigd.errors import InputError
 from rigd.frame import IN_NAMES
 
@@ -145,6 +146,19 @@ class OperatingPoint(StrictModel):
     p_inj_bar: float = Field(4.0, ge=3, le=7)         #: P_I, bar (paper range 3..7 bar)
 
 
+class ControllerGatesConfig(StrictModel):
+    """``controller_gates``: what a controller must pass before it reaches the loop, beyond
+    the file checks (rate, shapes, finite, stable K∞): ``rigd ctl load``, the web upload and
+    SIGHUP alike (docs/service.md, "Controller gates")."""
+
+    max_gain_v_per_um: float = Field(MAX_GAIN_V_PER_UM, gt=0, allow_inf_nan=False,
+                                     description="largest K∞ gain over frequency, V/µm")
+    nominal_plant: str | None = Field(None, description="plant model file (A, B, C, D; fs_hz "
+                                      "or continuous) the closed loop of a controller file "
+                                      "without design_plant is checked on; relative to the "
+                                      "config; default: rigd's nominal model of the rig")
+
+
 class RigConfig(StrictModel):
     """The whole rig (or simulation) configuration."""
 
@@ -156,6 +170,7 @@ class RigConfig(StrictModel):
     drivers: DriversConfig = DriversConfig()
     channels: dict[str, Calibration] = Field(default_factory=dict)
     controller: str | None = None                     #: K∞ controller file loaded at start
+    controller_gates: ControllerGatesConfig = ControllerGatesConfig()
     plant: dict[str, Any] | None = None               #: options of the simulated plant (sim driver)
 
     @field_validator("valves")
@@ -194,6 +209,16 @@ class LoadedConfig:
     path: str
     text: str
     yaml: LoadedYaml | None = None
+
+    def gate_options(self) -> dict[str, Any]:
+        """``controller_gates`` as plain values for another process: ``max_gain`` (V/µm) and
+        ``nominal_plant`` (an absolute path; relative ones are taken from the config's
+        folder)."""
+        g = self.config.controller_gates
+        plant = Path(g.nominal_plant) if g.nominal_plant else NOMINAL_PLANT
+        if not plant.is_absolute():
+            plant = Path(self.path).resolve().parent / plant
+        return {"max_gain": g.max_gain_v_per_um, "nominal_plant": str(plant)}
 
     def driver_options(self, kind: str = "fast", index: int = 0):
         """Validated options of a driver: its ``Options`` model instance, or the raw dict."""

@@ -1,6 +1,6 @@
 """Fast driver for the microcontroller front-end on a serial link (pyserial).
 
-Protocol: :mod:`rigd_drivers.serial.protocol` (specification in docs/service.md). Each
+Protocol: :mod:`rigd_drivers.serial.protocol` (specification in docs/drivers.md). Each
 ``read`` takes the bytes waiting on the port without blocking, decodes every complete frame
 into a small FIFO (numba, no allocation) and hands the *oldest* one to the loop, so that every
 sample reaches the recording in order while the link jitters. Each ``write`` sends one drive
@@ -47,7 +47,7 @@ import numpy as np
 from pydantic import Field
 
 from rigd.configio import StrictModel
-from rigd.driver import FastDriver
+from rigd.driver import STATUS_DISCONNECT, STATUS_TIMEOUT, FastDriver
 from rigd.frame import (
     IN_E_X,
     IN_E_Y,
@@ -64,10 +64,23 @@ from rigd.frame import (
 from rigd_drivers.serial import protocol as sp
 from rigd_drivers.serial.port import PortLink
 
-DRV_TIMEOUT = 1 << 8
-DRV_DISCONNECT = 1 << 9
+DRV_TIMEOUT = STATUS_TIMEOUT        # 1 << 8: the loop records the channels as invalid
+DRV_DISCONNECT = STATUS_DISCONNECT  # 1 << 9: likewise
 DRV_CRC = 1 << 10
 DRV_GAP = 1 << 11
+
+#: the front-end's and this driver's status bits in words (the fault list names them)
+STATUS_NAMES = {
+    sp.DEV_ENCODER_LOST: "front-end: encoder index pulse missing or quadrature error",
+    sp.DEV_ADC_OVERRANGE: "front-end: an ADC channel clipped",
+    sp.DEV_HOST_TIMEOUT: "front-end: no valid drive frame from the host, holding the safe "
+                         "voltage",
+    sp.DEV_DRIVE_CRC: "front-end: a drive frame with a bad CRC was received",
+    DRV_TIMEOUT: "serial: no frame from the front-end within timeout_ms",
+    DRV_DISCONNECT: "serial: the front-end's port is gone (disconnected; reconnecting)",
+    DRV_CRC: "serial: a frame with a bad CRC was received",
+    DRV_GAP: "serial: frames lost (sequence gap, FIFO overflow or late frames skipped)",
+}
 
 
 class SerialFrameOptions(StrictModel):
@@ -94,6 +107,7 @@ class SerialFrameDriver(PortLink, FastDriver):
 
     name = "serial"
     Options: ClassVar[type[StrictModel]] = SerialFrameOptions
+    status_names: ClassVar[dict[int, str]] = STATUS_NAMES
 
     def __init__(self, options=None, *, fs: float = 5000.0):
         super().__init__(options, fs=fs)

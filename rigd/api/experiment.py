@@ -184,7 +184,7 @@ def run_experiment_daemon(spec: str | Path, *, socket: str | None = None, client
         ``mode`` is ``"daemon"``.
     """
     from rigd.experiments.runner import load
-    from rigd.service.client import ControlError
+    from rigd.service.client import ControlError, experiment_args
 
     load(str(spec))  # a bad file: one line here, the daemon never sees it
     if client is None:
@@ -194,8 +194,9 @@ def run_experiment_daemon(spec: str | Path, *, socket: str | None = None, client
     st: dict[str, Any] = {}
     try:
         try:
-            client.call("experiment.start", path=path, **({"run_dir": run_dir}
-                                                          if run_dir else {}))
+            # the file's text goes with its name: the daemon opens no file a client names
+            client.call("experiment.start", **experiment_args(path),
+                        **({"run_dir": run_dir} if run_dir else {}))
         except ControlError as exc:
             raise InputError(str(exc), "daemon") from None
         while True:

@@ -9,7 +9,8 @@ Each sub-command lives in its own module ``rigd/cli/<name>.py`` exposing::
 and is registered once in :data:`COMMANDS`. A command parses its arguments, calls
 :mod:`rigd.api` and prints; commands never import each other (shared argument helpers are in
 ``rigd/cli/_args.py``). Any :class:`rigd.errors.InputError` escaping a
-command becomes one line on stderr and exit status 2 (argparse uses 2 for bad arguments too).
+command becomes one line on stderr and exit status 2 (argparse uses 2 for bad arguments too);
+:class:`rigd.errors.DaemonGone` (the daemon ended, a request it never took) exit status 3.
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
         return int(args._run(args) or 0)
     except InputError as exc:
         print(f"rigd {args.command}: {exc}", file=sys.stderr)
-        return 2
+        return int(getattr(exc, "exit_status", 2))
     except KeyboardInterrupt:
         print(f"rigd {args.command}: interrupted", file=sys.stderr)
         return 130

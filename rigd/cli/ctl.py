@@ -17,7 +17,7 @@ import json
 import os
 import sys
 
-from rigd.errors import InputError
+from rigd.errors import DaemonGone, InputError
 
 HELP = "control the running daemon (status, timing, faults, enable/disable K∞, experiments)"
 
@@ -45,7 +45,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     for name, (_, h) in _SIMPLE.items():
         s = sub.add_parser(name, help=h, description=h)
         s.add_argument("--json", action="store_true", help="print the raw JSON result")
-    s = sub.add_parser("load", help="load a controller YAML (validated by the daemon)")
+    s = sub.add_parser("load", help="load a controller YAML (read by you, checked by the "
+                                    "daemon: gain bound, closed loop)")
     s.add_argument("file")
     s.add_argument("--json", action="store_true")
     s = sub.add_parser("start", help="start an experiment from its YAML")
@@ -62,10 +63,15 @@ def _request(args: argparse.Namespace) -> tuple[str, dict]:
     c = args.ctl_command
     if c in _SIMPLE:
         return _SIMPLE[c][0], {}
+    # the files are read here, with the caller's rights, and sent: the daemon opens none
     if c == "load":
-        return "controller.load", {"path": os.path.abspath(args.file)}
+        from rigd.service.client import controller_args
+
+        return "controller.load", controller_args(args.file)
     if c == "start":
-        req = {"path": os.path.abspath(args.experiment)}
+        from rigd.service.client import experiment_args
+
+        req = experiment_args(args.experiment)
         if args.run_dir:
             req["run_dir"] = os.path.abspath(args.run_dir)
         return "experiment.start", req
@@ -75,7 +81,8 @@ def _request(args: argparse.Namespace) -> tuple[str, dict]:
 
 
 def status_summary(st: dict) -> str:
-    """Two plain lines on top of ``rigd ctl status``: the fault, and whether K∞ is really on."""
+    """Plain lines on top of ``rigd ctl status``: the fault, whether K∞ is really on, and
+    the recorder's state."""
     f = st.get("fault") or {}
     if f.get("code"):
         fault = (f"FAULT {f.get('name')} latched at cycle {f.get('seq')}: {f.get('text')} "
@@ -93,7 +100,21 @@ def status_summary(st: dict) -> str:
     else:
         k = "off" if blend <= 0.0 else f"switching off (blend {blend:.2f})"
     state = "running" if st.get("running") else "stopped"
-    return f"state: {state}, cycle {st.get('seq')}, {fault}\nK∞: {k}"
+    return f"state: {state}, cycle {st.get('seq')}, {fault}\nK∞: {k}" + _recorder_line(st)
+
+
+def _recorder_line(st: dict) -> str:
+    """A third line: the recorder's state (a failed recording stays said after a reset)."""
+    r = st.get("recorder") or {}
+    if "state" not in r:
+        return ""
+    f = r.get("failure") or {}
+    if r["state"] == "failed":
+        return (f"\nrecorder: FAILED since {f.get('since')}: {f.get('why')}"
+                + (" (that recording is dead until rigd restarts)" if f.get("open_ended")
+                   else ""))
+    files = r.get("files") or []
+    return "\nrecorder: " + (f"recording {', '.join(files)}" if files else "idle")
 
 
 def format_human(value, indent: int = 0) -> str:
@@ -143,12 +164,32 @@ def _safe_by_word(args: argparse.Namespace) -> tuple[dict | None, str]:
     except SafeWordUnavailable as exc:
         return None, str(exc)
     try:
-        result = word.safe(args.timeout)
+        pid = word.daemon_pid
+        if pid and not _alive(pid):
+            raise DaemonGone(f"SAFE was NOT taken: the daemon (pid {pid}) of this SAFE word "
+                             f"is not running (it ended); the valves are wherever the "
+                             f"front-end's own host timeout left them", word.path)
+        result = word.safe(args.timeout, alive=(lambda: _alive(pid)) if pid else None)
     finally:
         word.close()
     if result is None:
-        return None, f"{word.path}: no cycle took the request (is the loop running?)"
+        if pid and not _alive(pid):
+            raise DaemonGone(f"SAFE was NOT taken: the daemon (pid {pid}) ended while the "
+                             f"request waited", word.path)
+        return None, f"{word.path}: no cycle took the request within {args.timeout:g} s " \
+                     f"(is the loop running?)"
     return result, ""
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (a process of another user counts as alive)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def run(args: argparse.Namespace) -> int:
@@ -157,9 +198,19 @@ def run(args: argparse.Namespace) -> int:
     cmd, req = _request(args)
     result, why = _safe_by_word(args) if args.ctl_command == "safe" else (None, "")
     if result is None:
-        with ControlClient(args.socket, timeout=args.timeout) as client:
-            reply = client.request(cmd, **req)
+        try:
+            with ControlClient(args.socket, timeout=args.timeout) as client:
+                reply = client.request(cmd, **req)
+        except InputError as exc:
+            if args.ctl_command == "safe":
+                # neither the word nor the socket took it: say so, never leave it implied
+                raise DaemonGone(f"SAFE was NOT taken: {exc}" + (f" (SAFE word: {why})"
+                                                                 if why else "")) from None
+            raise
         if not reply.get("ok"):
+            if args.ctl_command == "safe":
+                raise InputError(f"SAFE was NOT taken: {reply.get('error', 'refused')}"
+                                 + (f" (SAFE word: {why})" if why else ""), "daemon")
             raise InputError(reply.get("error", "refused") + (f" (SAFE word: {why})"
                                                               if why else ""), "daemon")
         result = reply.get("result")

@@ -1,6 +1,6 @@
 """``rigd export``: write a record as an interchange CSV, or convert a plain CSV into one.
 
-    rigd export REC.h5 --csv OUT.csv [--columns e_x,e_y,...]
+    rigd export REC.h5 --csv OUT.csv [--columns e_x,e_y,...] [--range START:STOP]
     rigd export --from-csv RAW.csv --fs 10000000/16384 --inputs V1 --outputs V2 -o OUT.csv
     rigd export DATA.mat --var NAME --time-column 1 --inputs 2:3 --outputs 4 -o OUT.csv
 """
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 
+from rigd.cli._args import add_range_argument
 from rigd.errors import InputError
 
 HELP = ("export a recording (HDF5, CSV or MATLAB .mat) to the interchange CSV, or convert a "
@@ -20,6 +21,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "MATLAB .mat with --var/--inputs/--outputs/--time-column or --fs)")
     p.add_argument("--csv", metavar="OUT", help="output interchange CSV")
     p.add_argument("--columns", help="comma-separated channels to export (default: all)")
+    add_range_argument(p)     # a recording's valid stretch (invalid samples are refused)
     g = p.add_argument_group("converting a plain CSV (no rig-data metadata, e.g. Silverbox)")
     g.add_argument("--from-csv", metavar="RAW", help="plain CSV: header row + numbers "
                    "(quoted names and trailing commas accepted)")
@@ -41,7 +43,7 @@ def _split(v: str | None) -> list[str] | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigd.api.data import parse_fs
+    from rigd.api.data import parse_fs, parse_range
     from rigd.data.export import convert_raw_csv, export_csv
 
     out = args.out or args.csv
@@ -83,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
             opts = {"var": args.var, "inputs": args.inputs, "outputs": args.outputs,
                     "time_column": args.time_column,
                     "fs": None if args.fs is None else parse_fs(args.fs)}
-        n = export_csv(args.record, out, columns=_split(args.columns), mat=opts)
+        n = export_csv(args.record, out, columns=_split(args.columns), mat=opts,
+                       rng=parse_range(args.range))
     print(f"wrote {out} ({n} rows)")
     return 0

@@ -134,6 +134,8 @@ class Record:
         InputError
             One line naming the file (and line, for CSV), the column and the sample.
         """
+        if self.lines is None and "rigd_version" in self.meta:
+            self._check_valid(names, use)     # rigd's recording: stretches of invalid samples
         for name in names:
             col = self.col(name)
             bad = ~np.isfinite(col)
@@ -152,6 +154,22 @@ class Record:
             where = (f"{self.source}:{line}" if line is not None else self.source)
             raise InputError(f"{what} in column {name!r} at sample {self.first_sample + i}"
                              f"{by}{more}; only the columns in use must be complete", where)
+
+    def _check_valid(self, names, use: str) -> None:
+        """A recording (not a CSV file) with invalid samples — NaN where a driver was
+        disconnected or its data stale (docs/data.md, "Invalid samples") — in the columns in
+        use: refused in one line naming the first invalid stretch and the longest valid one,
+        to choose with ``--range``."""
+        bad = np.zeros(len(self), dtype=bool)
+        first = None
+        for name in names:
+            b = ~np.isfinite(self.col(name))
+            if b.any() and first is None:
+                first = name
+            bad |= b
+        if first is None:
+            return
+        raise invalid_samples_error(bad, self.fs, self.first_sample, first, use, self.source)
 
     def matrix(self, names: tuple[str, ...] | list[str]) -> np.ndarray:
         """Columns stacked as an (n_samples, len(names)) float64 array."""
@@ -172,3 +190,31 @@ class Record:
         new.update({k: np.asarray(v, dtype=float) for k, v in cols.items()})
         return Record(new, self.fs, dict(self.meta), self.source, self.lines,
                       self.first_sample, self.bad_cells)
+
+
+def valid_stretches(valid: np.ndarray) -> list[tuple[int, int]]:
+    """``(start, stop)`` sample indices of the runs of True in ``valid`` (a record's valid
+    samples), in order."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(valid, np.int8), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def invalid_samples_error(bad: np.ndarray, fs: float, offset: int, column: str, use: str,
+                          source: str) -> InputError:
+    """The one-line refusal of a recording whose samples ``bad`` (True: invalid, NaN) are in
+    use: the count, the first invalid stretch and the longest valid one as a ``--range``
+    (sample indices from ``offset``, times at ``fs``)."""
+    runs = valid_stretches(~bad)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(np.int8), [0]])))
+    a, b = int(edges[0]), int(edges[1])
+    by = f", used by {use}" if use else ""
+    pick = ""
+    if runs:
+        c, d = max(runs, key=lambda r: r[1] - r[0])
+        pick = f"; the longest valid stretch is --range {offset + c}:{offset + d} " \
+               f"({(d - c) / fs:.3g} s)"
+    return InputError(
+        f"{int(bad.sum())} invalid samples (NaN: no valid data from the driver, the record's "
+        f"fault column says why) in column {column!r}{by}, in {len(edges) // 2} stretch(es), "
+        f"the first at samples {offset + a}:{offset + b} (t {(offset + a) / fs:.4g}-"
+        f"{(offset + b) / fs:.4g} s); choose a valid stretch with --range{pick}", source)

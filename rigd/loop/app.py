@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from rigd.controller import Controller, gates_from, load_controller
 from rigd.errors import InputError
 from rigd.loop.loop import ControlLoop
 from rigd.rigconfig import LoadedConfig, load_config
@@ -62,6 +63,10 @@ def build_loop(config: str | Path | LoadedConfig, *, clock: str | None = None,
         p = Path(lc.config.controller)
         ctrl = p if p.is_absolute() or lc.path.startswith("<") else Path(lc.path).parent / p
     try:
+        if ctrl is not None and not isinstance(ctrl, Controller):
+            # the start-up controller passes the config's gates, as `rigd ctl load` does
+            ctrl = load_controller(ctrl, expected_fs_hz=lc.config.loop.fs_hz,
+                                   gates=gates_from(lc.gate_options()))
         return ControlLoop(lc, fast, slow_drivers=slow, slow_poll_hz=hz, controller=ctrl,
                            clock=clock)
     except InputError:

@@ -77,6 +77,7 @@ from rigd.loop.layout import (
     S_K_TARGET,
     S_LAST_DRVSEQ,
     S_LAST_PHI,
+    S_LISTED,
     S_NFAULT,
     S_PEQ_INIT,
     S_PEQ_X,
@@ -88,6 +89,7 @@ from rigd.loop.layout import (
     S_SAFE_GEN,
     S_SAFE_SEEN,
     S_SEQ,
+    S_SLOW_BAD,
     S_SLOW_OMEGA,
     S_SLOW_PINJ,
     S_STALE_CNT,
@@ -192,7 +194,8 @@ def take_requests(st):
     Source ``s`` owns ``st[S_FREQ + 3 s]`` (request counter) and ``st[S_FREQ + 3 s + 1]``
     (code); the kernel owns ``st[S_FREQ + 3 s + 2]`` (acknowledged counter). Nothing is cleared
     by the reader, so a request posted at any moment is seen by this or the next cycle.
-    Returns the code of the first pending request (0: none).
+    Every pending request is latched (:func:`latch`: the first wins, the others are listed);
+    returns the code of the first pending request (0: none).
     """
     code = 0
     for s in range(N_REQ_SRC):
@@ -200,8 +203,10 @@ def take_requests(st):
         req = st[b]
         if req != st[b + 2]:
             st[b + 2] = req
+            c = int(st[b + 1])
+            latch(st, c, -1)
             if code == 0:
-                code = int(st[b + 1])
+                code = c
     return code
 
 
@@ -282,12 +287,22 @@ def supervise(prm, st):
 
 @njit(cache=True)
 def latch(st, code, detail):
-    """Latch ``code`` unless a fault is already latched; append it to the fault log."""
-    if st[S_FAULT] != 0.0 or code == 0:
+    """Latch ``code`` unless a fault is already latched, and append it to the fault log; a
+    fault of another kind while one is latched is only appended (once per kind until the
+    reset: ``st[S_LISTED]`` has a bit per kind listed), so the log shows every fault."""
+    if code == 0:
         return
-    st[S_FAULT] = code
-    st[S_FAULT_SEQ] = st[S_SEQ]
-    st[S_FAULT_DETAIL] = detail
+    bit = 1 << code
+    listed = int(st[S_LISTED])
+    if st[S_FAULT] != 0.0:
+        if listed & bit:
+            return
+        st[S_LISTED] = float(listed | bit)
+    else:
+        st[S_FAULT] = code
+        st[S_FAULT_SEQ] = st[S_SEQ]
+        st[S_FAULT_DETAIL] = detail
+        st[S_LISTED] = float(bit)
     k = int(st[S_NFAULT]) % FLOG_N
     st[S_FLOG + 3 * k] = st[S_SEQ]
     st[S_FLOG + 3 * k + 1] = code
@@ -312,6 +327,26 @@ def take_safe(sw, st):
         sw[W_ACK_CODE] = int(st[S_FAULT])
         sw[W_ACK_FAULT_SEQ] = int(st[S_FAULT_SEQ])
         sw[W_ACK_N] += 1
+
+
+@njit(cache=True, inline="always")
+def mark_fast_invalid(ring, r, omega_too, pinj_too):
+    """Row ``r``: the fast driver's channels (sensors and what is derived from them) NaN —
+    an invalid sample, never the held value; Ω and P_I too when no slow driver provides them."""
+    nan = math.nan
+    ring[r, R_EX] = nan
+    ring[r, R_EY] = nan
+    for i in range(4):
+        ring[r, R_YP1 + i] = nan
+    ring[r, R_PHI] = nan
+    ring[r, R_FX] = nan
+    ring[r, R_FY] = nan
+    ring[r, R_UX] = nan
+    ring[r, R_UY] = nan
+    if omega_too:
+        ring[r, R_OMEGA] = nan
+    if pinj_too:
+        ring[r, R_PINJ] = nan
 
 
 @njit(cache=True)
@@ -339,6 +374,11 @@ def cycle(fin, prm, st, drive, ring, ex, ey):
         st[S_Y + IN_OMEGA] = st[S_SLOW_OMEGA]
     if math.isfinite(st[S_SLOW_PINJ]):
         st[S_Y + IN_P_INJ] = st[S_SLOW_PINJ]
+
+    # no fresh data from the fast driver (it says so, or the frame repeats): the cycle runs
+    # on the held values, the record gets NaN for the driver's channels (docs/data.md)
+    status = st[S_Y + IN_STATUS]
+    nodata = math.isfinite(status) and (int(status) & FC.STATUS_NO_DATA) != 0
 
     # supervisor; valve tracking compares the previous cycle's reference with the position
     code, detail = supervise(prm, st)
@@ -437,6 +477,16 @@ def cycle(fin, prm, st, drive, ring, ex, ey):
         ring[r, R_UY] = st[S_Y + IN_YP1] - st[S_Y + IN_YP1 + 2]
         ring[r, R_KON] = 1.0 if (st[S_K_TARGET] != 0.0 and not safe) else 0.0
         ring[r, R_FAULT] = st[S_FAULT]
+        if nodata or st[S_STALE_CNT] > 0.0:
+            mark_fast_invalid(ring, r, not math.isfinite(st[S_SLOW_OMEGA]),
+                              not math.isfinite(st[S_SLOW_PINJ]))
+        bad = st[S_SLOW_BAD]
+        if bad != 0.0:
+            b = int(bad)
+            if b & 1:
+                ring[r, R_OMEGA] = math.nan
+            if b & 2:
+                ring[r, R_PINJ] = math.nan
         st[S_W] = w + 1.0
     st[S_SEQ] = seq + 1.0
 

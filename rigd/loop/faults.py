@@ -3,13 +3,23 @@
 Any violation puts the loop into the *safe state* within the cycle that detects it: K∞ output
 off, excitation off, valve references r_p,i = r0, the PD loops keep holding the valves there.
 The code is LATCHED (the first fault wins) until an explicit ``ControlLoop.reset_fault()``; a
-reset while the cause persists latches again on the next cycle.
+reset while the cause persists latches again on the next cycle. A fault of another kind that
+occurs while one is latched does not replace it, but it is listed too (once per kind until the
+reset: ``faults()``, the fault list of ``status``), so an outage during a SAFE is never hidden.
 
 The numbers are part of the recording format and of the service protocol: never renumber,
 only append.
 """
 
 from __future__ import annotations
+
+from rigd.driver import (  # noqa: F401 - the shared bit meanings, used by the cycle
+    STATUS_DISCONNECT,
+    STATUS_ENCODER,
+    STATUS_NO_DATA,
+    STATUS_SENSOR,
+    STATUS_TIMEOUT,
+)
 
 NONE = 0
 SENSOR_NAN = 1          # a sensor channel (e_x, e_y, y_p1..4, phi) is NaN or infinite
@@ -51,10 +61,16 @@ FAULTS: dict[int, tuple[str, str]] = {
                     "safe state requested by the operator (safe command); reset to leave it"),
 }
 
-#: fast-driver status bits (``drv_status`` input channel)
-STATUS_ENCODER = 1      # bit 0: encoder signal lost
-STATUS_SENSOR = 2       # bit 1: sensor/ADC fault
-# any other bit: generic driver fault
+#: fast-driver status bits (``drv_status`` input channel; rigd.driver): any bit is a fault
+
+#: words for the shared bits; the others are the device's or the driver's own
+#: (:meth:`rigd.driver.Driver.status_text`)
+STATUS_WORDS: dict[int, str] = {
+    STATUS_ENCODER: "encoder signal lost",
+    STATUS_SENSOR: "sensor/ADC fault",
+    STATUS_TIMEOUT: "no frame within the driver's timeout",
+    STATUS_DISCONNECT: "the device is disconnected (reconnecting)",
+}
 
 #: input-frame channel names used as fault details (index into rigd.frame.IN_NAMES)
 
@@ -69,8 +85,9 @@ def fault_text(code: int) -> str:
     return FAULTS.get(int(code), ("", f"unknown fault code {int(code)}"))[1]
 
 
-def describe(code: int, detail: int) -> str:
-    """Human text for a latched fault with its detail (channel or valve index)."""
+def describe(code: int, detail: int, own: dict[int, str] | None = None) -> str:
+    """Human text for a latched fault with its detail (channel or valve index; the status
+    bits of ``driver_status``, in words: ``own`` are the fast driver's words for its bits)."""
     from rigd.frame import IN_NAMES
 
     code, detail = int(code), int(detail)
@@ -82,5 +99,15 @@ def describe(code: int, detail: int) -> str:
         elif code == VALVE_TRACKING:
             text += f" (valve {detail + 1})"
         elif code == DRIVER_STATUS:
-            text += f" (status bits {detail:#x})"
+            text += f": {status_words(detail, own)}"
     return text
+
+
+def status_words(bits: int, own: dict[int, str] | None = None) -> str:
+    """The conditions the ``drv_status`` ``bits`` name, in words, ``"; "``-separated: the
+    shared bits (:data:`STATUS_WORDS`), then ``own`` (a driver's words for its bits), then
+    any bit nobody names as ``device status bit n``."""
+    bits = int(bits)
+    words = {**STATUS_WORDS, **(own or {})}
+    out = [words.get(1 << b, f"device status bit {b}") for b in range(32) if bits & (1 << b)]
+    return "; ".join(out) if out else "no status bit"

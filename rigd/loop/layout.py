@@ -58,7 +58,8 @@ S_SEQ = 0           # number of the next cycle (= frames produced so far)
 S_FAULT = 1         # latched fault code (0 = none)
 S_FAULT_SEQ = 2     # cycle at which it latched
 S_NFAULT = 3        # number of latches since start (monitor thread reads new log entries)
-# st[4] unused (was a shared fault slot cleared by the kernel: see S_FREQ)
+S_SLOW_BAD = 4      # slow channels without valid data (bit 0: omega_rpm, bit 1: p_inj_bar):
+                    # recorded as NaN (written by the slow-driver threads; rigd.loop.slow)
 S_K_TARGET = 5      # 1 = K∞ requested on, 0 = off
 S_RAMP = 6          # K∞ blend factor in [0, 1]
 S_PEQ_X = 7         # p_eq, µm (tracked while off, frozen while on)
@@ -91,7 +92,8 @@ S_FREQ = S_FLOG + 3 * FLOG_N
 S_X = S_FREQ + 3 * N_REQ_SRC  # K∞ state x (K_NMAX)
 S_XN = S_X + K_NMAX           # scratch for x+ (K_NMAX)
 S_Y = S_XN + K_NMAX           # calibrated input frame (N_IN)
-N_ST = S_Y + N_IN
+S_LISTED = S_Y + N_IN         # bit per fault code already in the log since the latch
+N_ST = S_LISTED + 1
 
 # --- timing histograms (int64, shape (2, H_NB + 3)) ----------------------------------------
 H_COMPUTE = 0       # row: per-cycle compute time

@@ -5,6 +5,12 @@ Each thread polls its driver at ``poll_hz`` and writes Ω and P_I into ``st[S_SL
 failing poll requests ``slow_driver`` once per outage. Setpoints are sent from short-lived
 threads so no caller waits on a device.
 
+Validity: while a driver's poll fails, or it had no good poll for the staleness bound, the
+channels it provides (those of its last good poll; Ω and P_I before the first) are marked
+invalid in ``st[S_SLOW_BAD]`` — the recording gets NaN for them, never the held value
+(docs/data.md); the held value stays in ``st[S_SLOW_*]`` for the loop. A good poll clears
+them. Why it failed is kept for the fault list (:meth:`SlowPollers.reason`).
+
 Staleness (:meth:`SlowPollers.stale`, checked by the supervisor's monitor thread): a driver's
 clock starts at its first good poll. Until then the bound is ``first_poll_s``
 (``supervisor.slow_first_poll_s``, counted from :meth:`SlowPollers.start`): the first poll of a
@@ -21,6 +27,9 @@ import time
 from rigd.loop import faults as FC
 from rigd.loop import layout as L
 from rigd.loop import requests as RQ
+
+#: bit of each slow channel in ``st[S_SLOW_BAD]``
+CHANNEL_BITS = {"omega_rpm": 1, "p_inj_bar": 2}
 
 
 class SlowPollers:
@@ -39,12 +48,17 @@ class SlowPollers:
         self._since: list[float] = []
         self._polled: list[bool] = []
         self._threads: list[threading.Thread] = []
+        self._bits: list[int] = []         # per driver: the channels of its last good poll
+        self._why: list[str] = []          # per driver: why it is invalid ("" while valid)
+        self._bad_lock = threading.Lock()  # S_SLOW_BAD: one read-modify-write at a time
 
     def start(self, stop: threading.Event) -> None:
         now = time.monotonic()
         for i, d in enumerate(self.drivers):
             self._since.append(now)
             self._polled.append(False)
+            self._bits.append(CHANNEL_BITS["omega_rpm"] | CHANNEL_BITS["p_inj_bar"])
+            self._why.append("")
             t = threading.Thread(target=self._run, args=(i, d, stop), name=f"rigd-slow-{i}",
                                  daemon=True)
             t.start()
@@ -64,7 +78,31 @@ class SlowPollers:
             if now - t > bound:
                 self._since[i] = now
                 hit = True
+                self._invalid(i, f"{self.drivers[i].name}: no good poll for {now - t:.1f} s "
+                                 f"(bound {bound:g} s)")
         return hit
+
+    def reason(self) -> str:
+        """Why the slow channels are invalid, one line per failing driver (``"; "``-joined),
+        or the last reason when none fails any more."""
+        with self._bad_lock:
+            return "; ".join(w for w in self._why if w) or getattr(self, "_last_why", "")
+
+    def _invalid(self, i: int, why: str) -> None:
+        with self._bad_lock:
+            self._why[i] = why
+            self._last_why = why
+            self._st[L.S_SLOW_BAD] = float(int(self._st[L.S_SLOW_BAD]) | self._bits[i])
+
+    def _valid(self, i: int, vals: dict) -> None:
+        bits = 0
+        for k, b in CHANNEL_BITS.items():
+            if k in vals:
+                bits |= b
+        with self._bad_lock:
+            self._bits[i] = bits
+            self._why[i] = ""
+            self._st[L.S_SLOW_BAD] = float(int(self._st[L.S_SLOW_BAD]) & ~bits)
 
     def set_points(self, omega_rpm: float, p_inj_bar: float) -> None:
         """Send Ω and P_I setpoints to every slow driver that takes them (returns at once)."""
@@ -90,6 +128,8 @@ class SlowPollers:
             except Exception as exc:  # noqa: BLE001 - device unreachable: a fault, once
                 if not failed:
                     self._log.error("slow driver failed", driver=d.name, error=str(exc))
+                    why = str(exc) or type(exc).__name__
+                    self._invalid(i, why if why.startswith(d.name) else f"{d.name}: {why}")
                     self._requests.post(RQ.SLOW, FC.SLOW_DRIVER)
                 failed = True
                 continue
@@ -102,3 +142,4 @@ class SlowPollers:
                 st[L.S_SLOW_OMEGA] = float(vals["omega_rpm"])
             if "p_inj_bar" in vals:
                 st[L.S_SLOW_PINJ] = float(vals["p_inj_bar"])
+            self._valid(i, vals)     # after the values: a valid flag never shows an old one

@@ -128,6 +128,7 @@ class KernelState:
         st = self.st
         st[L.S_FAULT] = 0.0
         st[L.S_FAULT_DETAIL] = -1.0
+        st[L.S_LISTED] = 0.0        # a fault still present after the reset is listed again
         st[L.S_STALE_CNT] = 0.0
         st[L.S_PHI_CNT] = 0.0
         self._verr.fill(0.0)

@@ -87,13 +87,26 @@ class Supervisor:
         self.poll()
 
     def fault_text(self, code: int, detail: int) -> str:
-        """:func:`rigd.loop.faults.describe`, plus the fast driver's own words for its status
-        bits on ``driver_status`` (e.g. the simulated plant's contact)."""
+        """:func:`rigd.loop.faults.describe`; for ``driver_status`` the status bits in words
+        (the shared bits', the fast driver's ``status_names``, then its ``status_text`` for
+        the rest, e.g. the simulated plant's contact); for ``slow_driver`` why it failed."""
+        code, detail = int(code), int(detail)
+        if code == FC.DRIVER_STATUS and detail > 0:
+            own = dict(getattr(self.fast, "status_names", None) or {})
+            named = 0
+            for b in (*FC.STATUS_WORDS, *own):
+                named |= b
+            parts = [FC.status_words(detail & named, own)] if detail & named else []
+            rest = detail & ~named
+            if rest:
+                words = self.fast.status_text(rest) if self.fast is not None else ""
+                parts.append(words or FC.status_words(rest))
+            return f"{FC.fault_text(code)}: {'; '.join(parts)}"
         text = FC.describe(code, detail)
-        if int(code) == FC.DRIVER_STATUS and self.fast is not None and detail > 0:
-            words = self.fast.status_text(int(detail))
-            if words:
-                text += f": {words}"
+        if code == FC.SLOW_DRIVER and self.slow is not None:
+            why = self.slow.reason()
+            if why:
+                text += f": {why}"
         return text
 
     # --- fault events ---------------------------------------------------------------------
@@ -158,7 +171,7 @@ class Supervisor:
     def _run(self, stop: threading.Event) -> None:
         while not stop.wait(0.02):
             self.poll()
-            if self.slow is not None and self._state.st[L.S_FAULT] == 0.0 and \
-                    self.slow.stale(self._stale_s):
+            # also while another fault is latched: the outage is listed (once) beside it
+            if self.slow is not None and self.slow.stale(self._stale_s):
                 self._requests.post(RQ.SLOW, FC.SLOW_DRIVER)
         self.poll()

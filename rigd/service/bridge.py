@@ -74,6 +74,8 @@ class SocketFrontend:
     idle_s : float, optional
         A client that completed no request this long is closed, s (default
         :data:`rigd.service.server.IDLE_S`).
+    gates : dict, optional
+        The config's ``controller_gates`` as plain values, for the socket process's checks.
     """
 
     def __init__(self, path: str, mode: int, handle_command: Callable[[bytes], bytes],
@@ -82,7 +84,7 @@ class SocketFrontend:
                  helper_priority: int | None = None, ring=None,
                  safe_generation: Callable[[], int] | None = None,
                  fs_hz: float | None = None, runs_root: str | None = None,
-                 idle_s: float | None = None):
+                 idle_s: float | None = None, gates: dict[str, Any] | None = None):
         self.path = str(path)
         self.mode = mode
         self.handle_command = handle_command
@@ -92,7 +94,8 @@ class SocketFrontend:
         self.log = log
         self.helper_priority = helper_priority
         self.opts = {"path": self.path, "nice": nice, "max_clients": max_clients,
-                     "ring": ring, "fs_hz": fs_hz, "runs_root": runs_root, "idle_s": idle_s}
+                     "ring": ring, "fs_hz": fs_hz, "runs_root": runs_root, "idle_s": idle_s,
+                     "gates": gates}
         self.ready = threading.Event()
         self.restarts = 0
         self.pid: int | None = None

@@ -10,9 +10,11 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
-from rigd.errors import InputError
+from rigd.errors import DaemonGone, InputError
 
 DEFAULT_SOCKET = "/run/rigd/rigd.sock"
+#: longest request line the daemon takes, bytes (rigd.service.protocol.MAX_LINE)
+MAX_REQUEST = 64 * 1024
 
 
 def command_timeout(wait_s: float) -> float:
@@ -21,6 +23,39 @@ def command_timeout(wait_s: float) -> float:
     before the client gives up."""
     wait_s = float(wait_s)
     return round(0.6 * wait_s if wait_s < 5.0 else wait_s - 2.0, 3)
+
+
+def controller_args(path: str) -> dict[str, Any]:
+    """``controller.load``'s arguments for the controller file ``path``, read here with the
+    caller's own rights (:mod:`rigd.bounded`: a regular file within the size limit), parsed
+    and checked as the loader does, and sent as its content (:func:`rigd.controller.to_wire`):
+    the daemon opens no file a client names.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read by this user, or is not a valid controller (one line).
+    """
+    import os
+
+    from rigd.controller import load_controller, to_wire
+
+    p = os.path.abspath(path)
+    return {"path": p, "controller": to_wire(load_controller(p))}
+
+
+def experiment_args(path: str) -> dict[str, Any]:
+    """``experiment.start``'s arguments for the experiment file ``path``: its text, read here
+    with the caller's own rights (size-limited; the socket process validates it), and its
+    name (the daemon opens no file a client names)."""
+    import os
+
+    from rigd.bounded import MAX_EXPERIMENT_BYTES
+    from rigd.configio import read_text
+
+    p = os.path.abspath(path)
+    text = read_text(p, MAX_EXPERIMENT_BYTES, "experiment file")
+    return {"path": p, "text": text}
 
 
 class ControlError(Exception):
@@ -71,6 +106,10 @@ class ControlClient:
                 s.close()
                 raise InputError("permission denied (are you in the rigd group?)",
                                  self.path) from None
+            except ConnectionRefusedError:
+                s.close()
+                raise DaemonGone("the daemon is not running: its socket is left, but nothing "
+                                 "listens on it (it ended)", self.path) from None
             except OSError as exc:
                 s.close()
                 raise InputError(f"cannot connect: {exc.strerror or exc}", self.path) from None
@@ -100,8 +139,11 @@ class ControlClient:
             self._sock.sendall(data)
         except (BrokenPipeError, ConnectionResetError):
             said = self._pending_error()
-            raise InputError("the daemon closed the connection before the request"
-                             + (f": {said}" if said else ""), self.path) from None
+            if said:          # refused at the door (full): the daemon is there and said why
+                raise InputError(f"the daemon closed the connection before the request: "
+                                 f"{said}", self.path) from None
+            raise self._gone_or("the daemon closed the connection before the request "
+                                "was sent") from None
 
     def _pending_error(self) -> str:
         """The error line the daemon wrote before closing, if it is waiting here ("")."""
@@ -120,6 +162,24 @@ class ControlClient:
         except (ValueError, AttributeError):
             return ""
 
+    def _gone_or(self, what: str) -> InputError:
+        """The error for a connection the daemon's side closed: :class:`DaemonGone` when no
+        daemon listens on the socket any more (it ended), else an :class:`InputError`
+        saying ``what``."""
+        probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        probe.settimeout(1.0)
+        try:
+            probe.connect(self.path)
+        except (ConnectionRefusedError, FileNotFoundError):
+            return DaemonGone(f"the daemon ended: {what}, and nothing listens on the socket "
+                              f"any more (a request in flight may or may not have been "
+                              f"applied)", self.path)
+        except OSError:
+            pass
+        finally:
+            probe.close()
+        return InputError(what, self.path)
+
     def read_reply(self) -> dict[str, Any]:
         """Read one reply line."""
         while b"\n" not in self._buf:
@@ -130,9 +190,9 @@ class ControlClient:
             except ConnectionResetError:
                 chunk = b""
             if not chunk:
-                raise InputError("daemon closed the connection"
-                                 + (" in the middle of a reply" if self._buf else
-                                    " without a reply"), self.path)
+                raise self._gone_or("daemon closed the connection"
+                                    + (" in the middle of a reply" if self._buf else
+                                       " without a reply"))
             self._buf += chunk
         line, self._buf = self._buf.split(b"\n", 1)
         try:
@@ -154,7 +214,12 @@ class ControlClient:
         req = {"id": rid, "cmd": cmd, **args}
         if self.timeout:
             req["timeout_s"] = command_timeout(self.timeout)
-        self._send((json.dumps(req) + "\n").encode())
+        data = (json.dumps(req) + "\n").encode()
+        if len(data) > MAX_REQUEST:
+            raise InputError(f"{cmd}: the request is {len(data)} bytes, more than the "
+                             f"{MAX_REQUEST} a request line may have (is the file that "
+                             f"large?)", self.path)
+        self._send(data)
         reply = self.read_reply()
         if reply.get("id") != rid:
             if reply.get("id") is None and reply.get("ok") is False:

@@ -146,6 +146,7 @@ class Daemon:
                                          safe_generation=self._safe_generation,
                                          fs_hz=float(self.loop.fs),
                                          runs_root=runs_root,
+                                         gates=self._gates(),
                                          idle_s=getattr(self.args, "client_idle_s",
                                                         None)).start()
             self._attach_safe_word(sock, mode)
@@ -246,6 +247,11 @@ class Daemon:
             from rigd.loop import faults as FC
 
             self.loop.trip(FC.OPERATOR_SAFE)
+
+    def _gates(self) -> dict[str, Any] | None:
+        """The config's ``controller_gates`` for the socket process (plain values)."""
+        opts = getattr(self.config, "gate_options", None)
+        return opts() if opts is not None else None
 
     def _helper_priority(self) -> int | None:
         """SCHED_FIFO priority for the service's threads on a real-time loop: just below it."""

@@ -49,7 +49,13 @@ from rigd.errors import InputError
 from rigd.loop.shared_ring import RingReader
 from rigd.plain import plain
 from rigd.service import protocol, reader
-from rigd.service.protocol import RequestError, check_paths, error, parse_envelope
+from rigd.service.protocol import (
+    RequestError,
+    check_content,
+    check_paths,
+    error,
+    parse_envelope,
+)
 from rigd.service.server import ControlServer
 from rigd.service.stream import StreamHub
 
@@ -101,15 +107,21 @@ class SnapshotHandler:
     runs_root : str, optional
         The daemon's runs folder: an ``experiment.start`` ``run_dir`` outside it is refused
         here (None: left to the daemon).
+    gates : dict, optional
+        The rig config's ``controller_gates`` (:meth:`rigd.rigconfig.LoadedConfig.
+        gate_options`): a controller above the gain bound, or unstable on the nominal plant
+        when it has no design plant, is refused here.
     """
 
     def __init__(self, cmd_conn, clients=lambda: 0,
                  max_commands_per_s: float = MAX_COMMANDS_PER_S,
                  max_in_flight: int = MAX_IN_FLIGHT, timeout_s: float = COMMAND_TIMEOUT_S,
-                 ring=None, fs_hz: float | None = None, runs_root: str | None = None):
+                 ring=None, fs_hz: float | None = None, runs_root: str | None = None,
+                 gates: dict | None = None):
         self.cmd_conn = cmd_conn
         self.fs_hz = fs_hz
         self.runs_root = runs_root
+        self.gates = gates
         self._reader = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rigd-reader")
         self._reading = 0
         self.streams = StreamHub(RingReader(ring) if ring is not None else None,
@@ -195,6 +207,7 @@ class SnapshotHandler:
                 return protocol.ok(req_id, result), sub
             if cmd not in QUERIES:
                 check_paths(cmd, args, self.runs_root)  # refusals that need no loop state
+                check_content(cmd, args)
                 if cmd != "safe" and not self._take_token():
                     self.throttled += 1
                     raise RequestError(f"{cmd}: too many commands (more than {self.rate:g} "
@@ -244,9 +257,10 @@ class SnapshotHandler:
         def work() -> None:
             try:
                 if cmd == "controller.load":
-                    payload = reader.read_controller(args.path, self.fs_hz)
+                    payload = reader.read_controller(args.controller.model_dump(), args.path,
+                                                     self.fs_hz, self.gates)
                 else:
-                    payload = reader.read_experiment(args.path, args.spec)
+                    payload = reader.read_experiment(args.path, args.spec, args.text)
             except InputError as exc:
                 out.set_result(error(req_id, str(exc)))
                 return
@@ -377,7 +391,7 @@ def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
                            **({} if idle is None else {"idle_s": float(idle)}))
     handler = SnapshotHandler(cmd_conn, clients=lambda: server.n_clients,
                               ring=opts.get("ring"), fs_hz=opts.get("fs_hz"),
-                              runs_root=opts.get("runs_root"))
+                              runs_root=opts.get("runs_root"), gates=opts.get("gates"))
     server.handle = handler.handle_line
     # the first snapshot before serving, then tell the daemon we are up
     try:
@@ -386,6 +400,10 @@ def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
     except (OSError, EOFError):
         return
     reader.warm_up()   # the readers' imports before serving, not at the first request
+    try:               # the nominal plant read once, before serving (the config's file)
+        reader.gates_for(opts.get("gates"))
+    except InputError:
+        pass           # refused with its reason at each controller.load
     try:
         cmd_conn.send(("ready", os.getpid(), None, None))  # before serving: one sender at a time
     except (OSError, EOFError):

@@ -46,8 +46,31 @@ class NoArgs(Args):
     """A command without arguments."""
 
 
+class WireMatrix(Args):
+    shape: list[int] = Field(min_length=2, max_length=2, description="[rows, cols]")
+    f64: str = Field(max_length=MAX_LINE, description="base64 of little-endian float64, "
+                                                       "row-major")
+
+
+class WirePlant(Args):
+    A: WireMatrix
+    B: WireMatrix
+    C: WireMatrix
+    D: WireMatrix
+
+
+class WireController(WirePlant):
+    """A controller's content as the client read it (rigd.controller.to_wire)."""
+
+    fs_hz: float = Field(gt=0, allow_inf_nan=False, description="controller rate, Hz")
+    design_plant: WirePlant | None = None
+
+
 class LoadArgs(Args):
-    path: str = Field(min_length=1, description="absolute path of a controller YAML")
+    path: str = Field(min_length=1, description="absolute path of the client's controller "
+                                                "file: its name in status (never opened)")
+    controller: WireController | None = Field(None, description="the file's content, read "
+                                              "by the client (`rigd ctl load` sends it)")
 
 
 class OperatingPointArgs(Args):
@@ -56,14 +79,19 @@ class OperatingPointArgs(Args):
 
 
 class ExperimentArgs(Args):
-    path: str | None = Field(None, min_length=1, description="experiment YAML (absolute)")
+    path: str | None = Field(None, min_length=1, description="the client's experiment YAML "
+                             "(absolute): its name, with its content in 'text' (never opened)")
+    text: str | None = Field(None, description="the experiment file's content, read by the "
+                             "client (`rigd ctl start` sends it)")
     spec: dict[str, Any] | None = Field(None, description="experiment spec inline")
     run_dir: str | None = Field(None, min_length=1, description="output folder (absolute)")
 
     @model_validator(mode="after")
     def _one_source(self):
         if (self.path is None) == (self.spec is None):
-            raise ValueError("give exactly one of 'path' or 'spec'")
+            raise ValueError("give exactly one of 'path' (with 'text') or 'spec'")
+        if self.text is not None and self.path is None:
+            raise ValueError("'text' needs 'path' (its file's name)")
         return self
 
 
@@ -199,10 +227,36 @@ def parse_envelope(line: bytes | str) -> tuple[Any, str, StrictModel, float | No
     except ValidationError as exc:
         e = exc.errors()[0]
         loc = ".".join(str(p) for p in e["loc"]) or "arguments"
-        msg = "unknown argument" if e["type"] == "extra_forbidden" else e["msg"]
-        msg = msg.removeprefix("Value error, ")
+        msg = "unknown argument" if e["type"] == "extra_forbidden" else plain_error(e)
         raise RequestError(f"{cmd}: {loc}: {msg}", req_id) from None
     return req_id, cmd, args, (None if timeout_s is None else float(timeout_s))
+
+
+def plain_error(e: dict[str, Any]) -> str:
+    """One pydantic error (``ValidationError.errors()[0]``) in plain words, with the value
+    given: ``must be <= 100000 (got 1e+09)`` rather than pydantic's own phrasing."""
+    got = e.get("input")
+    shown = repr(got) if not isinstance(got, float) else f"{got:g}"
+    shown = shown if len(shown) <= 40 else shown[:37] + "..."
+    ctx = e.get("ctx") or {}
+    t = e.get("type", "")
+    bounds = {"greater_than_equal": (">=", "ge"), "less_than_equal": ("<=", "le"),
+              "greater_than": (">", "gt"), "less_than": ("<", "lt")}
+    if t in bounds:
+        op, key = bounds[t]
+        lim = ctx.get(key)
+        return f"must be {op} {lim:g} (got {shown})" if isinstance(lim, (int, float)) \
+            else f"must be {op} {lim} (got {shown})"
+    if t == "finite_number":
+        return f"must be a finite number (got {shown})"
+    if t in ("float_type", "float_parsing", "int_type", "int_parsing", "int_from_float"):
+        kind = "an integer" if t.startswith("int") else "a number"
+        return f"must be {kind} (got {type(got).__name__} {shown})"
+    if t == "missing":
+        return "missing: this argument is required"
+    if t in ("string_type", "bool_type", "dict_type", "list_type"):
+        return f"must be a {t.removesuffix('_type')} (got {type(got).__name__} {shown})"
+    return str(e.get("msg", "invalid")).removeprefix("Value error, ")
 
 
 def _depth(obj: Any) -> int:
@@ -310,14 +364,21 @@ class Dispatcher:
             self._applied(cmd, loop.enable_controller(on, **when))
             return {"enabled": on}
         check_paths(cmd, args)
+        check_content(cmd, args)
         if cmd in ("controller.load", "experiment.start") and payload is None \
                 and not self.reads_files:
             raise RequestError(f"{cmd}: not read: files are read by the socket process, and "
                                f"this request did not come through it")
         if cmd == "controller.load":
             path = args.path
-            self._applied(cmd, loop.load_controller(
-                path if payload is None else unpack_controller(payload), **when))
+            if payload is None:       # in-process: the client's content, never its file
+                from rigd.controller import from_wire
+
+                ctrl = from_wire(args.controller.model_dump(), source=path,
+                                 expected_fs_hz=getattr(loop, "fs", None))
+            else:
+                ctrl = unpack_controller(payload)
+            self._applied(cmd, loop.load_controller(ctrl, **when))
             return {"loaded": path}
         if cmd == "operating_point.set":
             self._applied(cmd, loop.set_operating_point(args.omega_rpm, args.p_inj_bar,
@@ -328,6 +389,7 @@ class Dispatcher:
         if cmd == "experiment.start":
             if payload is not None:
                 return self.experiments.start(experiment=payload, run_dir=args.run_dir)
+            # in-process only (tests, no socket process): the experiments object reads it
             return self.experiments.start(path=args.path, spec=args.spec, run_dir=args.run_dir)
         if cmd == "experiment.status":
             return self.experiments.status()
@@ -452,6 +514,21 @@ def check_paths(cmd: str, args: StrictModel, runs_root: str | None = None) -> No
             confined(run_dir, runs_root, f"{cmd}: run_dir")
         except InputError as exc:
             raise RequestError(str(exc)) from None
+
+
+def check_content(cmd: str, args: StrictModel) -> None:
+    """A ``controller.load`` or an ``experiment.start`` by path must carry the file's content
+    (``controller`` / ``text``), read by the client with its own rights: the daemon opens no
+    file a client names (a confused deputy would read for it what it may not read);
+    RequestError otherwise."""
+    if cmd == "controller.load" and args.controller is None:
+        raise RequestError(f"{cmd}: the controller's content is missing ('controller'): the "
+                           f"daemon opens no file a client names; `rigd ctl load FILE` "
+                           f"reads the file and sends it")
+    if cmd == "experiment.start" and args.path is not None and args.text is None:
+        raise RequestError(f"{cmd}: the experiment file's content is missing ('text'): the "
+                           f"daemon opens no file a client names; `rigd ctl start FILE` "
+                           f"reads the file and sends it")
 
 
 def _absolute(path: str, where: str) -> str:

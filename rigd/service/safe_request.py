@@ -103,15 +103,23 @@ class SafeWordClient:
                 "fault": {"code": code, "name": FC.fault_name(code),
                           "text": FC.fault_text(code), "seq": int(w[W_ACK_FAULT_SEQ])}}
 
-    def safe(self, timeout_s: float) -> dict[str, Any] | None:
+    @property
+    def daemon_pid(self) -> int:
+        """The pid of the daemon that made this word (0: not known)."""
+        return int(self.w[W_PID])
+
+    def safe(self, timeout_s: float, alive=None) -> dict[str, Any] | None:
         """Request SAFE and wait up to ``timeout_s`` for the loop's confirmation (None: no
         cycle took it in that time — the loop is not running; the request stays pending).
-        Looks at the word with :func:`backoff`'s waits."""
+        Looks at the word with :func:`backoff`'s waits; ``alive()`` (optional) returning
+        False ends the wait at once (the daemon is gone: nothing will take it)."""
         c0 = self.request()
         for wait in backoff(timeout_s):
             a = self.ack(c0)
             if a is not None:
                 return a
+            if alive is not None and not alive():
+                break
             time.sleep(wait)
         return self.ack(c0)
 

@@ -20,6 +20,7 @@ from rigd import __version__
 from rigd.configio import read_yaml
 from rigd.errors import InputError
 from rigd.experiments.schemas import load_experiment, validate_spec
+from rigd.service.client import controller_args, experiment_args
 from rigd.service.safe_request import SafeWordClient, SafeWordUnavailable
 from rigd.web import runs as runs_mod
 from rigd.web import sse
@@ -243,22 +244,28 @@ def build_app(settings: Settings) -> Starlette:
         up = _upload(body)
         if (up is None) == (body.get("path") is None):
             raise InputError("give exactly one of 'path' (config/... or runs/...) or 'upload'")
+        # the file's content goes to the daemon, read here (the daemon opens no file a
+        # client names); the daemon's socket process checks it (gates) as for `rigd ctl`
         if name == "start":
             if up is not None:
                 # the CLI's loader, on the uploaded text: same checks, same one-line errors
                 validate_spec(read_yaml(up[0], up[1]))
                 path = save_upload(settings.runs_dir, "experiment", *up)
-                return {"path": str(path)}, path
+                return experiment_args(str(path)), path
             path = split_rooted(body["path"], roots)
             load_experiment(path)
-            return {"path": str(path)}, None
+            return experiment_args(str(path)), None
         if up is not None:
             path = save_upload(settings.runs_dir, "controller", *up)
-            return {"path": str(path)}, path
+            try:
+                return controller_args(str(path)), path
+            except InputError:
+                path.unlink(missing_ok=True)   # refused: a rejected upload is not kept
+                raise
         path = split_rooted(body["path"], roots)
         if not path.is_file():
             raise InputError(f"no such file {body['path']!r}")
-        return {"path": str(path)}, None
+        return controller_args(str(path)), None
 
     async def files(request: Request) -> Response:
         """YAML files to choose from: every one in the config folder (experiments,

@@ -17,6 +17,8 @@ import threading
 import pytest
 from fakeloop import GatedLoop, controller_beside, gated_frontend
 
+from rigd.service.client import controller_args
+
 
 @pytest.fixture()
 def busy(tmp_path):
@@ -57,7 +59,7 @@ class Conn:
 
 def _start_slow_load(path, loop):
     a = Conn(path)
-    a.send({"id": "load", "cmd": "controller.load", "path": controller_beside(path)})
+    a.send({"id": "load", "cmd": "controller.load", **controller_args(controller_beside(path))})
     assert loop.entered.wait(30), "the load did not reach the loop"
     return a
 

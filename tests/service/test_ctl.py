@@ -12,6 +12,7 @@ import pytest
 from fakeloop import FakeLoop
 
 from rigd.cli import main
+from rigd.controller import save_controller
 from rigd.errors import InputError
 from rigd.service.client import ControlClient
 from rigd.service.protocol import Dispatcher
@@ -40,19 +41,24 @@ def test_ctl_commands(sock, capsys, tmp_path, monkeypatch):
     assert main(["ctl", "--socket", path, "enable"]) == 0 and loop.enabled
     assert main(["ctl", "--socket", path, "disable"]) == 0 and not loop.enabled
     monkeypatch.chdir(tmp_path)  # restored after the test: later tests use relative config/ paths
+    save_controller(tmp_path / "k.yaml", [[0.5]], [[0.0, 0.0]], [[0.0], [0.0]],
+                    [[0.0, 0.0], [0.0, 0.0]], fs_hz=5000.0)
     assert main(["ctl", "--socket", path, "load", "k.yaml"]) == 0
     assert ("load_controller", str(tmp_path / "k.yaml")) in loop.calls
 
 
 def test_ctl_errors_are_one_line(sock, capsys, tmp_path):
     path, _ = sock
+    # read by `rigd ctl` itself (never by the daemon): refused naming the file, not quoting it
     assert main(["ctl", "--socket", path, "load", "/etc/passwd"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith("rigd ctl: daemon: ") and "not a controller" in err
+    assert err.startswith("rigd ctl: /etc/passwd: ") and "root:" not in err, err
     assert len(err.splitlines()) == 1
     assert main(["ctl", "--socket", str(tmp_path / "none.sock"), "status"]) == 2
     assert "no daemon socket" in capsys.readouterr().err
-    assert main(["ctl", "--socket", path, "start", "/x.yaml"]) == 2
+    exp = tmp_path / "x.yaml"
+    exp.write_text("kind: prbs\n")
+    assert main(["ctl", "--socket", path, "start", str(exp)]) == 2
     assert "not available" in capsys.readouterr().err
 
 

@@ -1,12 +1,15 @@
-"""Files named in requests are read, parsed and validated by the socket process, never by the
-loop's process: the daemon's side (SocketFrontend + Dispatcher(reads_files=False)) runs here,
-in the test process, with every file reader of this process made to fail — a ~0.7 MB
-controller and an experiment still load, and what arrives here is the packed result."""
+"""What a client sends of its files is parsed and validated by the socket process, never by
+the loop's process: the daemon's side (SocketFrontend + Dispatcher(reads_files=False)) runs
+here, in the test process, with every file reader of this process made to fail — a ~0.7 MB
+controller (read by its client, a process of its own) and an experiment still load, and
+what arrives here is the packed result."""
 
 import hashlib
 import json
 import os
 import socket
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +36,16 @@ class _Experiments:
 
     def stop(self):
         return {"stopping": False}
+
+
+def controller_args(path):
+    """What ``rigd ctl load`` sends for ``path``: read by the client, a process of its own
+    (this one is the loop's: its readers fail)."""
+    code = ("import json, sys; from rigd.service.client import controller_args; "
+            "print(json.dumps(controller_args(sys.argv[1])))")
+    r = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
+                       text=True, timeout=PROCESS_S, check=True)
+    return json.loads(r.stdout)
 
 
 def _ask(path, req, timeout=120):
@@ -90,7 +103,7 @@ def test_a_big_controller_is_parsed_in_the_socket_process(daemon_side, tmp_path)
     k = tmp_path / "big.yaml"
     write_big_controller(k)
     assert os.path.getsize(k) > 700_000
-    r = _ask(sock, {"id": 1, "cmd": "controller.load", "path": str(k)})
+    r = _ask(sock, {"id": 1, "cmd": "controller.load", **controller_args(str(k))})
     assert r == {"id": 1, "ok": True, "result": {"loaded": str(k)}}, r
     assert loop.calls == [("load_controller", str(k))]
     packed = got[0]
@@ -102,7 +115,7 @@ def test_a_big_controller_is_parsed_in_the_socket_process(daemon_side, tmp_path)
     bad = tmp_path / "bad.yaml"
     bad.write_text("rigd_controller: 1\nfs_hz: 4000.0\nA: [[0.5]]\nB: [[0, 0]]\n"
                    "C: [[0], [0]]\nD: [[0, 0], [0, 0]]\n")
-    r = _ask(sock, {"id": 2, "cmd": "controller.load", "path": str(bad)})
+    r = _ask(sock, {"id": 2, "cmd": "controller.load", **controller_args(str(bad))})
     assert not r["ok"] and str(bad) in r["error"] and "4000 Hz" in r["error"], r
     assert len(got) == 1 and len(loop.calls) == 1
 
@@ -112,8 +125,9 @@ def test_an_experiment_is_read_in_the_socket_process(daemon_side, tmp_path):
     exp = tmp_path / "prbs.yaml"
     exp.write_text((Path(__file__).parents[2] / "config/experiments/prbs.yaml")
                    .read_text())
+    # the client's read of its file: its text goes with its name
     r = _ask(sock, {"id": 1, "cmd": "experiment.start", "path": str(exp),
-                    "run_dir": str(runs / "a")})
+                    "text": exp.read_text(), "run_dir": str(runs / "a")})
     assert r["ok"], r
     (path, spec, run_dir, experiment), = exps.started
     # what crossed into this process: the validated spec as plain values (no model object:
@@ -126,6 +140,7 @@ def test_an_experiment_is_read_in_the_socket_process(daemon_side, tmp_path):
     assert experiment["spec_sha256"] == "sha256:" + hashlib.sha256(exp.read_bytes()).hexdigest()
     # a run folder outside the runs folder is refused before anything is read
     for bad in (str(tmp_path / "elsewhere"), str(runs / ".." / "x")):
-        r = _ask(sock, {"id": 2, "cmd": "experiment.start", "path": str(exp), "run_dir": bad})
+        r = _ask(sock, {"id": 2, "cmd": "experiment.start", "path": str(exp),
+                        "text": exp.read_text(), "run_dir": bad})
         assert not r["ok"] and "must be inside the runs folder" in r["error"], r
     assert len(exps.started) == 1 and len(got) == 1

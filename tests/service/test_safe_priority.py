@@ -10,6 +10,7 @@ from fakeloop import GatedLoop, controller_beside, gated_frontend
 from test_busy_socket import Conn
 
 from rigd.loop import faults as FC
+from rigd.service.client import controller_args
 
 
 class TrippableLoop(GatedLoop):
@@ -41,7 +42,7 @@ def gated(tmp_path):
 def test_safe_answered_while_a_slow_load_is_pending(gated):
     path, loop = gated
     a = Conn(path)
-    a.send({"id": "load", "cmd": "controller.load", "path": controller_beside(path)})
+    a.send({"id": "load", "cmd": "controller.load", **controller_args(controller_beside(path))})
     assert loop.entered.wait(30), "the load did not reach the loop"
     b = Conn(path)
     try:

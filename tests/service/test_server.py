@@ -6,9 +6,11 @@ import socket
 import stat
 import threading
 
+import numpy as np
 import pytest
 from fakeloop import FakeLoop  # noqa: E402  (tests/service on sys.path via rootdir conftest)
 
+from rigd.controller import Controller, to_wire
 from rigd.errors import InputError
 from rigd.service.client import ControlClient, ControlError
 from rigd.service.protocol import Dispatcher, RequestError, parse_request
@@ -54,7 +56,8 @@ def test_commands_reach_the_loop(served):
         assert c.call("faults")["faults"][0]["name"] == "sensor_nan"
         c.call("fault.reset")
         assert loop.fault == 0
-        c.call("controller.load", path="/x/k.yaml")
+        c.call("controller.load", path="/x/k.yaml", controller=to_wire(Controller(
+            np.array([[0.5]]), np.zeros((1, 2)), np.zeros((2, 1)), np.zeros((2, 2)), 5000.0)))
     assert ("enable_controller", True) in loop.calls
     assert ("set_operating_point", 3000.0, 4.5) in loop.calls
     assert ("load_controller", "/x/k.yaml") in loop.calls
@@ -74,10 +77,13 @@ def test_commands_reach_the_loop(served):
      "greater than or equal"),
     (b'{"id": 1, "cmd": "controller.load"}\n', "path"),
     (b'{"id": 1, "cmd": "controller.load", "path": "relative.yaml"}\n', "absolute"),
-    (b'{"id": 1, "cmd": "controller.load", "path": "/etc/passwd"}\n', "not a controller"),
+    # a path alone is never opened (the daemon reads no file a client names)
+    (b'{"id": 1, "cmd": "controller.load", "path": "/etc/passwd"}\n', "content is missing"),
     (b'{"id": 1, "cmd": "operating_point.set", "omega_rpm": 13, "p_inj_bar": 4}\n',
      "internal error: RuntimeError: boom"),
-    (b'{"id": 1, "cmd": "experiment.start", "path": "/x.yaml"}\n', "not available"),
+    (b'{"id": 1, "cmd": "experiment.start", "path": "/x.yaml", "text": "kind: prbs"}\n',
+     "not available"),
+    (b'{"id": 1, "cmd": "experiment.start", "path": "/x.yaml"}\n', "content is missing"),
     (b"\xff\xfe\n", "not UTF-8"),
     (b"[" * 100000 + b"\n", "longer than"),
 ])

@@ -12,6 +12,7 @@ from testpaths import ROOT
 from webkit import auth
 
 from rigd.cli import main
+from rigd.controller import save_controller
 from rigd.data.csvio import write_csv
 from rigd.data.record import Record
 from rigd.experiments.manifest import Manifest
@@ -80,7 +81,8 @@ def test_resolve_inside_rules(tmp_path):
 
 def test_load_from_config_reaches_the_daemon_with_the_absolute_path(site):
     client, loop, _, settings = site
-    (settings.config_dir / "k.yaml").write_text("rigd_controller: 1\n")
+    save_controller(settings.config_dir / "k.yaml", [[0.5]], [[0.0, 0.0]], [[0.0], [0.0]],
+                    [[0.0, 0.0], [0.0, 0.0]], fs_hz=5000.0)
     r = client.post("/api/load", json={"path": "config/k.yaml"}, headers=auth())
     assert r.status_code == 200
     assert loop.calls == [("load_controller", str(settings.config_dir / "k.yaml"))]
