@@ -6,15 +6,15 @@ STAMP   := $(VENV)/.installed
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test lint bench peers-deps venv clean
+.PHONY: demo test lint bench figures peers-deps venv clean
 
 venv: $(STAMP)
 
 # recipes that precede `bench` print nothing on stdout: `make bench` stdout is one JSON object
-# constraints.txt pins every package to the versions the README's figures were made with: the
-# structured H∞ design has near-equal optima, and a fresh install that took newer numpy/scipy
-# releases moved the demo's damping figures by 10-20 % (regenerate both together when you
-# upgrade: `pip freeze`, `make demo`, tools/readme_demo_table.py, `make bench`)
+# constraints.txt pins every package to the versions the figures in docs/figures/*.json were
+# made with (each file names its package versions): the structured H∞ design has near-equal
+# optima, and newer numpy/scipy releases move the demo's damping figures by 10-20 %
+# (regenerate together when you upgrade: `pip freeze`, `make demo`, `make bench`)
 $(STAMP): pyproject.toml constraints.txt
 	@echo "make: creating $(VENV) and installing rigd into it" >&2
 	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -22,9 +22,16 @@ $(STAMP): pyproject.toml constraints.txt
 	@$(BIN)/python -m pip install -q -c constraints.txt -e '.[test]' >&2
 	@touch $(STAMP)
 
+# the demo, then its figures saved as docs/figures/demo.json (host, load, commit, date,
+# packages) and docs/figures.md + the README's figures table rendered from the JSON files
 demo: $(STAMP)
 	rm -rf demo-out   # the demo's own output is replaced on every run (run dirs never are)
-	$(ONE_BLAS_THREAD) $(BIN)/rigd demo --out demo-out   # one BLAS thread, as make test: the figures the README states and test_readme_figures checks
+	$(ONE_BLAS_THREAD) $(BIN)/rigd demo --out demo-out   # one BLAS thread, as make test
+	$(BIN)/python -m tools.figures save-demo demo-out/summary.json
+
+# render docs/figures.md and the README's figures table from the committed docs/figures/*.json
+figures: $(STAMP)
+	$(BIN)/python -m tools.figures
 
 # style/correctness rules and the layering contracts (pyproject.toml: tool.ruff, tool.importlinter)
 lint: $(STAMP)
@@ -76,8 +83,9 @@ test: lint
 	cat "$$RIGD_TEST_SHARED/realtime.log"; \
 	exit $$rc
 
+# every section's figures to docs/figures/bench-<section>.json, the pages rendered from them
 bench: $(STAMP)
-	@$(BIN)/python -m bench
+	@$(BIN)/python -m bench --save
 
 # `python -m bench peers` compares with SysIdentPy's NARX: its wheel caps numpy at 2.3.5
 # (metadata only; it runs on the pinned 2.4.6), so it is installed without its dependencies

@@ -1,16 +1,27 @@
-"""Run the benchmark sections and print one JSON object (see bench/__init__.py)."""
+"""Run the benchmark sections and print one JSON object (see bench/__init__.py).
+
+``python -m bench [--save] [SECTION ...]``: with ``--save`` each section's figures are also
+written to ``docs/figures/bench-<section>.json`` with where they were measured (host, load,
+commit, date, package versions: tools/figures/artefact.py), and docs/figures.md and the
+README's figures table are rendered from them (``make bench`` saves).
+"""
 
 from __future__ import annotations
 
 import importlib
 import json
 import sys
+import time
+from pathlib import Path
 
 from bench import SECTIONS
 
+ROOT = Path(__file__).resolve().parents[1]
+
 
 def main(argv: list[str]) -> int:
-    wanted = argv or SECTIONS
+    save = "--save" in argv
+    wanted = [a for a in argv if a != "--save"] or SECTIONS
     result: dict = {}
     for name in wanted:
         try:
@@ -21,7 +32,18 @@ def main(argv: list[str]) -> int:
                 continue
             raise
         print(f"bench: running {name} ...", file=sys.stderr, flush=True)
-        result.update(mod.run())
+        t0 = time.monotonic()
+        figures = mod.run()
+        result.update(figures)
+        if save:
+            from tools.figures import artefact
+
+            path = artefact.save_bench_section(ROOT, name, figures, time.monotonic() - t0)
+            print(f"bench: saved {path.relative_to(ROOT)}", file=sys.stderr, flush=True)
+    if save:
+        from tools.figures.__main__ import main as render
+
+        render(["--root", str(ROOT)])
     print(json.dumps(result, indent=2))
     return 0
 

@@ -1,5 +1,5 @@
-"""``python -m bench peers`` — rigd beside the black-box peers on the same splits (issue 20,
-item 11; not in ``make bench``: ≈ 30–60 min, see the README).
+"""``python -m bench peers`` — rigd beside the black-box peers on the same splits (not in
+``make bench``: ≈ 30–60 min; its output is one JSON object, not a figure artefact).
 
 For each record — Silverbox (estimation 40600:, validation the arrow 0:40000, as the
 docs/diagnose.md walk-through), the eight DaISy ``.mat`` records of ``../shared/data/daisy``

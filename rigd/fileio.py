@@ -47,12 +47,14 @@ def create_temp_beside(path: str | Path) -> tuple[int, Path]:
 
 
 @contextmanager
-def atomic_open(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
+def atomic_open(path: str | Path, mode: str = "w", *, replace: bool = True,
+                **kwargs) -> Iterator[IO]:
     """Open a temporary file beside ``path``; rename it onto ``path`` only on success.
 
     On any exception the temporary file is removed and ``path`` is left untouched. The file
     gets the caller's umask (see the module docstring); ``mode`` is a write mode of
-    :func:`open` (``"w"``, ``"wb"``).
+    :func:`open` (``"w"``, ``"wb"``). ``replace=False``: FileExistsError (and ``path``
+    untouched) if ``path`` exists by then — for records, which are never replaced.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -80,7 +82,10 @@ def atomic_open(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
+        if replace:
+            os.replace(tmp, path)
+        else:
+            rename_new(tmp, path)
     except BaseException:
         if tmp is not None:
             try:
@@ -94,3 +99,19 @@ def atomic_write_text(path: str | Path, text: str) -> None:
     """Write ``text`` to ``path`` atomically."""
     with atomic_open(path, "w", encoding="utf-8") as fh:
         fh.write(text)
+
+
+def rename_new(src: str | Path, dst: str | Path) -> None:
+    """Rename ``src`` to ``dst`` only if ``dst`` does not exist (FileExistsError otherwise):
+    never replaces a file. A hard link then the unlink of ``src`` (atomic refusal); where the
+    filesystem has no hard links, a checked ``os.rename``."""
+    try:
+        os.link(src, dst)
+    except FileExistsError:
+        raise
+    except OSError:
+        if os.path.lexists(dst):
+            raise FileExistsError(f"{dst} exists") from None
+        os.rename(src, dst)
+        return
+    os.unlink(src)

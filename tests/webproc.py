@@ -64,9 +64,13 @@ def config_folder(tmp: Path) -> Path:
     return cfg
 
 
+#: the start lines of ``rigd web`` that carry its one-click URLs (the open line comes last)
+OPEN, READ_URL = "rigd web: open ", "rigd web: read-only URL"
+
+
 class WebProcess:
-    """``rigd web --listen 127.0.0.1:0`` as a process; ``url``, ``token`` (control) and
-    ``read_token`` (``--read-token-file``) once serving.
+    """``rigd web --listen 127.0.0.1:0`` as a process; ``url``, ``token`` (control),
+    ``read_token`` (``--read-token-file``) and the printed ``login_url`` once serving.
 
     ``args`` replace or add options (``{"--listen": "0.0.0.0:0", "--insecure": None}``);
     ``preexec_fn`` runs in the child before ``rigd web`` starts (e.g. a descriptor limit).
@@ -97,6 +101,10 @@ class WebProcess:
             raise AssertionError(f"rigd web did not start: {self.lines}")
         line = next(x for x in self.lines if "serving http" in x)
         self.url = line.split("serving ", 1)[1].split()[0].rstrip("/")
+        #: the one-click URLs it printed (``.../#token=<control>``, the read-only one or None)
+        self.login_url = next(x for x in self.lines if x.startswith(OPEN)).split()[-1]
+        self.read_login_url = next((x.split()[-1] for x in self.lines
+                                    if x.startswith(READ_URL)), None)
         self.token = self.token_file.read_text().strip()
         self.read_token = self.read_token_file.read_text().strip()
 
@@ -107,7 +115,7 @@ class WebProcess:
     def _read(self):
         for line in self.proc.stderr:
             self.lines.append(line.rstrip("\n"))
-            if "serving http" in line:
+            if line.startswith(OPEN):       # the last line of its start
                 self._serving.set()
         self._serving.set()      # exited: wake the waiter
 

@@ -6,7 +6,7 @@ the loop picks up without locking or waiting (:meth:`ModbusDriver.latest`, or
 :meth:`ModbusDriver.fill` which writes ``IN_OMEGA``/``IN_P_INJ`` into the input frame).
 Setpoints (``write_setpoints``) are queued and written by the same thread, never by the caller.
 
-Register map (defaults; every address is configurable, see docs/service.md)::
+Register map (defaults; every address is configurable, see docs/drivers.md)::
 
     input registers (FC 4, read)         holding registers (FC 3 read, FC 16 write)
     0-1  P_I, injection pressure  bar    100-101  P_I setpoint      bar

@@ -1,6 +1,6 @@
 """Fast driver for the microcontroller front-end on a serial link (pyserial).
 
-Protocol: :mod:`rigd_drivers.serial.protocol` (specification in docs/service.md). Each
+Protocol: :mod:`rigd_drivers.serial.protocol` (specification in docs/drivers.md). Each
 ``read`` takes the bytes waiting on the port without blocking, decodes every complete frame
 into a small FIFO (numba, no allocation) and hands the *oldest* one to the loop, so that every
 sample reaches the recording in order while the link jitters. Each ``write`` sends one drive

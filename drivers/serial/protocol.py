@@ -2,7 +2,7 @@
 
 The front-end samples the sensors at f_s = 5 kHz and sends one *sensor frame* per sample; the
 rig PC answers each cycle with one *drive frame* carrying the four valve drive voltages.
-Everything is little-endian. Full specification with rationale: docs/service.md.
+Everything is little-endian. Full specification: docs/drivers.md.
 
 Frame (both directions)::
 

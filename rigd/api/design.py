@@ -51,6 +51,27 @@ def _model_and_path(model: Any):
     return load_model(model, resolve), model
 
 
+def range_plant(model: Any, range_model: str | Path) -> Callable[[float, float], Any]:
+    """The operating-range model a design is checked on: ``plant_at(Ω rpm, P_I bar)`` → G_p
+    (r → p, continuous), the reassembled bearing model ``range_model`` (``g_bear.yaml``) at
+    that point with the design point's bearing effects, cascaded with the identified actuator
+    of ``model`` (a model file, its path, or an identification)."""
+    from rigd.ident.oprange import ReassembledBearing
+
+    mf, _ = _model_and_path(model)
+    gb = ReassembledBearing.load(range_model)
+    Gact = mf.ss("actuator", effects=True)
+    bear = mf.submodels.get("bearing")
+
+    def plant_at(om, p):
+        Gb = gb.at(om, p)
+        if bear is not None:   # the design point's bearing effects at every point
+            Gb = bear.linear_ss(mf.fs, Gb)[0]
+        return Gb * Gact
+
+    return plant_at
+
+
 def design(model: Any, weights: str | Path = "config/design.yaml",
            out: str | Path = "controller.yaml", *, range_model: str | Path | None = None,
            report: str | Path | None = None,
@@ -120,18 +141,7 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
         raise InputError(f"model flagged by identification: {unstable[0]}{more}; refit it, "
                          "or design anyway with --allow-flagged", shown)
     if range_model:
-        from rigd.ident.oprange import ReassembledBearing
-
-        gb = ReassembledBearing.load(range_model)
-        Gact = mf.ss("actuator", effects=True)
-        bear = mf.submodels.get("bearing")
-
-        def plant_at(om, p):
-            Gb = gb.at(om, p)
-            if bear is not None:   # the design point's bearing effects at every point
-                Gb = bear.linear_ss(mf.fs, Gb)[0]
-            return Gb * Gact
-
+        plant_at = range_plant(mf, range_model)
         plant_at_label = f"reassembled {range_model} x actuator of {shown}"
         carried = mf.linear_effects().get("bearing", {}).get("included", [])
         if carried:
@@ -147,4 +157,4 @@ def design(model: Any, weights: str | Path = "config/design.yaml",
     return Design(res.K_z, res.K_red, res.K_full, res, summary)
 
 
-__all__ = ["Design", "design"]
+__all__ = ["Design", "design", "range_plant"]

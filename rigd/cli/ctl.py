@@ -81,7 +81,8 @@ def _request(args: argparse.Namespace) -> tuple[str, dict]:
 
 
 def status_summary(st: dict) -> str:
-    """Two plain lines on top of ``rigd ctl status``: the fault, and whether K∞ is really on."""
+    """Plain lines on top of ``rigd ctl status``: the fault, whether K∞ is really on, and
+    the recorder's state."""
     f = st.get("fault") or {}
     if f.get("code"):
         fault = (f"FAULT {f.get('name')} latched at cycle {f.get('seq')}: {f.get('text')} "
@@ -99,7 +100,21 @@ def status_summary(st: dict) -> str:
     else:
         k = "off" if blend <= 0.0 else f"switching off (blend {blend:.2f})"
     state = "running" if st.get("running") else "stopped"
-    return f"state: {state}, cycle {st.get('seq')}, {fault}\nK∞: {k}"
+    return f"state: {state}, cycle {st.get('seq')}, {fault}\nK∞: {k}" + _recorder_line(st)
+
+
+def _recorder_line(st: dict) -> str:
+    """A third line: the recorder's state (a failed recording stays said after a reset)."""
+    r = st.get("recorder") or {}
+    if "state" not in r:
+        return ""
+    f = r.get("failure") or {}
+    if r["state"] == "failed":
+        return (f"\nrecorder: FAILED since {f.get('since')}: {f.get('why')}"
+                + (" (that recording is dead until rigd restarts)" if f.get("open_ended")
+                   else ""))
+    files = r.get("files") or []
+    return "\nrecorder: " + (f"recording {', '.join(files)}" if files else "idle")
 
 
 def format_human(value, indent: int = 0) -> str:

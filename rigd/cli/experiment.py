@@ -150,9 +150,27 @@ def _in_finaliser(frame) -> bool:
     return code.co_name == "__del__" or code.co_filename.endswith(_FINALISER_FILES)
 
 
+def recover_stale(runs_root: str) -> list[dict]:
+    """Recover the runs under ``runs_root`` a dead process left ``running`` (as the daemon
+    does on start; HDF5 read in a helper process), one line each on stderr."""
+    from rigd.owner import stale_runs
+    from rigd.spawn import run as spawned
+
+    if not stale_runs(runs_root):
+        return []
+    got = spawned("rigd.experiments.recovery", "recover_runs", str(runs_root),
+                  timeout_s=300.0)
+    for r in got:
+        said = r.get("skipped") or f"{r['status']}: {r.get('message', '')}"
+        print(f"rigd experiment: recovered {r['run_dir']}: {said}", file=sys.stderr)
+    return got
+
+
 def _in_process(exp, args) -> int:
     from rigd.api.experiment import run_experiment
     from rigd.log import get_logger
+
+    recover_stale(args.runs_root)
 
     cb, close = _progress_sink(exp.name)
     log = None if sys.stderr.isatty() else get_logger("rigd.experiment")

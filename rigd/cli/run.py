@@ -4,12 +4,19 @@ Parses the arguments, configures logging, builds the loop from the config, runs 
 ``--duration`` seconds (or until SIGINT/SIGTERM or a service ``stop``) and prints the timing
 statistics. The run is wrapped in :class:`rigd.service.daemon.Daemon` (control socket,
 sd_notify, signals). A ``--record`` file says its ``source`` (simulated or rig) and drivers.
+
+``--record`` never overwrites: a file that exists is refused (exit 2, untouched); a folder
+(``DIR/``) or a name pattern with ``{start}`` (the start time, UTC) makes a new file at each
+start, so a restart keeps the record of what went wrong.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime as _dt
+import os
 import sys
+from pathlib import Path
 
 from rigd.cli._args import print_json
 
@@ -24,7 +31,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "0: only build and check)")
     p.add_argument("--lockstep", action="store_true",
                    help="virtual clock: run as fast as the CPU allows")
-    p.add_argument("--record", metavar="FILE.h5", help="record every frame to this HDF5 file")
+    p.add_argument("--record", metavar="FILE.h5|DIR/|PATTERN",
+                   help="record every frame to a NEW HDF5 file: FILE.h5 (refused if it "
+                        "exists), a folder DIR/ (DIR/rigd-<start>.h5) or a pattern with "
+                        "{start} (e.g. 'crash-{start}.h5'); start = UTC time of this start")
     p.add_argument("--controller", metavar="FILE", help="K∞ controller YAML to load")
     p.add_argument("--enable-controller", action="store_true",
                    help="enable the loaded K∞ at start (bumpless ramp)")
@@ -44,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
 
     log.configure(args.log_level)
     logger = log.get_logger("rigd.run")
+    if args.record:
+        args.record = str(record_path(args.record))
     if args.duration is not None and args.duration < 0:
         raise InputError(f"must be >= 0 (got {args.duration})", "--duration")
     if args.enable_controller and not args.controller:
@@ -119,5 +131,58 @@ def run(args: argparse.Namespace) -> int:
         for f in faults:
             print(f"fault at cycle {f['seq']}: {f['name']} ({f['text']})")
         if sink is not None:
-            print(f"recorded {sink.n_written} frames to {args.record}")
+            print(f"recorded {frames_on_disk(sink)} frames to {args.record}")
     return status
+
+
+#: the start time in ``--record`` names (UTC, sortable, no ':' for other filesystems)
+START_FORMAT = "%Y%m%dT%H%M%SZ"
+
+
+def record_path(arg: str, now: _dt.datetime | None = None) -> Path:
+    """The new file ``--record ARG`` writes (see module docstring).
+
+    Raises
+    ------
+    InputError
+        The file exists, the pattern has another ``{...}`` field, or the name holds a
+        control character.
+    """
+    from rigd.errors import InputError
+
+    now = now or _dt.datetime.now(_dt.timezone.utc)
+    start = now.strftime(START_FORMAT)
+    if any(ord(c) < 32 or ord(c) == 127 for c in arg):
+        raise InputError("the name holds a control character", "--record")
+    if "{" in arg or "}" in arg:
+        try:
+            name = arg.format(start=start)
+        except (KeyError, IndexError, ValueError):
+            raise InputError(f"{arg!r}: the only field of a pattern is {{start}}",
+                             "--record") from None
+        return _free(Path(name))
+    p = Path(arg)
+    if arg.endswith(os.sep) or p.is_dir():
+        return _free(p / f"rigd-{start}.h5")
+    if os.path.lexists(p):
+        raise InputError(f"{arg} exists: a record is never overwritten (give a new name, a "
+                         "folder DIR/ or a pattern with {start})", "--record")
+    return p
+
+
+def _free(p: Path) -> Path:
+    """``p``, or ``p`` with ``-2``, ``-3``... before its suffix when taken (two starts in one
+    second)."""
+    if not os.path.lexists(p):
+        return p
+    for i in range(2, 10000):
+        q = p.with_name(f"{p.stem}-{i}{p.suffix}")
+        if not os.path.lexists(q):
+            return q
+    return p          # pragma: no cover - the writer then refuses it (mode "x")
+
+
+def frames_on_disk(sink) -> int:
+    """Frames of ``sink``'s file on disk: all written when it closed, else (a failed
+    recording) those of its last flush."""
+    return int(sink.n_flushed if sink.error is not None else sink.n_written)

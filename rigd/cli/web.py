@@ -5,8 +5,10 @@
 
 A separate process, a client of the daemon's control socket. Reach it from another machine
 through an SSH tunnel (``ssh -L 8080:127.0.0.1:8080 rig``), not by listening on a public
-address. Every request but the page itself needs the token printed at start (kept in
-``--token-file``, mode 0600) or, for reads only, the ``--read-token-file`` token.
+address. Every request but the page itself needs the token (kept in ``--token-file``, mode
+0600) or, for reads only, the ``--read-token-file`` token. At start it prints a URL that
+carries the control token in its fragment (``http://127.0.0.1:8080/#token=...``): opening it
+logs the tab in.
 """
 
 from __future__ import annotations
@@ -154,6 +156,28 @@ def check_transport(host: str, port: int, args: argparse.Namespace) -> bool:
     return False
 
 
+def base_url(host: str, port: int, tls: bool, allow_host: list[str] | tuple[str, ...] = ()
+             ) -> str:
+    """The console's address, ``scheme://host:port/``; on a wildcard address (``0.0.0.0``,
+    ``::``) the first ``--allow-host`` name, else the machine's host name."""
+    if is_wildcard(host):
+        host = allow_host[0] if allow_host else socket.gethostname()
+    url_host = f"[{host}]" if ":" in host else host
+    return f"{'https' if tls else 'http'}://{url_host}:{port}/"
+
+
+def login_url(url: str, token: str) -> str:
+    """``url`` carrying ``token`` in its fragment (``#token=...``): the one-click login.
+
+    A fragment is never sent to the server (so never in its logs nor in a ``Referer``); the
+    page (static/app.js) keeps the token for its tab (``sessionStorage``) and removes it from
+    the address bar (``history.replaceState``) before it fetches anything.
+    """
+    from urllib.parse import quote
+
+    return f"{url}#token={quote(token, safe='')}"
+
+
 def _bind(host: str, port: int) -> socket.socket:
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     s = socket.socket(family, socket.SOCK_STREAM)
@@ -203,13 +227,19 @@ def run(args: argparse.Namespace) -> int:
               f"{read_token}", file=sys.stderr)
     elif read_token is not None:
         print(f"rigd web: read-only token from {args.read_token_file}", file=sys.stderr)
-    url_host = f"[{host}]" if ":" in host else host
-    scheme = "https" if tls else "http"
+    url = base_url(host, port, tls, args.allow_host)
+    listen_url_host = f"[{host}]" if ":" in host else host
     # this thread runs the event loop: the console's SAFE path (rigd.web.priority)
     print(f"rigd web: event loop (the console's SAFE path) at "
           f"{take_rt_priority(args.rt_priority)}", file=sys.stderr, flush=True)
-    print(f"rigd web: serving {scheme}://{url_host}:{port}/ (daemon {args.socket}, "
+    print(f"rigd web: serving {'https' if tls else 'http'}://{listen_url_host}:{port}/ "
+          f"(daemon {args.socket}, "
           f"runs {runs_dir}, config {config_dir})", file=sys.stderr, flush=True)
+    if read_token is not None:
+        print(f"rigd web: read-only URL (reads only): {login_url(url, read_token)}",
+              file=sys.stderr, flush=True)
+    # last, like Jupyter's: the operator's one click (the control token: what they may do)
+    print(f"rigd web: open {login_url(url, token)}", file=sys.stderr, flush=True)
     app = build_app(Settings(socket=args.socket, runs_dir=runs_dir.resolve(),
                              config_dir=config_dir.resolve(), token=token,
                              read_token=read_token, secure=tls,

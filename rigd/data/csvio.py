@@ -34,6 +34,7 @@ from typing import Any, TextIO
 import numpy as np
 import yaml
 
+from rigd.data import compressed
 from rigd.data.record import BAD_CELLS_KEPT, Record
 from rigd.errors import InputError
 
@@ -318,12 +319,12 @@ def read_csv(path: str | Path) -> Record:
     """
     spath = str(path)
     try:
-        fh = open(path, encoding="utf-8", newline="")  # noqa: SIM115 - `with fh:` below
+        fh = compressed.open_text(path)
     except FileNotFoundError:
         raise _err(spath, None, "no such file") from None
     except OSError as exc:
         raise _err(spath, None, f"cannot read: {exc.strerror or exc}") from None
-    with fh:
+    with fh, compressed.damaged_as_input_error(spath):
         meta, where, names, hline, rest = read_header(fh, spath)
         fs, meta = check_meta(meta, where, names, spath, hline)
         blocks: list[np.ndarray] = []
@@ -424,8 +425,10 @@ def write_blocks(fh: TextIO, fs: float, meta: dict[str, Any], names: list[str],
     return n
 
 
-def write_csv(path: str | Path, record: Record, *, block_rows: int = BLOCK_ROWS) -> int:
-    """Write ``record`` as an interchange CSV atomically; returns the number of rows."""
+def write_csv(path: str | Path, record: Record, *, block_rows: int = BLOCK_ROWS,
+              replace: bool = True) -> int:
+    """Write ``record`` as an interchange CSV atomically; returns the number of rows
+    (``replace=False``: FileExistsError rather than replace a file)."""
     from rigd.fileio import atomic_open
 
     names = list(record.columns)
@@ -438,5 +441,5 @@ def write_csv(path: str | Path, record: Record, *, block_rows: int = BLOCK_ROWS)
             yield np.column_stack([record.columns[k][s:s + block_rows] for k in names]
                                   ).astype(np.float64, copy=False)
 
-    with atomic_open(path, "w", encoding="utf-8", newline="\n") as fh:
+    with atomic_open(path, "w", replace=replace, encoding="utf-8", newline="\n") as fh:
         return write_blocks(fh, record.fs, record.meta, names, blocks(), str(path))

@@ -10,6 +10,7 @@ Numbers use the shortest round-trip ``repr``, so the CSV reads back bit-for-bit.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +32,9 @@ def _check_out(src: Path, out: Path) -> None:
         pass
     if out.is_dir():
         raise InputError("output is a directory", str(out))
+    if os.path.lexists(out):
+        raise InputError("exists: an export never overwrites a file; choose a new name",
+                         str(out))
 
 
 def export_csv(src: str | Path, out: str | Path, *, columns: list[str] | None = None,
@@ -86,7 +90,7 @@ def export_csv(src: str | Path, out: str | Path, *, columns: list[str] | None = 
             _refuse_invalid(rec, wanted, idx, start, stop, block_rows, str(src))
             meta: dict[str, Any] = {k: v for k, v in rec.meta.items() if k != "units"}
             meta.setdefault("omega_rpm", 0.0)
-            with atomic_open(out, "w", encoding="utf-8", newline="\n") as fh:
+            with atomic_open(out, "w", replace=False, encoding="utf-8", newline="\n") as fh:
                 return csvio.write_blocks(fh, rec.fs, meta, wanted,
                                           rec.blocks(block_rows, idx, start, stop), str(src))
     from rigd.data.io import load_record
@@ -97,7 +101,7 @@ def export_csv(src: str | Path, out: str | Path, *, columns: list[str] | None = 
     if columns:
         record = _select(record, columns)
     record.check_finite(list(record.columns), "the export (choose --columns to leave it out)")
-    return csvio.write_csv(out, record, block_rows=block_rows)
+    return csvio.write_csv(out, record, block_rows=block_rows, replace=False)
 
 
 def _refuse_invalid(rec, names, idx, start, stop, block_rows, source) -> None:
@@ -125,7 +129,7 @@ def convert_raw_csv(src: str | Path, out: str | Path, *, fs: float,
     _check_out(src, out)
     record = read_raw_csv(src, fs=fs, inputs=inputs, outputs=outputs, meta=meta)
     record.check_finite(list(record.columns), "the conversion")
-    return csvio.write_csv(out, record)
+    return csvio.write_csv(out, record, replace=False)
 
 
 def _select(record, columns):

@@ -183,7 +183,8 @@ def read_h5(path: str | Path) -> Record:
         return Record(columns, rec.fs, meta, rec.path)
 
 
-def write_h5(path: str | Path, record: Record, *, chunk_rows: int = 4096) -> None:
+def write_h5(path: str | Path, record: Record, *, chunk_rows: int = 4096,
+             replace: bool = True) -> None:
     """Write a :class:`Record` as a recording in the project's HDF5 layout (atomically).
 
     Used to bring CSV data into the recording format and by tests/benchmarks; the loop's
@@ -195,7 +196,8 @@ def write_h5(path: str | Path, record: Record, *, chunk_rows: int = 4096) -> Non
 
     names = list(record.columns)
     units = record.meta.get("units") or {}
-    with atomic_open(path, "wb") as fh, h5py.File(fh, "w", libver="latest") as f:
+    with atomic_open(path, "wb", replace=replace) as fh, \
+            h5py.File(fh, "w", libver="latest") as f:
         n = record.n
         ds = f.create_dataset("frames", shape=(n, len(names)), maxshape=(None, len(names)),
                               dtype="f8", chunks=(max(1, min(chunk_rows, n or 1)),

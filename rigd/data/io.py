@@ -22,12 +22,14 @@ def load_record(path: str | Path, *, fs: float | None = None,
     ``inputs``/``outputs`` (generic record) or ``meta={"omega_rpm":..,"p_inj_bar":..}``.
     A MATLAB file (``MATLAB`` text header: v5/v7, or v7.3 = HDF5 behind it) is read by
     :func:`rigd.data.matio.read_mat` with ``var``, ``inputs``/``outputs`` (1-based columns or
-    variable names), ``time_column`` and/or ``fs``.
+    variable names), ``time_column`` and/or ``fs``. A CSV or MATLAB file compressed with gzip
+    (``record.csv.gz``) is read as the plain one (:mod:`rigd.data.compressed`).
 
     Parameters
     ----------
     path : path
-        ``.h5``/``.hdf5`` recording or ``.csv`` file (the extension is not trusted).
+        ``.h5``/``.hdf5`` recording, ``.csv`` or ``.mat`` file, the latter two optionally
+        gzip-compressed (the extension is not trusted).
     fs : float, optional
         Sample rate, Hz, of a plain CSV (only for plain CSV files).
     inputs, outputs : list of str or comma-separated str, optional
@@ -47,7 +49,7 @@ def load_record(path: str | Path, *, fs: float | None = None,
         Missing/unreadable file, or any breach of the format: one message naming the file,
         the line (CSV) and the problem.
     """
-    from rigd.data import csvio, h5io, matio, rawcsv
+    from rigd.data import compressed, csvio, h5io, matio, rawcsv
 
     p = Path(path)
     if not p.exists():
@@ -59,15 +61,20 @@ def load_record(path: str | Path, *, fs: float | None = None,
                               time_column=time_column, fs=fs, meta=meta)
     if var is not None or time_column is not None:
         raise InputError("--var/--time-column apply to MATLAB .mat files only", str(path))
-    if p.suffix.lower() == ".mat":
+    suffix = compressed.inner_suffix(p)
+    if suffix == ".mat":
         raise InputError("named like a MATLAB file but has no MAT-file header (v4 files are "
                          "not read: save with -v7 or -v7.3)", str(path))
+    if compressed.is_gzip(p) and (suffix in (".h5", ".hdf5")
+                                  or compressed.head(p, 8) == h5io.HDF5_MAGIC):
+        raise InputError("a gzip-compressed HDF5 recording is not read: decompress it first "
+                         "(gunzip)", str(path))
     if h5io.is_hdf5(p):
         if fs is not None or inputs or outputs:
             raise InputError("fs/inputs/outputs options apply to plain CSV files only, not to "
                              "an HDF5 recording", str(path))
         return h5io.read_h5(p)
-    if p.suffix.lower() in (".h5", ".hdf5"):
+    if suffix in (".h5", ".hdf5"):
         raise InputError("named like HDF5 but is not an HDF5 file", str(path))
     if fs is not None:
         return rawcsv.read_raw_csv(p, fs=fs, inputs=_split(inputs), outputs=_split(outputs),

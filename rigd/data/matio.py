@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from rigd.data import csvio
+from rigd.data import compressed, csvio
 from rigd.data.record import Record
 from rigd.errors import InputError
 
@@ -34,25 +34,22 @@ _RANGE = re.compile(r"^(\d+)(?::(\d+))?$")
 
 
 def is_mat(path: str | Path) -> bool:
-    """True if the file starts with a MAT-file (v5/v7/v7.3) text header."""
-    try:
-        with open(path, "rb") as fh:
-            return fh.read(6) == MAT_MAGIC
-    except OSError:
-        return False
+    """True if the file (or its gzip content) starts with a MAT-file (v5/v7/v7.3) text
+    header."""
+    return compressed.head(path, 6) == MAT_MAGIC
 
 
 def _variables(path: Path) -> dict[str, np.ndarray]:
     """Numeric 2-D matrices of the file by name (v5 or v7.3); other variables left out."""
     spath = str(path)
-    with open(path, "rb") as fh:
-        head = fh.read(128)
+    src: Any = compressed.read_bytes(path) if compressed.is_gzip(path) else path
+    head = compressed.head(path, 128)
     out: dict[str, Any] = {}
     if head[124:128] == b"\x00\x02IM" or b"MATLAB 7.3" in head[:20]:
         import h5py
 
         try:
-            with h5py.File(path, "r") as f:
+            with h5py.File(src, "r") as f:
                 for name, ds in f.items():
                     if isinstance(ds, h5py.Dataset) and not name.startswith("#"):
                         cls = ds.attrs.get("MATLAB_class", b"double")
@@ -69,7 +66,7 @@ def _variables(path: Path) -> dict[str, np.ndarray]:
     import scipy.io
 
     try:
-        raw = scipy.io.loadmat(path, squeeze_me=False)
+        raw = scipy.io.loadmat(src, squeeze_me=False)
     except (ValueError, TypeError, OSError, NotImplementedError) as exc:
         raise InputError(f"cannot read as a MATLAB file: {exc}", spath) from None
     for name, v in raw.items():
@@ -150,7 +147,7 @@ def read_mat(path: str | Path, *, var: str | None = None, inputs=None, outputs=N
     Parameters
     ----------
     path : path
-        ``.mat`` file, v5/v7 (scipy) or v7.3 (HDF5).
+        ``.mat`` file, v5/v7 (scipy) or v7.3 (HDF5), or the same gzip-compressed.
     var : str, optional
         The matrix holding the samples (needed when the file has several).
     inputs, outputs : str or list of str

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from rigd.data import csvio
+from rigd.data import compressed, csvio
 from rigd.data.record import Record
 from rigd.errors import InputError
 
@@ -55,12 +55,12 @@ def read_raw_csv(path: str | Path, *, fs: float, inputs: list[str] | None = None
     if outputs is not None:
         meta["outputs"] = list(outputs)
     try:
-        fh = open(path, encoding="utf-8", newline="")  # noqa: SIM115 - `with fh:` below
+        fh = compressed.open_text(path)
     except FileNotFoundError:
         raise InputError("no such file", spath) from None
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror or exc}", spath) from None
-    with fh:
+    with fh, compressed.damaged_as_input_error(spath):
         lines = iter(csvio._Lines(fh))
         hline, names, trailing = _header(lines, spath)
         where = {k: None for k in meta}

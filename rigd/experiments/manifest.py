@@ -10,16 +10,19 @@ Every experiment run writes into a NEW directory (never reused, nothing overwrit
 ``manifest.json`` (format ``rigd_manifest: 1``)::
 
     {"rigd_manifest": 1, "experiment": {"name", "kind", "source", "spec", "spec_sha256"},
-     "status": "running" | "complete" | "interrupted" | "failed",
+     "status": "running" | "complete" | "interrupted" | "failed"
+               | "interrupted (process ended)",
+     "owner": {"host", "pid", "start_ticks"},   # the process writing it (rigd.owner)
      "started": ISO, "finished": ISO | null, "host": str, "mode": "lockstep" | "realtime",
      "source": "simulated" | "rig", "drivers": {"fast": name, "slow": [names]},
      "software": {"rigd_version", "python", "numpy", "h5py"},
      "config": {"path": str | null, "sha256": str | null}, "fs_hz": float,
      "points": [{"index", "omega_rpm", "p_inj_bar", "status": "done" | "missing" | "failed"
                  | "not_settled" | "running", "files": [names], "error": str | null,
-                 "started", "finished"}],
+                 "started", "finished", "recording": "NAME.h5.part" | null}],
      "files": [{"path", "point", "kind", "omega_rpm", "p_inj_bar", "n_frames",
-                "controller_on", "repeat", ...}],
+                "controller_on", "repeat", ..., "complete": false, "incomplete_reason"}],
+                # complete/incomplete_reason only on a record cut short
      "missing": [point indices not completed], "message": str,
      "fault": {"seq", "code", "name", "text"} | null}   # the latched fault that ended the run
 """
@@ -27,6 +30,7 @@ Every experiment run writes into a NEW directory (never reused, nothing overwrit
 from __future__ import annotations
 
 import datetime as _dt
+import errno
 import hashlib
 import json
 import os
@@ -40,6 +44,12 @@ from rigd import __version__
 from rigd.data.manifest import MANIFEST
 from rigd.errors import InputError
 from rigd.fileio import atomic_write_text
+from rigd.owner import this_process
+
+#: a run folder's reserve (dot-name: not listed), given back when the disk fills or the run
+#: ends, and its size, bytes
+RESERVE = ".rigd-reserve"
+RESERVE_BYTES = 1 << 20
 
 
 def now_iso() -> str:
@@ -65,6 +75,25 @@ def software() -> dict[str, str]:
             "numpy": numpy.__version__, "h5py": version("h5py")}
 
 
+def check_folder_name(path: str) -> None:
+    """InputError when ``path`` holds a character that would make it read as something else
+    in a listing or a terminal: a newline or other control character, a bidirectional
+    override or another invisible format character (Unicode categories Cc, Cf, Zl, Zp, Co,
+    Cs)."""
+    import unicodedata
+
+    for i, ch in enumerate(path):
+        cat = unicodedata.category(ch)
+        if cat in ("Cc", "Cf", "Zl", "Zp", "Co", "Cs"):
+            what = "a control character" if cat == "Cc" else \
+                "a bidirectional or invisible format character" if cat == "Cf" else \
+                "a line or paragraph separator" if cat in ("Zl", "Zp") else \
+                "an unassigned or private-use character"
+            raise InputError(f"run folder name has {what} (U+{ord(ch):04X} at position {i}): "
+                             "refused; use letters, digits, '-', '_' and '.'",
+                             repr(path)[:120])
+
+
 def new_run_dir(out: str | Path | None, name: str, root: str | Path = "runs") -> Path:
     """Create a new, empty run directory.
 
@@ -74,6 +103,7 @@ def new_run_dir(out: str | Path | None, name: str, root: str | Path = "runs") ->
     """
     if out is not None:
         p = Path(out)
+        check_folder_name(str(p))
         if p.exists():
             if not p.is_dir():
                 raise InputError("exists and is not a directory", str(p))
@@ -121,6 +151,8 @@ class Manifest:
     message: str = ""
     #: the latched fault that ended the run (seq, code, name, text), None otherwise
     fault: dict[str, Any] | None = None
+    #: the process writing the manifest (rigd.owner.this_process)
+    owner: dict[str, Any] = field(default_factory=this_process)
 
     @property
     def path(self) -> Path:
@@ -133,7 +165,7 @@ class Manifest:
     def add_point(self, omega_rpm: float | None, p_inj_bar: float | None) -> dict[str, Any]:
         pt = {"index": len(self.points), "omega_rpm": omega_rpm, "p_inj_bar": p_inj_bar,
               "status": "missing", "files": [], "error": None, "started": None,
-              "finished": None}
+              "finished": None, "recording": None}
         self.points.append(pt)
         return pt
 
@@ -147,6 +179,7 @@ class Manifest:
             "rigd_manifest": 1,
             "experiment": self.experiment,
             "status": self.status,
+            "owner": self.owner,
             "started": self.started,
             "finished": self.finished,
             "host": platform.node(),
@@ -163,6 +196,32 @@ class Manifest:
             "fault": self.fault,
         }
 
+    @property
+    def reserve_path(self) -> Path:
+        return self.run_dir / RESERVE
+
+    def reserve(self) -> None:
+        """Set :data:`RESERVE_BYTES` aside in the run folder: a disk that fills during the
+        run still takes the manifests that list what was kept (see :meth:`write`)."""
+        try:
+            with open(self.reserve_path, "xb") as fh:
+                fh.write(b"\0" * RESERVE_BYTES)
+        except OSError:
+            pass                     # no reserve: the writes below are tried all the same
+
+    def release(self) -> None:
+        """Give the reserve back (the run is over)."""
+        self.reserve_path.unlink(missing_ok=True)
+
     def write(self) -> None:
-        """Write ``manifest.json`` atomically (never a half-written manifest)."""
-        atomic_write_text(self.path, json.dumps(self.to_dict(), indent=2, default=str) + "\n")
+        """Write ``manifest.json`` atomically (never a half-written manifest); on a full disk
+        the reserve is given back and the write tried again."""
+        text = json.dumps(self.to_dict(), indent=2, default=str) + "\n"
+        try:
+            atomic_write_text(self.path, text)
+        except OSError as exc:
+            if exc.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG) or \
+                    not self.reserve_path.exists():
+                raise
+            self.release()
+            atomic_write_text(self.path, text)

@@ -1,13 +1,16 @@
 """One experiment at one operating point: plays it on the loop and writes its record(s).
 
-Records are written to ``<name>.h5.part`` by the loop's recorder and renamed to ``<name>.h5``
-only when the segment completed: an interrupted point leaves no file behind.
+Records are written to ``<name>.h5.part`` by the loop's recorder (the manifest names it in
+the point's ``recording`` while it is written) and renamed to ``<name>.h5`` once closed. A
+record cut short — a fault, a full disk, SIGINT, the loop's process ended, an internal error
+— is kept all the same: renamed, listed with ``complete: false``, its reason and the frames
+on disk (:meth:`PointRunner.keep_partial`). Nothing here deletes a record.
 """
 
 from __future__ import annotations
 
 import contextlib
-import os
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +21,7 @@ import numpy as np
 from rigd.errors import FaultError, InputError
 from rigd.experiments import signals
 from rigd.experiments.schemas import (
+    MAX_RECORD_S,
     ChirpSpec,
     ImpactSpec,
     MultilevelSpec,
@@ -25,6 +29,9 @@ from rigd.experiments.schemas import (
     PrbsSpec,
     RunoutSpec,
 )
+from rigd.fileio import rename_new
+from rigd.loop.writer_link import RecordingFailed
+from rigd.owner import holders
 
 
 class SegmentFault(FaultError):
@@ -69,6 +76,27 @@ class Hit:
 
 class PointFailed(Exception):
     """The point could not be recorded (no hammer hit, not settled, ...): one line."""
+
+
+class LoopEnded(RuntimeError):
+    """The loop's process (the daemon) ended while the experiment talked to it."""
+
+
+class RecordFault(FaultError):
+    """A recording failed (disk full, its writer died): the loop latched
+    ``recorder_overflow``; the record is kept as far as it was flushed."""
+
+    def __init__(self, text: str, fault: dict[str, Any] | None = None):
+        self.fault = dict(fault) if fault and fault.get("code") else \
+            {"seq": None, "code": None, "name": "recorder_overflow", "text": text}
+        at = f" at cycle {self.fault['seq']}" if self.fault.get("seq") is not None else ""
+        super().__init__(f"{self.fault['name']} latched{at}: {text}")
+
+
+#: longest wait for the writer to let go of a cut-short record before it is marked, s (the
+#: daemon's writer closes its files at once when the daemon dies)
+RELEASE_WAIT_S = 30.0
+
 
 
 def _n(seconds: float, fs: float) -> int:
@@ -179,29 +207,81 @@ class PointRunner:
         self.tick = tick
         self.should_stop = should_stop
         self.critical = critical
-        self._part: Path | None = None
+        #: (part, final path, point, listing info) of the record being written, or None
+        self._pending: tuple[Path, Path, dict[str, Any] | None, dict[str, Any]] | None = None
 
-    # -- recording with .part + rename ---------------------------------------------------
+    # -- recording with .part + rename ----------------------------------------------------
     def _record(self, path: Path, meta: dict[str, Any], exc: np.ndarray, *, controller_on: bool,
-                events=(), keep: Callable[[Any], None] | None = None) -> Any:
-        """Record ``exc`` into ``path`` (via ``.part``); ``keep(result)`` lists it.
+                events=(), point: dict[str, Any] | None = None,
+                info: dict[str, Any] | None = None, n_default: int | None = None) -> Any:
+        """Record ``exc`` into ``path`` (via ``.part``), listed in ``point`` with ``info``.
 
-        The rename and ``keep`` run inside ``critical()`` (the stop flag's ``deferring``: a
-        SIGINT there only sets the flag), so an interrupt leaves either a ``.part`` that is
-        discarded or a complete file that the manifest lists — never a complete, unlisted one.
+        The ``.part`` is named in the point's ``recording`` (the manifest is the journal a
+        recovery reads). The rename and the listing run inside ``critical()`` (the stop
+        flag's ``deferring``: a SIGINT there only sets the flag). A recording that failed
+        (disk full) is kept as far as it was flushed and ends the experiment
+        (:class:`RecordFault`); any other end is the caller's :meth:`keep_partial`.
         """
         from rigd.loop.sinks import RecordSpec
 
         part = path.with_name(path.name + ".part")
-        self._part = part
-        res = self.loop.run_segment(exc, record=RecordSpec(str(part), meta), events=list(events),
-                                    controller_on=controller_on, stop_on_fault=True)
+        self._pending = (part, path, point, dict(info or {}))
+        if point is not None:
+            point["recording"] = part.name
+            self.manifest.write()
+        try:
+            res = self.loop.run_segment(exc, record=RecordSpec(str(part), meta),
+                                        events=list(events), controller_on=controller_on,
+                                        stop_on_fault=True)
+        except RecordingFailed as err:
+            self.keep_partial(str(err), err.n_flushed)
+            try:
+                fault = (self.loop.status() or {}).get("fault")
+            except Exception:  # noqa: BLE001 - the fault is named either way
+                fault = None
+            raise RecordFault(str(err), fault) from None
         with self.critical():
-            os.replace(part, path)
-            self._part = None
-            if keep is not None:
-                keep(res)
+            rename_new(part, path)
+            self._pending = None
+            if point is not None:
+                point["recording"] = None
+                n = self._n_frames(res, n_default if n_default is not None else len(exc))
+                cut = _cut_short(res, path)
+                self.manifest.add_file(point, path, **(info or {}), n_frames=n,
+                                       **({"complete": False, "incomplete_reason": cut}
+                                          if cut else {}))
         return res
+
+    def keep_partial(self, why: str, n_frames: int | None = None) -> None:
+        """Keep the record being written when the experiment ended (never deleted): renamed
+        to its final name, listed ``complete: false`` with ``why`` and its frames on disk
+        (read, and the file marked, in a helper process once its writer let go of it)."""
+        pending, self._pending = self._pending, None
+        if pending is None:
+            return
+        part, path, point, info = pending
+        if not part.exists():
+            return                       # never created (the open was refused)
+        end = time.monotonic() + RELEASE_WAIT_S
+        while holders(part) and time.monotonic() < end:
+            time.sleep(0.05)
+        try:
+            rename_new(part, path)
+        except FileExistsError:
+            path = part                  # a file of that name appeared: keep both as they are
+        got = _spawned_info(path, why, marking=not holders(path))
+        if got.get("n_frames") is not None:
+            n_frames = got["n_frames"]
+        entry = {**info, "n_frames": n_frames, "complete": False, "incomplete_reason": why}
+        if got.get("readable") is False:
+            entry["readable"] = False
+        if point is None:
+            point = self.manifest.points[int(info.get("point", 0))] if self.manifest.points \
+                else {"index": None, "files": []}
+        point["recording"] = None
+        entry.pop("point", None)
+        self.manifest.add_file(point, path, **entry)
+        self.manifest.write()
 
     @staticmethod
     def _check_faults(res: Any, path: Path) -> None:
@@ -220,15 +300,6 @@ class PointRunner:
             raise PointFailed(f"fault {names} latched during {path.name} (file kept; the "
                               "valves went to the safe state: reset the fault, lower the "
                               "excitation and re-run)")
-
-    def discard_partial(self) -> None:
-        """Remove the half-recorded file of an interrupted segment."""
-        if self._part is not None:
-            try:
-                self._part.unlink()
-            except FileNotFoundError:
-                pass
-            self._part = None
 
     # -- K∞ state -----------------------------------------------------------------------
     def controller(self, on: bool) -> None:
@@ -260,6 +331,8 @@ class PointRunner:
             omega = point["omega_rpm"]
             if not omega or omega <= 0:
                 raise PointFailed("runout needs a turning shaft (omega_rpm > 0)")
+            check_record_length(spec.duration_s(omega), "revolutions",
+                                f"{spec.revolutions} revolutions at {omega:g} rpm")
             n = _n(spec.duration_s(omega), self.fs)
             exc = np.zeros((n, 2))
             ctrl = spec.controller
@@ -273,10 +346,10 @@ class PointRunner:
         path = rd / f"{stem}_{spec.kind}.h5"
         self.controller(ctrl)
         res = self._record(path, self._meta(spec, point, **extra), exc, controller_on=None,
-                           keep=lambda res: self.manifest.add_file(
-                               point, path, kind=spec.kind, omega_rpm=point["omega_rpm"],
-                               p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
-                               n_frames=self._n_frames(res, len(exc))))
+                           point=point, info={"kind": spec.kind,
+                                              "omega_rpm": point["omega_rpm"],
+                                              "p_inj_bar": point["p_inj_bar"],
+                                              "controller_on": ctrl})
         self._check_faults(res, path)
         self.tick(f"{spec.kind} point {point['index']}")
         return True
@@ -304,54 +377,90 @@ class PointRunner:
                     meta.update(peak_n=spec.peak_n, pulse_s=spec.pulse_s)
                     hit = Hit(plant, spec.axis, spec.peak_n, spec.pulse_s)
 
-                def keep(n, ctrl=ctrl, r=r, path=path):
-                    self.manifest.add_file(point, path, kind="impact",
-                                           omega_rpm=point["omega_rpm"],
-                                           p_inj_bar=point["p_inj_bar"], controller_on=ctrl,
-                                           repeat=r, axis=spec.axis, n_frames=n,
-                                           trigger_index=n_pre)
-
+                info = {"kind": "impact", "omega_rpm": point["omega_rpm"],
+                        "p_inj_bar": point["p_inj_bar"], "controller_on": ctrl, "repeat": r,
+                        "axis": spec.axis, "trigger_index": n_pre}
                 if spec.trigger == "sim":
                     res = self._record(path, meta, np.zeros((n_pre + n_post, 2)),
                                        controller_on=None, events=[(n_pre, hit)],
-                                       keep=lambda res: keep(self._n_frames(res,
-                                                                            n_pre + n_post)))
+                                       point=point, info=info)
                 else:
-                    n, res = self._operator_hit(spec, path, meta, ctrl, n_pre, n_post)
-                    keep(n)
+                    n, res, kept = self._operator_hit(spec, point, path, meta, n_pre, n_post,
+                                                      info)
+                    self.manifest.add_file(point, kept, **info, n_frames=n)
                 self._check_faults(res, path)
                 self.tick(f"impact k={'on' if ctrl else 'off'} #{r + 1}")
         return True
 
-    def _operator_hit(self, spec: ImpactSpec, path: Path, meta: dict[str, Any], ctrl: bool,
-                      n_pre: int, n_post: int) -> tuple[int, Any]:
+    def _operator_hit(self, spec: ImpactSpec, point: dict[str, Any], path: Path,
+                      meta: dict[str, Any], n_pre: int, n_post: int,
+                      info: dict[str, Any]) -> tuple[int, Any, Path]:
         """Record up to ``timeout_s`` while the operator hits; keep the window around the
-        first sample where |f_axis| >= trigger_n. Returns (frames kept, the wait's result);
-        a fault that ended the wait keeps the whole wait recording."""
+        first sample where |f_axis| >= trigger_n. Returns (frames kept, the wait's result,
+        the file kept): the window, cut in a helper process (the wait, now redundant, is
+        then removed); the whole wait when a fault ended it. A wait with no usable hit is
+        kept and listed (``impact_wait``) and the point fails."""
         from concurrent.futures.process import BrokenProcessPool
 
         from rigd.spawn import run as spawned
 
         tmp = path.with_name(path.name + ".wait")
         n_wait = _n(spec.timeout_s, self.fs)
-        try:
-            res = self._record(tmp, meta, np.zeros((n_wait, 2)), controller_on=None)
-            if getattr(res, "fault", None):
-                # a fault ended the wait: keep all of it as the point's record (the caller
-                # lists it, then ends the experiment)
-                os.replace(tmp, path)
-                return self._n_frames(res, n_wait), res
-        finally:
-            self.discard_partial()
+        wait_info = {**info, "kind": "impact_wait", "point": point["index"]}
+        res = self._record(tmp, meta, np.zeros((n_wait, 2)), controller_on=None,
+                           info=wait_info)
+        if getattr(res, "fault", None):
+            # a fault ended the wait: keep all of it as the point's record (the caller
+            # lists it, then ends the experiment)
+            rename_new(tmp, path)
+            return self._n_frames(res, n_wait), res, path
         try:
             # read, cut and written in a helper process: no HDF5 in the loop's process
             n = spawned("rigd.experiments.window", "cut_hit_window", str(tmp), str(path),
                         spec.axis, float(spec.trigger_n), float(spec.timeout_s), n_pre,
                         n_post, meta, timeout_s=600.0)
-            return int(n), res
-        except (BrokenProcessPool, TimeoutError) as exc:
-            how = "ended" if isinstance(exc, BrokenProcessPool) else "did not answer in 600 s"
-            raise PointFailed(f"the impact window could not be cut from {tmp.name}: its "
-                              f"helper process {how}") from None
-        finally:
-            tmp.unlink(missing_ok=True)
+        except (BrokenProcessPool, TimeoutError, PointFailed) as exc:
+            why = (str(exc) if isinstance(exc, PointFailed) else
+                   f"the impact window could not be cut from {tmp.name}: its helper process "
+                   + ("ended" if isinstance(exc, BrokenProcessPool)
+                      else "did not answer in 600 s"))
+            kept = path.with_name(path.stem + "_wait.h5")
+            try:
+                rename_new(tmp, kept)
+            except FileExistsError:
+                kept = tmp
+            wait_info.pop("point")
+            self.manifest.add_file(point, kept, **wait_info,
+                                   n_frames=self._n_frames(res, n_wait))
+            raise PointFailed(f"{why} (the wait is kept: {kept.name})") from None
+        tmp.unlink()        # the window holds the hit: the wait around it is not kept
+        return int(n), res, path
+
+
+def check_record_length(seconds: float, key: str, what: str) -> None:
+    """InputError naming ``key`` when one record would last over :data:`MAX_RECORD_S`."""
+    if not seconds <= MAX_RECORD_S:
+        raise InputError(f"{what} last {seconds:.4g} s: over the limit of {MAX_RECORD_S:g} s "
+                         f"per record", key)
+
+
+def _cut_short(res: Any, path: Path) -> str | None:
+    """Why the record of ``res`` is shorter than asked (a fault ended it), or None."""
+    f = getattr(res, "fault", None)
+    if f:
+        return f"{f.get('name')} latched at cycle {f.get('seq')}: the segment ended there"
+    return None
+
+
+def _spawned_info(path: Path, why: str, marking: bool) -> dict[str, Any]:
+    """:func:`rigd.recording.incomplete.mark_incomplete` (or only ``describe`` when another
+    process still holds the file) of ``path``, in a helper process; {} if that failed."""
+    from rigd.spawn import run as spawned
+
+    try:
+        if marking:
+            return spawned("rigd.recording.incomplete", "mark_incomplete", str(path), why,
+                           timeout_s=120.0)
+        return spawned("rigd.recording.incomplete", "describe", str(path), timeout_s=120.0)
+    except Exception:  # noqa: BLE001 - the record stays, listed without its frame count
+        return {}

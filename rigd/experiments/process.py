@@ -17,7 +17,10 @@ What crosses into the loop's process is small and packed, over one pipe
 * ``("status",)``, ``("enable", on)``, ``("op", omega_rpm, p_inj_bar)``;
 
 and one-way ``("state", {...})`` progress messages, ending with ``("done", {...})``. The
-daemon answers each call with ``("ok", value)`` or ``("raise", kind, text)``.
+daemon answers each call with ``("ok", value)`` or ``("raise", kind, text)`` (a failed
+recording: ``("raise", "recording", text, n_flushed)``). A connection that ends (the daemon
+died) is :class:`~rigd.experiments.points.LoopEnded`: the record being written is kept and
+the run ends ``interrupted (process ended)``.
 """
 
 from __future__ import annotations
@@ -30,7 +33,8 @@ from types import SimpleNamespace
 from typing import Any
 
 from rigd.errors import FaultError, InputError
-from rigd.experiments.points import Hit
+from rigd.experiments.points import Hit, LoopEnded
+from rigd.loop.writer_link import RecordingFailed
 
 
 class _Hammer:
@@ -68,17 +72,23 @@ class LoopProxy:
     def _call(self, *msg: Any, handle: int | None = None) -> Any:
         from multiprocessing.reduction import send_handle
 
-        self.conn.send(("call", *msg))
-        if handle is not None:
-            send_handle(self.conn, handle, None)
-        kind, *rest = self.conn.recv()
+        try:
+            self.conn.send(("call", *msg))
+            if handle is not None:
+                send_handle(self.conn, handle, None)
+            kind, *rest = self.conn.recv()
+        except (EOFError, OSError) as exc:        # the daemon is gone
+            raise LoopEnded(f"its connection closed during the {msg[0]} call "
+                            f"({type(exc).__name__})") from None
         if kind == "ok":
             return rest[0]
-        what, text = rest
+        what, text, *more = rest
         if what == "input":
             raise InputError(text)
         if what == "fault":
             raise FaultError(text)
+        if what == "recording":
+            raise RecordingFailed(text, n_flushed=more[0] if more else None)
         raise RuntimeError(f"the loop's process: {text}")
 
     def status(self) -> dict[str, Any]:

@@ -2,9 +2,11 @@
 
 Used in-process by ``rigd experiment`` and inside the daemon (``experiment.start`` on the
 control socket). Every run gets a NEW run directory with its records and ``manifest.json``
-(:mod:`rigd.experiments.manifest`); the manifest is rewritten after each operating point, so an
-interrupted run (Ctrl-C / SIGINT, or ``stop``) keeps every completed point and lists the missing
-ones.
+(:mod:`rigd.experiments.manifest`); the manifest is rewritten after each operating point and
+before each record, so an interrupted run (Ctrl-C / SIGINT, ``stop``, a fault, a full disk,
+the daemon's end) keeps every completed point, lists the missing ones, and keeps the record
+it was writing, marked incomplete. A run whose own process was killed is recovered by the
+next start (:mod:`rigd.experiments.recovery`).
 """
 
 from __future__ import annotations
@@ -22,9 +24,11 @@ from rigd.driver import data_source
 from rigd.errors import FaultError, InputError
 from rigd.experiments.manifest import Manifest, new_run_dir, now_iso, sha256_text
 from rigd.experiments.points import (
+    LoopEnded,
     PointFailed,
     PointRunner,
     check_against_rate,
+    check_record_length,
     controller_enabled,
     controller_loaded,
     loop_fs,
@@ -33,6 +37,7 @@ from rigd.experiments.points import (
 )
 from rigd.experiments.schemas import SettleSpec, SweepSpec, load_experiment, spec_from_dict
 from rigd.experiments.sweep import set_point, settle_check
+from rigd.owner import PROCESS_ENDED
 
 #: progress(done, total, text): called after each recorded segment.
 Progress = Callable[[int, int, str], None]
@@ -118,6 +123,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
     exp = load(spec)
     fs = loop_fs(loop)
     check_against_rate(exp.point_spec, fs, exp.source + (": at_each" if exp.point else ""))
+    _check_lengths(exp)
     if wants_controller(exp.point_spec) and controller_loaded(loop) is False:
         raise InputError("K∞ on is requested (controller) but the loop has no controller "
                          "loaded: set 'controller:' in the rig config", exp.source)
@@ -144,6 +150,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         ops = [exp.spec.operating_point]
     for op in ops:
         man.add_point(op.omega_rpm if op else None, op.p_inj_bar if op else None)
+    man.reserve()
     man.write()
     if on_start:
         on_start(man)
@@ -196,7 +203,7 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
                     log.warning("experiment.point_failed", index=pt["index"], error=str(exc))
                 continue
             if not complete:             # a stop request ended it between its records
-                runner.discard_partial()
+                runner.keep_partial("stopped on request")
                 break
             # all its records are complete, renamed and listed: done, even when a stop was
             # requested meanwhile (the loop's next check stops before the next point)
@@ -204,14 +211,22 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
             current = None
             man.write()
     except KeyboardInterrupt:
-        runner.discard_partial()
+        runner.keep_partial("interrupted by SIGINT")
         _restore_controller(loop, k_was)
         _finish(man, "interrupted", current, "interrupted by SIGINT")
+        return man
+    except LoopEnded as exc:
+        # the daemon died: its writer closed the record (every frame it had), kept here
+        why = f"the daemon (the loop's process) ended during the run: {exc}"
+        runner.keep_partial(why)
+        if log:
+            log.error("experiment.loop_ended", error=str(exc))
+        _finish(man, PROCESS_ENDED, current, why)
         return man
     except FaultError as exc:
         # a latched fault ends the experiment at once (the segment ended at its cycle, its
         # record is closed and listed): the point failed, the others are missing
-        runner.discard_partial()
+        runner.keep_partial(f"rig fault: {exc}")
         man.fault = getattr(exc, "fault", None)
         if current is not None and current["status"] == "running":
             current.update(status="failed", error=str(exc), finished=now_iso())
@@ -220,9 +235,12 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         _restore_controller(loop, k_was)
         _finish(man, "failed", current, f"rig fault: {exc}")
         return man
-    except BaseException:
-        runner.discard_partial()
-        _finish(man, "failed", current, "internal error (see log)")
+    except BaseException as exc:
+        why = f"internal error: {type(exc).__name__}: {exc}"
+        if log:
+            log.exception("experiment.internal_error", error=why)
+        runner.keep_partial(why)
+        _finish(man, "failed", current, why)
         raise
     _restore_controller(loop, k_was)
     if should_stop():
@@ -232,6 +250,22 @@ def run_experiment(spec: Any, loop: Any, run_dir: str | Path | None, progress: P
         _finish(man, "complete" if not failed else "failed", None,
                 "" if not failed else f"points {failed} failed")
     return man
+
+
+def _check_lengths(exp: Experiment) -> None:
+    """InputError when a record of ``exp`` would last over the limit (a runout's length
+    depends on the speed: checked at every point whose speed is known)."""
+    from rigd.experiments.schemas import RunoutSpec
+
+    spec = exp.point_spec
+    if not isinstance(spec, RunoutSpec):
+        return
+    ops = exp.spec.points() if isinstance(exp.spec, SweepSpec) else [exp.spec.operating_point]
+    speeds = [op.omega_rpm for op in ops if op is not None and op.omega_rpm > 0]
+    if speeds:
+        w = min(speeds)
+        check_record_length(spec.duration_s(w), f"{exp.source}: revolutions",
+                            f"{spec.revolutions} revolutions at {w:g} rpm")
 
 
 def _refuse_latched_fault(loop: Any, where: str) -> None:
@@ -263,6 +297,7 @@ def _finish(man: Manifest, status: str, current: dict[str, Any] | None, why: str
             p["status"] = "missing"
     man.status = status
     man.finished = now_iso()
+    man.release()
     done = sum(p["status"] == "done" for p in man.points)
     miss = man.missing
     man.message = (f"{why}; " if why else "") + (

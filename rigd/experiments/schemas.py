@@ -19,6 +19,11 @@ from rigd.bounded import MAX_EXPERIMENT_BYTES
 from rigd.configio import LoadedYaml, StrictModel, read_text, read_yaml, validate
 from rigd.errors import InputError
 
+#: longest one record (a segment: lead-in included) may last, s of loop time; checked before
+#: anything runs (1 h of excitation plus the longest lead-in): a request beyond it would
+#: allocate gigabytes for a record no rig session takes
+MAX_RECORD_S = 4200.0
+
 Axis = Literal["x", "y"]
 Amplitude = float | list[float]
 
@@ -108,6 +113,9 @@ class MultisineSpec(_Excitation):
                              f"({self.f_min_hz})")
         if self.f_min_hz * self.period_s < 0.999 and self.f_max_hz * self.period_s < 1.0:
             raise ValueError("no frequency line in the band: period_s too short for f_max_hz")
+        if self.period_s * self.periods + self.lead_in_s > MAX_RECORD_S:
+            raise ValueError(f"periods × period_s = {self.period_s * self.periods:g} s: over "
+                             f"the limit of {MAX_RECORD_S:g} s per record (lead-in included)")
         return self
 
     @property

@@ -54,5 +54,5 @@ def cut_hit_window(wait_path: str, path: str, axis: str, trigger_n: float, timeo
         raise PointFailed("hammer hit too close to the start or end of the wait window")
     win = rec.slice(i - n_pre, i + n_post)
     win.meta.update(meta)
-    write_h5(Path(path), win)
+    write_h5(Path(path), win, replace=False)     # a point's record: never over a file
     return win.n

@@ -385,7 +385,7 @@ class ControlLoop:
             "set_point": self.set_point.status(),
             "recorder": {"written": w, "consumed": int(st[L.S_RD]),
                          "dropped": int(st[L.S_DROPPED]), "ring_frames": self.recorder.n,
-                         "writer_pid": self.recorder.writer_pid},
+                         "writer_pid": self.recorder.writer_pid, **self.recorder.state()},
             "overruns": self.rt.overruns,
             "drivers": {"fast": {"name": getattr(self.fast, "name", "?"),
                                  "drv_status": _bits(st[L.S_Y + F.IN_STATUS]),

@@ -23,7 +23,9 @@ h5py (import contract).
 
 from __future__ import annotations
 
+import datetime as _dt
 import threading
+from typing import Any
 
 import numpy as np
 
@@ -85,6 +87,10 @@ class Recorder:
         #: ``helper_priority()``: the real-time helper priority while the loop runs (the
         #: writer link's thread takes it; set by the loop)
         self.helper_priority = None
+        #: the last recording failure (``why``, ``since``, ``path``, ``open_ended``), kept
+        #: until a new recording opens — for ever after an open-ended one (``rigd run
+        #: --record``): that recording is dead whatever a fault reset says
+        self.failure: dict[str, Any] | None = None
 
     # --- lifecycle -------------------------------------------------------------------
     def start(self) -> None:
@@ -169,6 +175,9 @@ class Recorder:
         one; RecordingFailed when the file cannot be created or no writer can run)."""
         if isinstance(sink, FileSink):
             self._writer().open(sink)
+            f = self.failure
+            if f is not None and not f["open_ended"]:
+                self.failure = None        # recording works again
             return sink
         with self._lock:
             self._sinks.append(sink)
@@ -216,7 +225,23 @@ class Recorder:
         self._wake.set()
 
     # --- keeper thread ---------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        """The recorder's state for ``status``: ``state`` (``recording``: a file is open;
+        ``failed``: see ``failure``; ``idle``), ``files`` (open recordings) and ``failure``
+        (``why`` one line, ``since`` UTC ISO time, ``path``, ``open_ended``) or None."""
+        w = self.writer
+        files = ([str(s.path) for s in list(w.sinks.values())]
+                 if w is not None and not w.gone.is_set() else [])
+        f = self.failure
+        state = "failed" if f is not None else "recording" if files else "idle"
+        return {"state": state, "files": files, "failure": dict(f) if f else None}
+
     def _failed(self, exc: BaseException) -> None:
+        self.failure = {"why": str(exc).splitlines()[0] if str(exc) else type(exc).__name__,
+                        "since": _dt.datetime.now(_dt.timezone.utc).isoformat(
+                            timespec="seconds"),
+                        "path": getattr(exc, "path", None),
+                        "open_ended": bool(getattr(exc, "open_ended", False))}
         self.error = exc
         if self._on_error is not None:
             self._on_error(exc)

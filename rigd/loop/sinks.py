@@ -134,7 +134,7 @@ class FileSink(Sink):
     """
 
     def __init__(self, path: str | Path, *, fs: float, meta: dict[str, Any] | None = None,
-                 config_text: str = "", chunk_frames: int = 4096) -> None:
+                 config_text: str = "", chunk_frames: int = 4096, n_expected: int = 0) -> None:
         self._hdr = None
         self._slot = -1
         super().__init__()
@@ -143,13 +143,17 @@ class FileSink(Sink):
         self.meta = dict(meta or {})
         self.config_text = config_text
         self.chunk_frames = int(chunk_frames)
+        #: frames the recording should hold (a segment's length; 0: open-ended): a file
+        #: closed with fewer is marked incomplete (``complete`` false) by the writer
+        self.n_expected = int(n_expected)
         #: what the writer process said when it failed (one line), or None
         self.failure: str | None = None
 
     def spec(self) -> dict[str, Any]:
         """What the writer process needs to open the file (pickled to it)."""
         return {"path": str(self.path), "fs": self.fs, "meta": self.meta,
-                "config_text": self.config_text, "chunk_frames": self.chunk_frames}
+                "config_text": self.config_text, "chunk_frames": self.chunk_frames,
+                "n_expected": self.n_expected}
 
     def attach(self, hdr, slot: int) -> None:
         """Mirror the range into sink slot ``slot`` of the ring's header ``hdr`` from now on."""
@@ -221,6 +225,6 @@ def make_sink(record, n_expected: int, *, fs: float, config, config_text: str,
         meta["controller"] = str(controller.source)
     meta.update(spec.meta)
     return FileSink(spec.path, fs=fs, meta=meta, config_text=config_text,
-                    chunk_frames=config.recorder.chunk_frames)
+                    chunk_frames=config.recorder.chunk_frames, n_expected=n_expected)
 
 

@@ -38,12 +38,19 @@ class RecordingFailed(OSError):
     process died).
 
     The message names the file, the reason and what the file still holds (the frames up to its
-    last successful flush); ``cause`` is the original exception, if any.
+    last successful flush); ``cause`` is the original exception, if any; ``path`` the file,
+    ``n_flushed`` the frames on disk (at its last flush), ``open_ended`` whether it was an
+    open-ended recording (``rigd run --record``) rather than a segment's.
     """
 
-    def __init__(self, message: str, cause: BaseException | None = None):
+    def __init__(self, message: str, cause: BaseException | None = None, *,
+                 path: str | None = None, n_flushed: int | None = None,
+                 open_ended: bool = False):
         super().__init__(message)
         self.cause = cause
+        self.path = path
+        self.n_flushed = n_flushed
+        self.open_ended = open_ended
 
 
 def how_ended(code: int | None) -> str:
@@ -249,7 +256,8 @@ class WriterLink:
         if line is None:
             line = file_failure(sink, f"the writer process ended ({how or 'unknown'})")
         sink.failure = line
-        exc = RecordingFailed(line)
+        exc = RecordingFailed(line, path=str(sink.path), n_flushed=sink.n_flushed,
+                              open_ended=sink.n_expected <= 0)
         sink.error = exc
         self._on_error(exc)        # the fault is requested before the waiter learns of it
         sink.done.set()

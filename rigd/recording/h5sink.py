@@ -7,6 +7,13 @@ metadata), ``/events`` (``seq``, ``code``, ``text``); flushed periodically so th
 whose writer was killed is readable up to the last flush (:func:`open_recording`,
 ``swmr=True``).
 
+Completeness, in root attributes: ``complete`` (bool), ``incomplete_reason`` (str, "" when
+complete) and ``n_frames`` (frames on disk). A file is created ``complete = False`` with
+:data:`NOT_CLOSED` as the reason, ``n_frames`` is updated at every flush, and only a close
+after every expected frame sets ``complete = True``: a file whose writer was killed, or
+that a full disk froze, says so by itself. The file is created, never opened over an
+existing one (mode ``"x"``: a record is never truncated).
+
 This module imports h5py: the loop's process never imports it (import contract,
 ``pyproject.toml``); the loop hands recordings to the writer process as
 :class:`rigd.loop.sinks.FileSink` proxies.
@@ -27,17 +34,23 @@ from rigd import __version__
 from rigd.frame import N_REC, RECORD_NAMES, RECORD_UNITS
 from rigd.loop.sinks import EVENT_TEXT_LEN, Sink, file_failure, reason
 
+#: the reason a file says it is incomplete until its writer closes it
+NOT_CLOSED = ("not closed by its writer: the writing process ended (killed, or the disk "
+              "filled) before the recording's end; frames up to the last flush are kept")
+
 
 class H5Sink(Sink):
     """An HDF5 recording in SWMR mode (see module docstring)."""
 
     def __init__(self, path: str | Path, *, fs: float, meta: dict[str, Any] | None = None,
-                 config_text: str = "", chunk_frames: int = 4096) -> None:
+                 config_text: str = "", chunk_frames: int = 4096, n_expected: int = 0) -> None:
         super().__init__()
         self.path = Path(path)
+        self.n_expected = int(n_expected)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         meta = dict(meta or {})
-        f = h5py.File(self.path, "w", libver="latest")
+        # "x": fails if the file exists (FileExistsError): never truncates a record
+        f = h5py.File(self.path, "x", libver="latest")
         try:
             ds = f.create_dataset("frames", shape=(0, N_REC), maxshape=(None, N_REC),
                                   dtype="f8", chunks=(chunk_frames, N_REC))
@@ -50,6 +63,7 @@ class H5Sink(Sink):
                      "kind": "run", "config": config_text, "rigd_version": __version__,
                      "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
             attrs.update(meta)
+            attrs.update(complete=False, incomplete_reason=NOT_CLOSED, n_frames=np.int64(0))
             for k, v in attrs.items():
                 f.attrs[k] = _attr_value(v)
             f.swmr_mode = True
@@ -79,14 +93,22 @@ class H5Sink(Sink):
         self._ds.flush()
         for name in ("seq", "code", "text"):
             self._ev[name].flush()
+        self._f.attrs.modify("n_frames", np.int64(n))   # in place: same type and shape
         self._f.flush()
         self.n_flushed = n
 
     def describe_failure(self, exc: BaseException) -> str:
         return file_failure(self, reason(exc))
 
-    def close(self) -> None:
+    def close(self, why: str | None = None) -> None:
+        """Mark the file complete or not (``why``: the reason it is not; fewer frames than
+        expected also make it incomplete), flush and close it."""
+        n = self._ds.shape[0]
+        if why is None and n < self.n_expected:
+            why = f"ended early: {n} of {self.n_expected} frames recorded"
         try:
+            self._f.attrs["complete"] = why is None
+            self._f.attrs["incomplete_reason"] = why or ""
             self.flush()
         except BaseException:
             self.abandon()   # a failed final flush: keep the file as last flushed (see below)

@@ -40,6 +40,9 @@ from rigd.loop.sinks import reason
 from rigd.recording.h5sink import H5Sink
 
 _SEQ = REC["seq"]
+#: why a file closed after the loop's process went away is incomplete
+ORPHANED = ("the loop's process (rigd run or rigd experiment) ended before the recording's "
+            "end; every frame it had published is kept")
 _BLOCK = 65536              # frames handed to h5py at once, at most
 _IDLE_S = 0.01              # wait for a message this long when no frame is new
 
@@ -59,6 +62,8 @@ class Writer:
         self.rd = int(self.hdr[H_W])
         self.hdr[H_RD] = self.rd
         self.stopping = False
+        #: the loop's process went away (end of file on the connection)
+        self.orphaned = False
 
     # --- messages ----------------------------------------------------------------------
     def handle(self, msg: tuple) -> None:
@@ -68,7 +73,12 @@ class Writer:
             try:
                 sink = H5Sink(spec["path"], fs=spec["fs"], meta=spec["meta"],
                               config_text=spec["config_text"],
-                              chunk_frames=spec["chunk_frames"])
+                              chunk_frames=spec["chunk_frames"],
+                              n_expected=spec.get("n_expected", 0))
+            except FileExistsError:
+                self.conn.send(("opened", slot, f"recording {spec['path']}: refused: the file "
+                                "exists (a record is never overwritten)"))
+                return
             except Exception as exc:  # noqa: BLE001 - told to the loop's process, one line
                 self.conn.send(("opened", slot,
                                 f"recording {spec['path']}: cannot create it: {reason(exc)}"))
@@ -118,7 +128,8 @@ class Writer:
                     self._guard(slot, s.event, seq, code, text)
 
     def finish_closing(self, everything: bool = False) -> None:
-        """Close the files asked to close whose last frame is written (all: ``everything``)."""
+        """Close the files asked to close whose last frame is written (all: ``everything``;
+        :attr:`orphaned`: each is marked incomplete, the loop's process having gone)."""
         for slot in list(self.closing if not everything else self.sinks):
             s = self.sinks.get(slot)
             if s is None:
@@ -133,7 +144,7 @@ class Writer:
             self.closing.discard(slot)
             err = None
             try:
-                s.close()
+                s.close(ORPHANED if self.orphaned else None)
             except Exception as exc:  # noqa: BLE001 - reported, one line
                 err = s.describe_failure(exc)
             self.conn.send(("closed", slot, s.n_written, s.n_flushed, err))
@@ -168,6 +179,7 @@ class Writer:
                     self.handle(self.conn.recv())
             except (EOFError, OSError):       # the loop's process is gone: keep the files
                 self.stopping = True
+                self.orphaned = True
                 self.conn = _Gone()
             self._ranges()
             self.consume(pub)

@@ -12,6 +12,10 @@ answers its small, packed calls on the loop (docs/ARCHITECTURE.md, "The loop's p
   ``("impact", axis, peak_n, pulse_s)``, called on the loop's simulated plant at its cycle;
 * ``status``, ``enable``, ``op`` (K∞ on/off, the operating point).
 
+On start, runs a dead process left ``running`` are recovered in a helper process
+(:mod:`rigd.experiments.recovery`): their records kept and listed incomplete, their state
+``interrupted (process ended)``; ``status`` lists them under ``recovered``.
+
 Whatever the experiment process does, the state ends in ``complete``, ``interrupted`` or
 ``failed`` (with a message): a process that ends without its final word, or that has said
 nothing :data:`START_LIMIT_S` after its spawn (killed then), gives ``failed`` naming how.
@@ -26,6 +30,7 @@ waiting for it to complete).
 
 from __future__ import annotations
 
+import json
 import mmap
 import multiprocessing
 import os
@@ -38,8 +43,10 @@ from typing import Any
 from rigd.bounded import confined
 from rigd.driver import data_source
 from rigd.errors import FaultError, InputError
-from rigd.loop.writer_link import how_ended
+from rigd.loop.writer_link import RecordingFailed, how_ended
+from rigd.owner import stale_runs
 from rigd.spawn import call
+from rigd.spawn import run as call_in_helper
 
 #: how long ``start`` waits for the experiment process to make its run folder, s (the spawn
 #: and its imports take seconds on a loaded machine; a spec refused in it answers sooner)
@@ -50,6 +57,9 @@ START_WAIT_S = 60.0
 #: imports (numpy, pydantic, the experiments' code) took 7 s at load 8 on the shared
 #: 2-core machine, "tens of seconds" at load 25
 START_LIMIT_S = 120.0
+
+#: longest the recovery of dead runs on start may take, s (a helper process reading HDF5)
+RECOVERY_LIMIT_S = 300.0
 
 #: the experiment process's entry point, by module name (tests point it elsewhere)
 ENTRY = ("rigd.experiments.process", "main")
@@ -91,6 +101,62 @@ class ExperimentHost:
         #: set once the running experiment's process said it is done (or ended)
         self._over = threading.Event()
         self._over.set()
+        #: runs a dead process left ``running``, recovered on start (in a helper process)
+        self.recovered: list[dict[str, Any]] = []
+        self._recovery: threading.Thread | None = None
+        if stale_runs(self.runs_root):
+            self._recovery = threading.Thread(target=self._recover, name="rigd-recovery",
+                                              daemon=True)
+            self._recovery.start()
+
+    def _recover(self) -> None:
+        """Recover the runs a dead process left ``running`` (:mod:`rigd.experiments.recovery`,
+        run by module name in a helper: it reads HDF5); said in ``status`` and the log."""
+        try:
+            got = call_in_helper("rigd.experiments.recovery", "recover_runs",
+                                 str(self.runs_root), timeout_s=RECOVERY_LIMIT_S)
+        except Exception as exc:  # noqa: BLE001 - the daemon runs on; said in the log
+            got = [{"run_dir": str(self.runs_root), "status": "running",
+                    "skipped": f"recovery failed: {type(exc).__name__}: {exc}"}]
+        self.recovered = got
+        if self._state.get("state") == "idle":
+            self._state = {"state": "idle", "recovered": got}
+        for r in got:
+            if self.log is not None:
+                (self.log.warning if r.get("skipped") else self.log.info)(
+                    "experiment run recovered" if not r.get("skipped")
+                    else "experiment run not recovered", **r)
+
+    def _recover_lost(self, proc: Any) -> None:
+        """The experiment process ended (killed) and left its run ``running``: recover that
+        run at once (its record kept and listed incomplete, state ``interrupted (process
+        ended)``), as the next start would."""
+        rd = self._state.get("run_dir")
+        if self._state.get("state") != "failed" or not rd or proc.is_alive():
+            return
+        try:                      # cheap: JSON only; the recovery reads HDF5 in a helper
+            if json.loads((Path(rd) / "manifest.json").read_text()).get("status") != "running":
+                return
+        except (OSError, ValueError):
+            return
+        try:
+            got = call_in_helper("rigd.experiments.recovery", "recover_run", str(rd),
+                                 timeout_s=RECOVERY_LIMIT_S)
+        except Exception as exc:  # noqa: BLE001 - the next start tries again
+            if self.log is not None:
+                self.log.error("experiment run not recovered", run_dir=rd, error=repr(exc))
+            return
+        if not got.get("skipped"):
+            self._state.update(state=got["status"],
+                               message=f"{self._state.get('message')}; {got['message']}")
+            if self.log is not None:
+                self.log.info("experiment run recovered", **got)
+
+    def wait_recovered(self, timeout: float = RECOVERY_LIMIT_S) -> None:
+        """Block until the start's recovery (if any) is over."""
+        t = self._recovery
+        if t is not None:
+            t.join(timeout)
 
     def _facts(self) -> dict[str, Any]:
         """What the runner reads of the loop (fixed while it runs)."""
@@ -133,6 +199,7 @@ class ExperimentHost:
             run_dir = str(confined(run_dir, self.runs_root, "experiment.start: run_dir"))
         request = ({"packed": experiment} if experiment is not None
                    else {"spec": spec} if spec is not None else {"path": path})
+        self.wait_recovered()
         with self._lock:
             if not self._over.is_set():
                 raise InputError("an experiment is already running (experiment.stop first)",
@@ -166,9 +233,10 @@ class ExperimentHost:
 
     def status(self) -> dict[str, Any]:
         """State of the current/last experiment (``idle``, ``starting``, ``running``,
-        ``complete``, ``interrupted``, ``failed``) with ``done``/``total`` segments, the
-        run directory and ``pid`` (its experiment process); ``fault`` (seq, code, name, text)
-        when a latched fault ended it."""
+        ``complete``, ``interrupted``, ``interrupted (process ended)``, ``failed``) with
+        ``done``/``total`` segments, the run directory and ``pid`` (its experiment process);
+        ``fault`` (seq, code, name, text) when a latched fault ended it; ``recovered``
+        (while idle after a start): the runs a dead process had left ``running``."""
         return dict(self._state)
 
     def stop(self, before_safe: int | None = None) -> dict[str, Any]:
@@ -269,6 +337,7 @@ class ExperimentHost:
         finally:
             self._fail("the experiment process ended without its result")  # if still open
             proc.join(5.0)            # reaped (it exits after its last word)
+            self._recover_lost(proc)
             over.set()
             started.set()
             conn.close()
@@ -288,6 +357,8 @@ class ExperimentHost:
             return ("raise", "internal", f"unknown call {name!r}")
         except InputError as exc:
             return ("raise", "input", str(exc))
+        except RecordingFailed as exc:        # disk full, the writer died: what it kept
+            return ("raise", "recording", str(exc), exc.n_flushed)
         except FaultError as exc:
             return ("raise", "fault", str(exc))
         except Exception as exc:  # noqa: BLE001 - the experiment fails, the daemon lives

@@ -227,10 +227,36 @@ def parse_envelope(line: bytes | str) -> tuple[Any, str, StrictModel, float | No
     except ValidationError as exc:
         e = exc.errors()[0]
         loc = ".".join(str(p) for p in e["loc"]) or "arguments"
-        msg = "unknown argument" if e["type"] == "extra_forbidden" else e["msg"]
-        msg = msg.removeprefix("Value error, ")
+        msg = "unknown argument" if e["type"] == "extra_forbidden" else plain_error(e)
         raise RequestError(f"{cmd}: {loc}: {msg}", req_id) from None
     return req_id, cmd, args, (None if timeout_s is None else float(timeout_s))
+
+
+def plain_error(e: dict[str, Any]) -> str:
+    """One pydantic error (``ValidationError.errors()[0]``) in plain words, with the value
+    given: ``must be <= 100000 (got 1e+09)`` rather than pydantic's own phrasing."""
+    got = e.get("input")
+    shown = repr(got) if not isinstance(got, float) else f"{got:g}"
+    shown = shown if len(shown) <= 40 else shown[:37] + "..."
+    ctx = e.get("ctx") or {}
+    t = e.get("type", "")
+    bounds = {"greater_than_equal": (">=", "ge"), "less_than_equal": ("<=", "le"),
+              "greater_than": (">", "gt"), "less_than": ("<", "lt")}
+    if t in bounds:
+        op, key = bounds[t]
+        lim = ctx.get(key)
+        return f"must be {op} {lim:g} (got {shown})" if isinstance(lim, (int, float)) \
+            else f"must be {op} {lim} (got {shown})"
+    if t == "finite_number":
+        return f"must be a finite number (got {shown})"
+    if t in ("float_type", "float_parsing", "int_type", "int_parsing", "int_from_float"):
+        kind = "an integer" if t.startswith("int") else "a number"
+        return f"must be {kind} (got {type(got).__name__} {shown})"
+    if t == "missing":
+        return "missing: this argument is required"
+    if t in ("string_type", "bool_type", "dict_type", "list_type"):
+        return f"must be a {t.removesuffix('_type')} (got {type(got).__name__} {shown})"
+    return str(e.get("msg", "invalid")).removeprefix("Value error, ")
 
 
 def _depth(obj: Any) -> int:

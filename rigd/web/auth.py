@@ -9,7 +9,9 @@ A browser's ``EventSource`` and a report page opened from a link cannot send tha
 (``rigd_session``: random, ``HttpOnly``, ``SameSite=Strict``, ``Secure`` under TLS, 12 h)
 that carries *read* access only: a command always needs the control token in the header, so a
 page of another origin that makes the browser send the cookie changes nothing (no CSRF), and
-no token ever appears in a URL (URLs end up in logs and browser history).
+no token is ever sent in a URL (URLs end up in logs and browser history): the login URL that
+``rigd web`` prints carries the control token in its fragment, which the browser keeps to
+itself, and the page takes it out of the address bar (``rigd.cli.web.login_url``).
 """
 
 from __future__ import annotations

@@ -54,7 +54,8 @@ def _files(run: Path, suffixes: tuple[str, ...]) -> list[str]:
 
 def summarize(run: Path) -> dict[str, Any]:
     """One run directory: name, kind, operating point, source, duration (s), status, its
-    record files and HTML pages (relative paths); ``error`` when the manifest is unreadable."""
+    record files and HTML pages (relative paths), ``incomplete`` (the records its manifest
+    lists as cut short); ``error`` when the manifest is unreadable."""
     entry: dict[str, Any] = {"name": run.name, "records": _files(run, RECORD_SUFFIXES),
                              "pages": _files(run, (".html",))}
     try:
@@ -75,7 +76,9 @@ def summarize(run: Path) -> dict[str, Any]:
                  operating_point=_operating_point(man), source=man.get("source"),
                  duration_s=_duration_s(man), status=man.get("status"),
                  started=man.get("started"), points=len(man.get("points") or []),
-                 message=man.get("message") or "")
+                 message=man.get("message") or "",
+                 incomplete=[f.get("path") for f in man.get("files") or []
+                             if isinstance(f, dict) and f.get("complete") is False])
     return entry
 
 

@@ -118,13 +118,88 @@ def test_enable_from_the_page_enables_kinf(browser, screenshot, rig):
              what="K∞ disabled")
 
 
+def _button_words(browser):
+    """What the page's messages must say to press: the token button's own label."""
+    return f'press "{browser.find_element(By.ID, "token-save").text.strip()}"'
+
+
 def test_page_without_a_token_shows_nothing_and_asks_for_it(browser, rig):
     _, web, _ = rig
     _load(browser, web)
-    _wait(browser, lambda drv: "enter the token" in _message(browser)[0], what="token asked")
+    _wait(browser, lambda drv: "paste the token" in _message(browser)[0], what="token asked")
+    # the words match the button: the message names the label the button carries
+    assert _button_words(browser) in _message(browser)[0]
+    assert "open the URL rigd web printed" in _message(browser)[0]
     assert _js(browser, "window.rigd.mode") == "connecting"
     assert _js(browser, "window.rigd.updates") == 0
     assert browser.console_errors() == []         # nothing fetched: no 401 logged
+
+
+def test_the_printed_url_logs_the_tab_in_and_leaves_the_address_bar(browser, rig):
+    """``rigd web``'s one-click URL (``/#token=<control token>``): the console is logged in
+    with nothing typed, the token is out of the address bar and kept for the tab only, and it
+    commands (what the operator of ``rigd web`` may do): enable → ``rigd ctl status``."""
+    d, web, _ = rig
+    d.ctl("disable")
+    assert "#token=" in web.login_url
+    browser.load(web.login_url, "!!window.rigd", what="the console page's scripts")
+    _wait(browser, lambda drv: _js(browser, "window.rigd.mode") == "stream",
+          what="live stream connected, logged in from the URL")
+    assert _js(browser, "location.href") == web.url + "/"
+    assert "token" not in _js(browser, "location.hash + location.search")
+    assert _js(browser, "sessionStorage.getItem('rigd-token')") == web.token
+    assert _js(browser, "localStorage.length") == 0          # the tab's, nothing kept beyond
+    assert _js(browser, "window.rigd.access") == "control"
+    text, cls = _message(browser)
+    assert cls.endswith("ok") and "logged in with the control token" in text
+    browser.find_element(By.ID, "enable").click()
+    wait_for(lambda: d.ctl_json("status")["controller"]["enabled"], timeout=30,
+             what="rigd ctl status: K∞ enabled from the URL-logged-in page")
+    _wait(browser, lambda drv: drv.find_element(By.ID, "kinf").text == "on",
+          what="page shows K∞ on")
+    # a reload of the tab stays logged in (sessionStorage), the address stays clean
+    browser.load(browser.current_url, "!!window.rigd", what="the reloaded console page")
+    _wait(browser, lambda drv: _js(browser, "window.rigd.mode") == "stream",
+          what="live stream connected after a reload")
+    assert _js(browser, "location.href") == web.url + "/"
+    browser.find_element(By.ID, "disable").click()
+    wait_for(lambda: not d.ctl_json("status")["controller"]["requested"], timeout=30,
+             what="K∞ disabled")
+    assert browser.console_errors() == []
+
+
+def test_the_read_only_url_logs_in_for_reads_and_a_wrong_token_is_told(browser, rig):
+    """The read-only URL logs in with reads only (the page says so); a URL with a wrong token
+    is cleaned from the address bar too, and the page says it was refused and which button
+    to press, fetching nothing else."""
+    _, web, _ = rig
+    browser.load(web.read_login_url, "!!window.rigd", what="the console page's scripts")
+    _wait(browser, lambda drv: _js(browser, "window.rigd.mode") == "stream",
+          what="live stream connected with the read-only token")
+    assert _js(browser, "window.rigd.access") == "read"
+    assert "read-only token" in _message(browser)[0]
+    assert _js(browser, "location.href") == web.url + "/"
+    # a new URL pasted into the same tab changes only the fragment (no reload): taken too
+    browser.execute_script("location.hash = arguments[0]", "token=" + web.token)
+    _wait(browser, lambda drv: _js(browser, "window.rigd.access") == "control",
+          what="the control token of a pasted URL taken without a reload")
+    assert _js(browser, "location.href") == web.url + "/"
+    assert "logged in with the control token" in _message(browser)[0]
+    # the tab loaded again with a wrong token in the address: it overrides the kept one
+    browser.delete_all_cookies()
+    browser.get("about:blank")
+    browser.load(web.url + "/#token=not-the-token-at-all", "!!window.rigd",
+                 what="the console page's scripts")
+    refused = "the token in the address was refused (HTTP 401)"
+    _wait(browser, lambda drv: refused in _message(browser)[0], what="refusal shown")
+    text, cls = _message(browser)
+    assert "error" in cls
+    assert _button_words(browser) in text
+    assert _js(browser, "location.href") == web.url + "/"
+    assert _js(browser, "window.rigd.mode") == "connecting"
+    assert _js(browser, "window.rigd.updates") == 0
+    errors = browser.take_console_errors()          # the login's 401, logged by Chromium
+    assert errors and all("401" in e for e in errors), errors
 
 
 def test_enable_with_the_read_only_token_is_403_and_nothing_changes(browser, rig):

@@ -40,3 +40,30 @@ def parallel_mode(G, f0, zeta, g):
         B[2 * j + 1, j] = w * w
         C[:, 2 * j] = g
     return parallel(G, A, B, C)
+
+
+def predicted_impact_damping(G, Kz, axis: str, *, fs: float = 5000.0, pulse_s: float = 0.001,
+                             window_s: float = 0.08) -> tuple[float, float]:
+    """(ζ with K∞ off, ζ with K∞ on) that an impact on ``axis`` would show on the model ``G``
+    (r → p, 2×2, continuous or discrete; ZOH at ``fs`` when continuous) with the controller
+    ``Kz``: a ``pulse_s`` force-like pulse at r (the robustness check's disturbance input),
+    its free response fitted by the impact analysis' own damped sinusoid
+    (:func:`rigd.design.impact.analyze_axis`: from 0.5 ms after the pulse, ``window_s`` long).
+    The closed/open ratio is what the design promises an impact test on that model."""
+    import control
+
+    from rigd.design.impact import analyze_axis
+    from rigd.design.robustness import match_domain
+
+    Gz = match_domain(G, Kz)
+    j = "xy".index(axis)
+    n = int(round((pulse_s + 0.0005 + window_s + 0.01) * fs))
+    t = np.arange(n) / fs
+    force = np.where(t < pulse_s, 1.0, 0.0)
+    u = np.zeros((2, n))
+    u[j] = force
+    out = []
+    for T in (Gz, control.feedback(Gz, Kz, sign=-1)):
+        y = np.asarray(control.forced_response(T, T=t, U=u).outputs)[j]
+        out.append(analyze_axis(t, y, force, fs, window_s=window_s, axis=axis)["zeta"])
+    return out[0], out[1]

@@ -26,8 +26,7 @@ from rigd.diagnose.engine import diagnose_data
 from rigd.experiments.signals import multilevel
 from rigd.ident.greybox.mechanical import MechanicalStructure
 from rigd.ident.workflow import prepare
-
-sim = pytest.importorskip("rigd.loop.sim")
+from rigd.loop import sim
 
 FS = 5000.0
 RPM = {"runout": 3000.0, "cross_coupling": 3000.0}

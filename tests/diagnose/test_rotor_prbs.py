@@ -1,12 +1,10 @@
 """Rotor records under a binary PRBS (the paper's excitation) from the project's simulated
 plant, valve effects switched on."""
 
-import pytest
 
 from rigd.diagnose.diagnosis import diagnose_record
 from rigd.experiments.signals import prbs
-
-sim = pytest.importorskip("rigd.loop.sim")
+from rigd.loop import sim
 
 FS = 5000.0
 

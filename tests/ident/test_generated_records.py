@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from rigd.ident.lti import estimate_delays, fit_arx, heldout, n4sid
-from tests.gen import linear, nonlinear
+from tests.gen import joint, linear, nonlinear
+from tests.gen.record import Generated
 
 
 @pytest.mark.parametrize("delay", [0, 3, 6])
@@ -95,6 +96,35 @@ def test_bouc_wen_has_hysteresis():
         m = n4sid(rec.u[:cut], rec.y[:cut], 2).model
         fits.append(heldout(m, rec.u, rec.y, cut)[0][0])
     assert fits[1] > 97 and fits[0] < fits[1] - 2
+
+
+def _steady(g: Generated, n: int) -> Generated:
+    """The last multisine period of ``g`` (the first is the transient)."""
+    return Generated(g.u[-n:], g.y[-n:], g.fs, g.inputs, g.outputs, g.units, g.truth)
+
+
+def test_joint_structure_mode_softens_and_damps_with_force_level():
+    """The Iwan joint: stuck at the low level (the mode at its stuck frequency and damping),
+    softer and more damped at each higher level; the other modes do not move."""
+    n = 8192
+    recs = [_steady(joint.joint_structure(level=lv, periods=2, n=n, n_outputs=1), n)
+            for lv in (1.0, 3.0, 10.0)]
+    f_st, z_st = recs[0].truth["modes_stuck"][0]
+    (f1, z1), (f3, z3), (f10, z10) = (joint.mode_near(r, f_st) for r in recs)
+    assert abs(f1 / f_st - 1) < 0.005 and abs(z1 / z_st - 1) < 0.3
+    assert f10 < f3 < f1 and f10 < 0.985 * f1
+    assert z10 > z3 > 1.5 * z1
+    f2 = recs[0].truth["modes"][1][0]
+    lo, hi = joint.mode_near(recs[0], f2)[0], joint.mode_near(recs[2], f2)[0]
+    assert abs(hi / lo - 1) < 0.003
+
+
+def test_joint_structure_clearance_stiffens():
+    n = 8192
+    f = [joint.mode_near(_steady(joint.joint_structure(level=lv, joint="clearance",
+                                                       periods=2, n=n, n_outputs=1), n), 7.4)[0]
+         for lv in (0.3, 10.0)]
+    assert abs(f[0] / 7.0 - 1) < 0.01 and f[1] > 1.06 * f[0]
 
 
 def test_writers(tmp_path):

@@ -2,13 +2,11 @@
 identified and checked against the plant's true physics (rigd_drivers.plant.physics)."""
 
 import numpy as np
-import pytest
 from ident_helpers import prbs
 
-sim = pytest.importorskip("rigd.loop.sim")
-sp = pytest.importorskip("rigd_drivers.plant.physics")
-
-from rigd.ident.workflow import identify_record  # noqa: E402
+import rigd_drivers.plant.physics as sp
+from rigd.ident.workflow import identify_record
+from rigd.loop import sim
 
 
 def _record(omega, p, n, seed, effects=None, excite=True, kind="prbs"):

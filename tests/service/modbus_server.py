@@ -77,12 +77,18 @@ class NullModem:
 
 class PlcServer:
     """The PLC. ``first_delay_s``: the first read is answered that late (a device slow to
-    answer after a connect)."""
+    answer after a connect); ``first_until``: the first read is answered once this callable
+    returns true (an event of the test, e.g. the driver has counted the timeout), not after a
+    guess of a time. While :attr:`hold` is true every read waits (:attr:`waiting` counts the
+    reads held): a PLC that has taken a request and not answered yet."""
 
     def __init__(self, port=None, p_inj_bar=4.0, omega_rpm=3000.0, status=0, device=None,
-                 baudrate=19200, parity="E", first_delay_s=0.0):
+                 baudrate=19200, parity="E", first_delay_s=0.0, first_until=None):
         self.device = device            # RTU on this serial device; TCP on loopback if None
         self.first_delay_s = first_delay_s
+        self.first_until = first_until
+        self.hold = False
+        self.waiting = 0
         self._first_done = False
         self.serial = {"baudrate": baudrate, "parity": parity}
         self.port = None if device else (port or free_port())
@@ -98,9 +104,16 @@ class PlcServer:
         regs[2 - start:4 - start] = float_to_regs(self.values["omega_rpm"])
         regs[4 - start] = self.values["status"]
         if fc == 4:
-            if self.first_delay_s and not self._first_done:
+            if not self._first_done:
                 self._first_done = True          # only the very first read request
-                await asyncio.sleep(self.first_delay_s)
+                if self.first_delay_s:
+                    await asyncio.sleep(self.first_delay_s)
+                while self.first_until is not None and not self.first_until():
+                    await asyncio.sleep(0.005)
+            self.waiting += 1
+            while self.hold:
+                await asyncio.sleep(0.005)
+            self.waiting -= 1
             self.reads += 1
         if set_values is not None:
             for name, addr in (("p_inj_bar", 100), ("omega_rpm", 102)):

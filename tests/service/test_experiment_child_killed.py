@@ -1,5 +1,6 @@
 """The experiment process killed while its PRBS plays in the real daemon: ``rigd ctl
-experiment`` says ``failed`` and how it ended (no state left at ``running``), the loop cycles
+experiment`` says ``interrupted (process ended)`` and how it ended (no state left at
+``running``: the daemon recovers the run at once, its record kept and listed), the loop cycles
 on without a fault, and the next experiment runs to ``complete``."""
 
 import os
@@ -29,8 +30,10 @@ def test_a_killed_experiment_process_fails_the_experiment_and_the_loop_cycles_on
         os.kill(exp["pid"], signal.SIGKILL)
         # bounded by the segment playing when it died (60 s at most), then said
         assert wait_for(lambda: d.ctl_json("experiment")["state"] != "running", PROCESS_S)
+        assert wait_for(lambda: d.ctl_json("experiment")["state"] != "failed", PROCESS_S)
         exp = d.ctl_json("experiment")
-        assert exp["state"] == "failed" and "killed by SIGKILL" in exp["message"], exp
+        assert exp["state"] == "interrupted (process ended)", exp
+        assert "killed by SIGKILL" in exp["message"] and "records kept" in exp["message"], exp
         st = d.ctl_json("status")
         assert st["running"] and st["fault"]["code"] == 0, st
         seq = st["seq"]

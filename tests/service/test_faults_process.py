@@ -95,7 +95,7 @@ def disk_full(tmp_path_factory):
         seen["human"] = d.ctl("status").stdout
         seen["logged"] = wait_for(lambda: "recording failed" in d.log(), PROCESS_S)
     finally:
-        seen["code"], _ = d.stop(signal.SIGTERM)
+        seen["code"], seen["out"] = d.stop(signal.SIGTERM)
     seen["log"] = (tmp_path / "daemon.err").read_text()
     seen["rec"] = rec
     return seen
@@ -136,3 +136,9 @@ def test_disk_full_clean_exit_and_readable_recording(disk_full):
     seq = fr[:, REC["seq"]]
     assert np.all(np.diff(seq) == 1)
     assert seq[0] == first and len(fr) >= n_flushed   # nothing flushed was lost
+    # the count rigd run prints is the frames on disk (it said 0 when the recording failed)
+    assert f"recorded {n_flushed} frames to {s['rec']}" in s["out"], s["out"][-500:]
+    # status says the recording is dead, in words, with when it died
+    rec = s["st2"]["recorder"]
+    assert rec["state"] == "failed" and rec["failure"]["open_ended"], rec
+    assert "recorder: FAILED since" in s["human"]

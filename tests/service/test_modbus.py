@@ -12,7 +12,8 @@ from rigd.frame import IN_OMEGA, IN_P_INJ, N_IN
 from rigd_drivers.modbus.driver import ModbusDriver, ModbusOptions, float_to_regs, regs_to_float
 
 
-def _wait(pred, timeout=5.0):
+def _wait(pred, timeout=60.0):
+    """True once ``pred()`` holds (``timeout`` only bounds a hang: a loaded machine is slow)."""
     t = time.monotonic() + timeout
     while time.monotonic() < t:
         if pred():
@@ -29,8 +30,11 @@ def test_float_words():
 
 def test_poll_setpoints_stop_and_come_back():
     plc = PlcServer(p_inj_bar=4.5, omega_rpm=2500.0).start()
+    # the reply timeout is long (5 s, the most the driver allows): a poll that fails here
+    # fails because the PLC is gone (a refused connection fails at once), never because a
+    # busy machine delayed a loopback answer
     drv = ModbusDriver({"host": "127.0.0.1", "port": plc.port,
-                        "timeout_s": 0.1, "reconnect_s": 0.1, "failures_to_fault": 2})
+                        "timeout_s": 5.0, "reconnect_s": 0.1, "failures_to_fault": 2})
     drv.open()
     drv.poll_hz = 50.0
     drv.start_polling()
@@ -43,16 +47,23 @@ def test_poll_setpoints_stop_and_come_back():
         assert _wait(lambda: drv.latest().omega_rpm == 4000.0)
         drv.write_setpoints(p_inj_bar=5.5, omega_rpm=3300.0)
         assert _wait(lambda: plc.setpoints == {"p_inj_bar": 5.5, "omega_rpm": 3300.0})
-        # the PLC dies: a fault after 2 failed polls, last values kept, reading never blocks
+        # reading never blocks: while a poll waits for the PLC's answer (the PLC holds it),
+        # fill() hands over the last values — it returns before that poll has ended
+        plc.hold = True
+        assert _wait(lambda: plc.waiting == 1)      # the polling thread is blocked in a read
+        c = drv.counters()
+        frame[:] = 0.0
+        assert drv.fill(frame) and frame[IN_OMEGA] == 4000.0
+        assert plc.waiting == 1 and drv.counters() == c, "fill() waited for the poll"
+        plc.hold = False
+        assert _wait(lambda: drv.counters()["polls"] > c["polls"])
+        # the PLC dies: a fault after 2 failed polls, last values kept
         plc.stop()
         assert _wait(lambda: not drv.latest().ok)
         s = drv.latest()
         assert "modbus" in s.error and s.omega_rpm == 4000.0
-        t0 = time.perf_counter()
-        for _ in range(1000):
-            drv.fill(frame)
+        assert not drv.fill(frame) and frame[IN_OMEGA] == 4000.0
         assert drv.counters()["faults"] == 1
-        assert time.perf_counter() - t0 < 1.0  # sanity only: 1000 non-blocking reads
         # a device status word != 0 is a fault too
         plc2 = PlcServer(port=plc.port, p_inj_bar=6.0, omega_rpm=1000.0, status=0).start()
         assert _wait(lambda: drv.latest().ok and drv.latest().p_inj_bar == 6.0)
@@ -71,8 +82,10 @@ def test_rtu_over_a_serial_line_stop_and_come_back():
     Parity 'N': a Linux pseudo-terminal refuses PARENB (EINVAL), real UARTs take 'E'."""
     line = NullModem()
     plc = PlcServer(device=line.b, p_inj_bar=4.5, omega_rpm=2500.0, parity="N").start()
+    # a reply timeout that a busy machine does not reach by delaying an answer (1 s; at
+    # 19200 baud a request and its answer take ~10 ms): only the dead line fails polls
     drv = ModbusDriver({"transport": "rtu", "device": line.a, "baudrate": 19200, "parity": "N",
-                        "timeout_s": 0.1, "reconnect_s": 0.1, "failures_to_fault": 2})
+                        "timeout_s": 1.0, "reconnect_s": 0.1, "failures_to_fault": 2})
     drv.open()
     drv.poll_hz = 50.0
     drv.start_polling()
@@ -201,16 +214,21 @@ def test_first_poll_bound_latches_slow_driver(tmp_path):
 
 
 def test_late_first_answer_is_no_fault(tmp_path):
-    """The PLC answers the very first read after 0.5 s, beyond the driver's 0.2 s timeout:
-    one failed poll, not ``failures_to_fault`` (3), so no fault — the next polls answer. (The
-    first failure latched ``slow_driver`` at cycle 0: before a good poll there was no grace.)"""
+    """The PLC answers the very first read only after the driver has given up on it (its
+    timeout counted): one failed poll, not ``failures_to_fault`` (3), so no fault — the next
+    polls answer. (The first failure latched ``slow_driver`` at cycle 0: before a good poll
+    there was no grace.) The first answer waits for the driver's error count, an event, and
+    the timeout (1 s) is long enough that no later loopback answer misses it on a busy
+    machine: three failures in a row would take three seconds without an answer."""
     from faultkit import wait_for
 
-    plc = PlcServer(p_inj_bar=4.5, omega_rpm=0.0, first_delay_s=0.5).start()
+    parts = {}
+    plc = PlcServer(p_inj_bar=4.5, omega_rpm=0.0, first_until=lambda: "loop" in parts and
+                    parts["loop"].slow[0].counters()["errors"] >= 1).start()
     try:
-        loop = _loop_with_plc(tmp_path, plc, timeout_s=0.2)
+        loop = parts["loop"] = _loop_with_plc(tmp_path, plc, timeout_s=1.0)
         with loop:
-            assert wait_for(lambda: (loop.run_cycles(50), plc.reads >= 10)[1], 60.0)
+            assert wait_for(lambda: (loop.run_cycles(50), plc.reads >= 10)[1], 120.0)
             loop.run_cycles(100)
             assert [f["name"] for f in loop.faults()] == []
             assert loop.slow[0].counters()["errors"] >= 1, "the first poll did time out"

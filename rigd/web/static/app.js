@@ -14,13 +14,28 @@ import {markDirty, startRendering, wake} from "./plots.js";
 // cookie (HttpOnly, SameSite=Strict) that the EventSource and the report links carry. Nothing
 // is fetched before a login succeeded: the page itself holds no rig data.
 async function login() {
-  if (!token()) return false;
+  if (!token()) return null;
   try {
     const r = await fetch("/api/login", {method: "POST", headers: {"Authorization": "Bearer " + token()}});
-    return r.ok;
+    if (!r.ok) return null;
+    return (await r.json()).access || null;
   } catch (e) {
-    return false;
+    return null;
   }
+}
+
+// The one-click URL `rigd web` prints (http://host:port/#token=...): a fragment is never sent
+// to the server (nor logged by it, nor sent as a Referer). The token is kept for this tab and
+// taken out of the address bar (and this history entry) before anything else runs.
+function tokenFromAddress() {
+  const hash = new URLSearchParams(location.hash.slice(1));
+  if (!hash.has("token")) return false;
+  const tk = hash.get("token").trim();
+  hash.delete("token");
+  const rest = hash.toString();
+  history.replaceState(history.state, "", location.pathname + location.search + (rest ? "#" + rest : ""));
+  if (tk) sessionStorage.setItem("rigd-token", tk);
+  return !!tk;
 }
 
 let started = false;
@@ -38,19 +53,37 @@ async function start() {
   startRendering();
 }
 
+const ACCESS = {control: "control token: reads and commands", read: "read-only token: commands are refused"};
+
 async function main() {
+  const fromAddress = tokenFromAddress();
   wireControls();
+  // the messages name the button by its own label: the words always match it
+  const button = '"' + $("token-save").textContent.trim() + '"';
+  const loggedIn = (access) => {
+    rigd.access = access;
+    say("logged in with the " + ACCESS[access] + " (kept for this tab)", "ok");
+    start();
+  };
+  const refusedFromAddress = () => say("the token in the address was refused (HTTP 401): open the URL rigd web printed at start, or paste its token and press " + button, "error");
   $("token-save").onclick = async () => {
     sessionStorage.setItem("rigd-token", $("token").value.trim());
-    if (await login()) {
-      say("token kept for this tab (sessionStorage); sent as Authorization: Bearer", "ok");
-      start();
-    } else {
-      say("login: token refused (HTTP 401): use the token rigd web printed at start", "error");
-    }
+    const access = await login();
+    if (access) loggedIn(access);
+    else say("token refused (HTTP 401): paste the token rigd web printed at start and press " + button, "error");
   };
-  if (await login()) start();
-  else say("enter the token printed by rigd web (or its read-only token) and press Keep", "error");
+  // a URL with a new token pasted into this tab changes only the fragment: no reload
+  window.addEventListener("hashchange", async () => {
+    if (!tokenFromAddress()) return;
+    $("token").value = token();
+    const access = await login();
+    if (access) loggedIn(access);
+    else refusedFromAddress();
+  });
+  const access = await login();
+  if (access) loggedIn(access);
+  else if (fromAddress) refusedFromAddress();
+  else say("open the URL rigd web printed at start, or paste the token it printed (or its read-only token) and press " + button, "error");
 }
 
 main();

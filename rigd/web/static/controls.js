@@ -104,7 +104,7 @@ export async function loadFiles() {
 
 export function wireControls() {
   $("token").value = token();
-  // "use token" (login, then start) is wired by app.js
+  // the token button (login, then start) is wired by app.js
   $("token").addEventListener("keydown", (e) => { if (e.key === "Enter") $("token-save").click(); });
   $("safe").addEventListener("pointerdown", (e) => { if (e.button === 0) sendSafe(); });
   $("safe").addEventListener("click", (e) => { if (e.detail === 0) sendSafe(); });

@@ -7,7 +7,7 @@ export const rigd = window.rigd = {
   updates: 0, renders: 0, orbitRenders: 0, trendRenders: 0, histRenders: 0, lastSeq: null,
   cycle: null, mode: "connecting", filmGap: 25.0, fs: 5000.0, buf: null, lastStatus: null,
   lastT: undefined, epoch: 0, restarts: [], daemon: null, lastGood: 0, stale: false,
-  paused: false, trigger: null, drawMs: 0, safeClicks: [], daemonUp: false,
+  paused: false, trigger: null, drawMs: 0, safeClicks: [], daemonUp: false, access: null,
 };
 
 export const $ = (id) => document.getElementById(id);

@@ -39,7 +39,7 @@ export async function loadRuns(onlyIfChanged = false) {
     const recs = document.createElement("span");
     for (const f of run.records || []) {
       const b = document.createElement("button");
-      b.textContent = f; b.className = "open-record";
+      b.textContent = f + ((run.incomplete || []).includes(f) ? " (incomplete)" : ""); b.className = "open-record";
       b.onclick = () => openRecord(run.name, f);
       recs.appendChild(b);
     }

@@ -1,26 +1,9 @@
-#!/usr/bin/env python3
-"""Rewrite the README's demo figures from ``demo-out/summary.json`` (what ``make demo`` writes).
-
-    python tools/readme_demo_table.py [--summary demo-out/summary.json] [--readme README.md]
-                                      [--check]
-
-The figures live between the marker comments ``<!-- demo-table:begin -->`` and
-``<!-- demo-table:end -->``; everything between them is replaced by :func:`render`. With
-``--check`` nothing is written and the exit status is 1 when the README's figures differ from
-the summary's by more than 2 % (:func:`compare`), so a figure cannot drift from the command
-that produces it. Plain Python (json, re, argparse), no rigd import.
-"""
+"""The demo's tables (modelling step, impacts, design over the operating range) from the
+figures of ``docs/figures/demo.json`` (a selection of ``demo-out/summary.json``), for
+``docs/figures.md``."""
 
 from __future__ import annotations
 
-import argparse
-import json
-import re
-import sys
-from pathlib import Path
-
-BEGIN, END = "<!-- demo-table:begin -->", "<!-- demo-table:end -->"
-NUMBER = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
 PAPER = {"open": (0.0567, 0.0282), "closed": (0.173, 0.1668), "increase": ("3", "6")}
 
 
@@ -95,65 +78,3 @@ def render(s: dict) -> str:
     row("S_o reduction over the whole 70–190 Hz band (`sensitivity_reduction_min`)",
         "sensitivity_reduction_min", "{:.2f}")
     return "\n".join(lines)
-
-
-def numbers(text: str) -> list[float]:
-    return [float(v) for v in NUMBER.findall(text)]
-
-
-def block(readme: str) -> str:
-    """The text between the markers; ValueError when they are missing."""
-    i, j = readme.find(BEGIN), readme.find(END)
-    if i < 0 or j < i:
-        raise ValueError(f"README has no {BEGIN} ... {END} block")
-    return readme[i + len(BEGIN):j]
-
-
-def compare(readme: str, s: dict, rel: float = 0.02) -> list[str]:
-    """Differences (one line each) between the README block and ``render(s)``, beyond ``rel``."""
-    have, want = numbers(block(readme)), numbers(render(s))
-    if len(have) != len(want):
-        return [f"README block has {len(have)} figures, the summary gives {len(want)}: "
-                "rerun tools/readme_demo_table.py"]
-    out = []
-    for k, (a, b) in enumerate(zip(have, want)):
-        if abs(a - b) > rel * max(abs(b), 1e-12) and abs(a - b) > 0.5 * 10 ** -_decimals(a):
-            out.append(f"figure {k + 1}: README {a:g}, summary {b:g}")
-    return out
-
-
-def _decimals(v: float) -> int:
-    t = repr(v)
-    return len(t.split(".")[1]) if "." in t and "e" not in t else 0
-
-
-def rewrite(readme: str, s: dict) -> str:
-    i, j = readme.find(BEGIN), readme.find(END)
-    if i < 0 or j < i:
-        raise ValueError(f"README has no {BEGIN} ... {END} block")
-    return readme[:i + len(BEGIN)] + "\n" + render(s) + "\n" + readme[j:]
-
-
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--summary", default="demo-out/summary.json")
-    ap.add_argument("--readme", default="README.md")
-    ap.add_argument("--check", action="store_true", help="compare only (exit 1 on drift)")
-    a = ap.parse_args(argv)
-    try:
-        s = json.loads(Path(a.summary).read_text())
-        text = Path(a.readme).read_text()
-        if a.check:
-            diff = compare(text, s)
-            for d in diff:
-                print(f"{a.readme}: {d}", file=sys.stderr)
-            return 1 if diff else 0
-        Path(a.readme).write_text(rewrite(text, s))
-    except (OSError, ValueError, KeyError) as exc:
-        print(f"readme_demo_table: {type(exc).__name__}: {exc}", file=sys.stderr)
-        return 2
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
