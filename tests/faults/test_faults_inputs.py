@@ -34,6 +34,10 @@ from rigd.controller import save_controller
 from rigd.frame import REC
 from rigd.recording.h5sink import open_recording
 
+#: real daemons on a shared, loaded 2-core machine: a start can take minutes (hang bounds, not
+#: timing: each wait is on an event)
+pytestmark = pytest.mark.timeout(3 * PROCESS_S)
+
 SECRET = "kGHx7Qe2-this-is-the-web-control-token-9f3a"
 
 
