@@ -30,7 +30,6 @@ import pytest
 import yaml
 from daemon_helpers import PROCESS_S, RIGD, ROOT, Daemon, make_config
 
-from rigd.controller import save_controller
 from rigd.frame import REC
 from rigd.recording.h5sink import open_recording
 
@@ -119,12 +118,6 @@ sys.exit(rigd.cli.main(sys.argv[1:]))
 def _as_nobody(*args, cwd):
     return subprocess.run([sys.executable, "-c", AS_NOBODY, *args], capture_output=True,
                           text=True, timeout=PROCESS_S, cwd=str(cwd))
-
-
-def _stable_controller(path):
-    save_controller(path, [[0.99]], [[0.001, 0.0]], [[1.0], [0.0]], [[0.0, 0.0], [0.0, 0.0]],
-                    fs_hz=5000.0)
-    return path
 
 
 @pytest.mark.skipif(os.geteuid() != 0, reason="needs root to act as another uid (CI is root)")
@@ -229,9 +222,16 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def test_serial_frontend_killed_2s_records_ex_invalid_and_names_the_disconnect():
+    tmp = _open_dir()         # the record is large: removed however it ends
+    try:
+        _serial_frontend_killed_2s_records_ex_invalid_and_names_the_disconnect(tmp)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _serial_frontend_killed_2s_records_ex_invalid_and_names_the_disconnect(tmp):
     from emuproc import EmulatorProcess
 
-    tmp = _open_dir()
     link = str(tmp / "frontend")
     emu = EmulatorProcess(link, fs=5000.0, hold_timeout=0.5, tx_buffer_s=0.5,
                           late_drop_s=0.002)
@@ -256,7 +256,6 @@ def test_serial_frontend_killed_2s_records_ex_invalid_and_names_the_disconnect()
         d.stop()
         emu.stop()
     fr = _frames(rec)
-    shutil.rmtree(tmp, ignore_errors=True)
     assert len(fr) >= flushed, (len(fr), flushed)
     assert np.all(np.diff(fr[:, REC["seq"]]) == 1), "recorded frames are contiguous"
     names = [f["name"] for f in faults]
@@ -285,9 +284,16 @@ def _frames_after_outage(rec) -> bool:
 
 
 def test_plc_killed_and_back_records_p_inj_invalid_and_names_the_loss():
+    tmp = _open_dir()         # the record is large: removed however it ends
+    try:
+        _plc_killed_and_back_records_p_inj_invalid_and_names_the_loss(tmp)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _plc_killed_and_back_records_p_inj_invalid_and_names_the_loss(tmp):
     from modbus_server import PlcServer
 
-    tmp = _open_dir()
     plc = PlcServer(p_inj_bar=4.0, omega_rpm=0.0).start()
     port = plc.port
     rec = tmp / "plc.h5"
@@ -315,7 +321,6 @@ def test_plc_killed_and_back_records_p_inj_invalid_and_names_the_loss():
         d.stop()
         plc.stop()
     fr = _frames(rec)
-    shutil.rmtree(tmp, ignore_errors=True)
     assert len(fr) >= flushed, (len(fr), flushed)
     assert np.all(np.diff(fr[:, REC["seq"]]) == 1), "recorded frames are contiguous"
     loss = [f for f in faults if f["name"] == "slow_driver"]
