@@ -180,6 +180,12 @@ class FastDriver(Driver):
         """
         return None
 
+    #: ``"wall"``: the plant moves in real time, also while the loop stands (a rig); ``"cycle"``:
+    #: the plant advances one loop period per cycle (a simulated plant), so a stall of the loop
+    #: pauses the plant with it and costs it nothing — the liveness bounds are then the
+    #: service's, not the plant's (:mod:`rigd.loop.liveness`)
+    plant_clock: str = "wall"
+
     def plant_time_constant_s(self) -> float | None:
         """The plant's fastest closed-loop time constant, s, from the driver's nominal plant
         model (min over its modes of 1 / (ζ ω_n)), or None when it has none (default).

@@ -80,6 +80,8 @@ class SimulatedPlantDriver(FastDriver):
     #: key prefix of the options in the config, for error messages
     options_where: ClassVar[str] = ""
     _kmod: ClassVar[ModuleType]     # compiled kernel: plant_step, plant_sense, run_batch
+    #: one plant step per loop cycle: the simulated plant's time is the loop's (rigd.driver)
+    plant_clock = "cycle"
     _hdr: ClassVar[ModuleType]      # params header indices H_STAGE_SEQ, H_IMP_*
 
     state: np.ndarray

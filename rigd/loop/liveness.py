@@ -25,6 +25,14 @@ fastest envelope; ``supervisor.plant_tau_s``, or the fast driver's nominal plant
   is absent for a tenth of the time does. (A config that sets the former
   ``overrun_storm_count`` gets the count rule instead: that many overruns within the window.)
 * Neither is measured during the loop's first :data:`GRACE_S` (its start-up transient).
+* **A simulated plant** (the fast driver's ``plant_clock`` is ``"cycle"``: one plant step per
+  loop cycle) does not move while the loop stands — its time is the loop's — so no stall costs
+  it anything, and τ says nothing about what matters. What still matters is the service: an
+  operator's view and the commands wait on the loop. Its bound is :data:`SERVICE_STALL_S`
+  (a frozen loop is a fault within a second, as the console's and ``status``'s freshness
+  promises), and the overrun storm is the same loss in pieces within ``10 ×`` that window.
+  A busy desktop that delays a simulated loop by tens of milliseconds is then no fault; a
+  SIGSTOP of a second and more is.
 """
 
 from __future__ import annotations
@@ -42,6 +50,8 @@ STORM_WINDOW_TAUS = 10.0
 #: the loop's first cycles are not measured, s: the start-up transient (first calls of every
 #: code path, the service's processes starting; K∞ is off until enabled) is no stall
 GRACE_S = 0.5
+#: the stall bound of a simulated plant (``plant_clock == "cycle"``): the service's, s
+SERVICE_STALL_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -85,8 +95,12 @@ def derive(supervisor, fast_driver=None) -> LivenessBounds:
         if tau is None or not (math.isfinite(tau) and tau > 0):
             tau, source = DEFAULT_TAU_S, "default"
     tau = float(tau)
-    stall = tau if supervisor.stall_s is None else float(supervisor.stall_s)
-    window = (STORM_WINDOW_TAUS * tau if supervisor.overrun_storm_window_s is None
+    # the scale on which a stall matters: the plant's τ, or the service's for a plant that
+    # advances with the loop's cycles (module docstring)
+    scale = (SERVICE_STALL_S if getattr(fast_driver, "plant_clock", "wall") == "cycle"
+             else tau)
+    stall = scale if supervisor.stall_s is None else float(supervisor.stall_s)
+    window = (STORM_WINDOW_TAUS * scale if supervisor.overrun_storm_window_s is None
               else float(supervisor.overrun_storm_window_s))
     if supervisor.overrun_storm_lost_s is not None:
         lost = float(supervisor.overrun_storm_lost_s)

@@ -55,6 +55,22 @@ def test_bounds_derive_from_the_plant_time_constant():
     assert (b.tau_s, b.tau_source) == (liveness.DEFAULT_TAU_S, "default")
 
 
+def test_a_simulated_plant_gets_the_service_bound_not_its_time_constant():
+    """A plant that advances with the loop's cycles stands still with the loop: its stall bound
+    is the service's (1 s, window 10 s), whatever its τ; a config's stall_s still rules."""
+    from rigd_drivers.sim.driver import SimPlantDriver
+
+    class _SimClock(_Plant):
+        plant_clock = "cycle"
+
+    b = liveness.derive(SupervisorConfig(), _SimClock(0.0181))
+    assert b.tau_s == 0.0181 and b.stall_s == liveness.SERVICE_STALL_S == 1.0
+    assert b.storm_lost_s == 1.0 and b.storm_window_s == pytest.approx(10.0)
+    assert liveness.derive(SupervisorConfig(stall_s=0.05), _SimClock(0.0181)).stall_s == 0.05
+    assert SimPlantDriver.plant_clock == "cycle"
+    assert liveness.derive(SupervisorConfig(), _Plant(0.0181)).stall_s == 0.0181   # a rig
+
+
 def test_sim_plant_time_constant_is_the_fastest_bearing_envelope():
     from rigd_drivers.plant.physics import bearing_modes
     from rigd_drivers.sim.driver import SimPlantDriver
