@@ -75,9 +75,13 @@ class Writer:
                               config_text=spec["config_text"],
                               chunk_frames=spec["chunk_frames"],
                               n_expected=spec.get("n_expected", 0))
-            except FileExistsError:
-                self.conn.send(("opened", slot, f"recording {spec['path']}: refused: the file "
-                                "exists (a record is never overwritten)"))
+            except FileExistsError as exc:
+                # EEXIST also comes when a folder on the path is a file: only a file that is
+                # there is "refused: it exists"
+                msg = (f"recording {spec['path']}: refused: the file exists (a record is "
+                       "never overwritten)" if os.path.lexists(spec["path"]) else
+                       f"recording {spec['path']}: cannot create it: {reason(exc)}")
+                self.conn.send(("opened", slot, msg))
                 return
             except Exception as exc:  # noqa: BLE001 - told to the loop's process, one line
                 self.conn.send(("opened", slot,
