@@ -6,7 +6,7 @@ STAMP   := $(VENV)/.installed
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test lint bench figures peers-deps venv clean
+.PHONY: demo test test-long lint bench figures peers-deps venv clean
 
 venv: $(STAMP)
 
@@ -55,8 +55,15 @@ lint: $(STAMP)
 # simulated plants) once into numba's cache, a few processes in parallel: on a clean clone the
 # cache is empty and otherwise every worker and every daemon the tests start compiled the same
 # kernels at the same time (minutes of CPU each on 2 cores); after it they load them.
+# tests/experiments/test_operator_impact.py runs a real-time loop (SCHED_FIFO, above every
+# niced worker): in part 1 it took the CPU from part 2's real-time tests. tests/faults: the
+# fault-injection tests on real daemons (listed once the folder exists).
 REALTIME_TESTS := tests/service tests/loop tests/web tests/browser \
-                  tests/experiments/test_daemon_experiment.py
+                  tests/experiments/test_daemon_experiment.py \
+                  tests/experiments/test_operator_impact.py $(wildcard tests/faults)
+# soak and endurance runs carry the pytest marker `long` (pyproject.toml): `make test` leaves
+# them out, `make test-long` runs them (and .ci/run runs it after `make test`)
+NOT_LONG := -m "not long"
 PYTEST_WORKERS ?= 2
 TEST_NICE ?= 10
 ONE_BLAS_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
@@ -73,15 +80,22 @@ test: lint
 	echo "make test [0/2]: numba's kernels compiled once into its cache (tests/warm_kernels.py)"; \
 	$(ONE_BLAS_THREAD) $(BIN)/python tests/warm_kernels.py || rc=1; \
 	echo "make test [2/2]: timing-sensitive tests, serially, beside part 1 (output when part 1 ends): $(REALTIME_TESTS)"; \
-	$(ONE_BLAS_THREAD) $(SIGINT_BACK) $(BIN)/python -m pytest -q $(REALTIME_TESTS) \
+	$(ONE_BLAS_THREAD) $(SIGINT_BACK) $(BIN)/python -m pytest -q $(NOT_LONG) $(REALTIME_TESTS) \
 	    >"$$RIGD_TEST_SHARED/realtime.log" 2>&1 & rt=$$!; \
 	echo "make test [1/2]: compute tests, $(PYTEST_WORKERS) workers at nice $(TEST_NICE)"; \
 	$(ONE_BLAS_THREAD) nice -n $(TEST_NICE) $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) \
-	    --dist worksteal $(addprefix --ignore=,$(REALTIME_TESTS)) tests || rc=1; \
+	    --dist worksteal $(NOT_LONG) $(addprefix --ignore=,$(REALTIME_TESTS)) tests || rc=1; \
 	echo "make test [2/2]: timing-sensitive tests (waiting for them to end)"; \
 	wait $$rt || rc=1; rt=; \
 	cat "$$RIGD_TEST_SHARED/realtime.log"; \
 	exit $$rc
+
+# `make test-long`: the soak/endurance tests (marker `long`), one process, after the kernels are
+# warm; pytest's "no test selected" (exit 5) is a pass while there are none
+test-long: $(STAMP)
+	@$(ONE_BLAS_THREAD) $(BIN)/python tests/warm_kernels.py
+	@$(ONE_BLAS_THREAD) $(BIN)/python -m pytest -q -m long tests; rc=$$?; \
+	if [ $$rc = 5 ]; then echo "make test-long: no test is marked long"; rc=0; fi; exit $$rc
 
 # every section's figures to docs/figures/bench-<section>.json, the pages rendered from them
 bench: $(STAMP)

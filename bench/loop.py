@@ -220,7 +220,8 @@ def run() -> dict:
         out.update({
             "rt_lateness_us": t["lateness_us"],
             "rt_compute_us": t["compute_us"],
-            "rt_miss_fraction": t["miss_fraction"],
+            "rt_miss_fraction": t["overrun_fraction"],      # overruns / cycles
+            "rt_periods_missed_fraction": t["miss_fraction"],  # + skipped periods
             "rt_cycles": t["cycles"],
             "rt_overruns": t["overruns"],
             "rt_skipped_periods": t["skipped_periods"],

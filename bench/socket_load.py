@@ -22,7 +22,9 @@ spawning the real socket process) runs in this process in front of a stub loop w
 while 20 clients hammer the socket (queries, bad requests and 10 % commands, which queue
 behind the load) and a probe asks ``status`` every 10 ms while a load is pending
 (``socket_busy_status_n`` probes). Before the forwarding was made asynchronous, each of them
-waited for the load.
+waited for the load. Every load is accounted for: ``socket_busy_loads_applied``,
+``socket_busy_loads_refused`` (the reasons) and ``socket_busy_loads_lost`` (no answer within
+its deadline: must be 0); every wait of the part is bounded.
 
     python -m bench socket_load        # about 70 s
 """
@@ -327,6 +329,7 @@ def busy(loads: int = 5, slow_s: float = 2.0, clients: int = 20, rate: float = 4
 
     lat: list[float] = []
     load_errors = 0
+    outcomes: list[dict] = []      # every load: applied, refused (why) or lost
     with tempfile.TemporaryDirectory(prefix="rigd-socket-busy-") as d:
         path = str(Path(d) / "rigd.sock")
         fe = SocketFrontend(path, 0o660, disp.handle_line, snapshot).start()
@@ -348,38 +351,93 @@ def busy(loads: int = 5, slow_s: float = 2.0, clients: int = 20, rate: float = 4
                 a.connect(path)
                 # the controller's content, as `rigd ctl load` sends it (no path to open)
                 a.sendall((json.dumps({"id": i, "cmd": "controller.load",
-                                       "path": "/bench/k.yaml", "controller": wire})
-                           + "\n").encode())
-                while not loop.pending.wait(0.005):
-                    pass
-                while loop.pending.is_set():
+                                       "path": "/bench/k.yaml", "controller": wire,
+                                       "timeout_s": LOAD_DEADLINE_S}) + "\n").encode())
+                # the load reaches the loop, or is answered first (refused), or neither
+                # within its deadline (lost): every wait here is bounded
+                reply = _await_loop_or_reply(a, loop.pending, LOAD_DEADLINE_S)
+                end = time.monotonic() + slow_s + LOAD_DEADLINE_S
+                while reply is None and loop.pending.is_set() and time.monotonic() < end:
                     t0 = time.perf_counter()   # sent while the load is pending
                     probe.sendall(b'{"id": 0, "cmd": "status"}\n')
-                    while b"\n" not in pbuf:
-                        pbuf += probe.recv(65536)
-                    line, pbuf = pbuf.split(b"\n", 1)
+                    line, pbuf = _line(probe, pbuf)
                     dt = time.perf_counter() - t0
                     if json.loads(line).get("ok") is not True:
                         load_errors += 1
                     lat.append(dt)
                     time.sleep(probe_period_s)
-                rbuf = b""
-                while b"\n" not in rbuf:
-                    rbuf += a.recv(65536)
-                load_errors += json.loads(rbuf).get("ok") is not True
+                if reply is None:
+                    reply = _read_reply(a, LOAD_DEADLINE_S + slow_s)
+                outcomes.append(_outcome(reply))
                 a.close()
             probe.close()
             h.join(loads * (slow_s + 0.3) + 60)
         finally:
             fe.stop()
-    ms = np.asarray(lat) * 1e3
+    ms = np.asarray(lat) * 1e3 if lat else np.full(1, np.nan)
+    applied = sum(o["outcome"] == "applied" for o in outcomes)
     return {"socket_busy_status_ms": {"p50": round(float(np.percentile(ms, 50)), 3),
                                       "p99": round(float(np.percentile(ms, 99)), 3),
-                                      "max": round(float(ms.max()), 3)},
-            "socket_busy_status_n": int(ms.size),
+                                      "max": round(float(np.max(ms)), 3)},
+            "socket_busy_status_n": len(lat),
             "socket_busy_slow_command_s": slow_s,
-            "socket_busy_errors": load_errors + res.get("errors", 0),
+            "socket_busy_loads_applied": applied,
+            "socket_busy_loads_refused": [o["why"] for o in outcomes
+                                          if o["outcome"] == "refused"],
+            "socket_busy_loads_lost": sum(o["outcome"] == "lost" for o in outcomes),
+            "socket_busy_errors": (load_errors + (len(outcomes) - applied)
+                                   + res.get("errors", 0)),
             "socket_busy_hammer_requests": res.get("served", 0) + res.get("refused", 0)}
+
+
+#: deadline of each ``controller.load`` of ``busy()`` (sent as its ``timeout_s``), s: past it
+#: the service must have answered (applied or refused); no answer by then is a lost command
+LOAD_DEADLINE_S = 30.0
+
+
+def _line(s: socket.socket, buf: bytes) -> tuple[bytes, bytes]:
+    """One reply line from ``s`` (its timeout bounds each read; a closed connection raises)."""
+    while b"\n" not in buf:
+        chunk = s.recv(65536)
+        if not chunk:
+            raise ConnectionError("the socket process closed the connection")
+        buf += chunk
+    line, buf = buf.split(b"\n", 1)
+    return line, buf
+
+
+def _await_loop_or_reply(a: socket.socket, pending: threading.Event,
+                         timeout: float) -> dict | None:
+    """Wait until the command reached the loop (``pending``: None) or ``a`` got its reply
+    first (the reply: refused before the loop), at most ``timeout`` s (None)."""
+    import select
+
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pending.wait(0.005):
+            return None
+        r, _, _ = select.select([a], [], [], 0)
+        if r:
+            return _read_reply(a, max(0.1, end - time.monotonic()))
+    return None
+
+
+def _read_reply(a: socket.socket, timeout: float) -> dict | None:
+    """The reply on ``a`` within ``timeout`` s, or None (no answer: lost)."""
+    a.settimeout(max(timeout, 0.1))
+    try:
+        line, _ = _line(a, b"")
+    except (TimeoutError, OSError):
+        return None
+    return json.loads(line)
+
+
+def _outcome(reply: dict | None) -> dict:
+    if reply is None:
+        return {"outcome": "lost", "why": "no answer within its deadline"}
+    if reply.get("ok") is True:
+        return {"outcome": "applied", "why": ""}
+    return {"outcome": "refused", "why": str(reply.get("error"))}
 
 
 def _window(sock: str, fn) -> float:

@@ -180,6 +180,16 @@ class FastDriver(Driver):
         """
         return None
 
+    def plant_time_constant_s(self) -> float | None:
+        """The plant's fastest closed-loop time constant, s, from the driver's nominal plant
+        model (min over its modes of 1 / (ζ ω_n)), or None when it has none (default).
+
+        The loop derives its stall and overrun-storm bounds from it (:mod:`rigd.loop.liveness`;
+        ``supervisor.plant_tau_s`` overrides). Runs in: the caller's thread, once, before the
+        loop starts.
+        """
+        return None
+
 
 class SlowDriver(Driver):
     """Slow channels polled in their own thread."""

@@ -70,8 +70,20 @@ class SupervisorConfig(StrictModel):
     encoder_frozen_s: float = Field(0.01, ge=0)         #: phi frozen this long -> lost (0: off)
     valve_error_v: float = Field(3.0, gt=0)             #: valve tracking error limit, V
     valve_error_s: float = Field(0.05, ge=0)            #: ... tolerated this long (0: off)
-    overrun_storm_count: int = Field(50, ge=1)          #: overruns within the window -> fault
-    overrun_storm_window_s: float = Field(1.0, gt=0)
+    #: the plant's fastest closed-loop time constant, s (docs/loop.md "Liveness"); null: the
+    #: fast driver's nominal plant model tells (the simulated plants), else 20 ms
+    plant_tau_s: float | None = Field(None, gt=0, le=10)
+    #: a gap between two cycles longer than this latches loop_stall, s (null: plant_tau_s;
+    #: 0: off)
+    stall_s: float | None = Field(None, ge=0, le=60)
+    #: overrun storm: control time lost (gaps beyond one period, outputs held) in a leaky
+    #: bucket of this time constant, s (null: 10 x plant_tau_s) ...
+    overrun_storm_window_s: float | None = Field(None, gt=0, le=600)
+    #: ... beyond this latches overrun_storm, s (null: the stall bound; 0: off)
+    overrun_storm_lost_s: float | None = Field(None, ge=0, le=60)
+    #: the former count rule (that many overruns within the window, whatever their size),
+    #: used instead of the lost-time rule when set; null = the lost-time rule
+    overrun_storm_count: int | None = Field(None, ge=1)
     slow_stale_s: float = Field(2.0, gt=0)              #: slow-driver data older -> fault
     #: bound for a slow driver's *first* good poll, counted from the loop's start (connect and
     #: first answer of a fresh device); the ``slow_stale_s`` clock starts at that poll

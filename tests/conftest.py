@@ -35,3 +35,36 @@ def quick_demo(tmp_path_factory):
         assert main(["demo", "--quick", "--out", str(out)]) == 0
 
     return shared_folder("demo-quick", make, tmp_path_factory)
+
+
+@pytest.fixture(scope="session")
+def truth_design(tmp_path_factory):
+    """One ``rigd design --model G_p.yaml --weights config/design.yaml -o controller.yaml
+    --json --report rep`` on the simulated plant's truth (``tests/design/design_helpers.py``),
+    made once per test run (``tests/sharedruns.py``): the folder holds ``G_p.yaml``,
+    ``controller.yaml``, ``design.json`` (what the command printed) and ``rep/``. Read by
+    ``tests/design/test_design_chain.py`` (the command's outputs) and
+    ``tests/design/test_controller_refusal.py`` (its controller, and variants of it). Tests
+    only read it."""
+    import contextlib
+    import io
+
+    if str(ROOT / "tests" / "design") not in sys.path:
+        sys.path.insert(0, str(ROOT / "tests" / "design"))
+    from design_helpers import truth_model_file
+    from sharedruns import shared_folder
+
+    from rigd.cli import main
+
+    def make(out):
+        out.mkdir()
+        model = truth_model_file(out / "G_p.yaml")
+        printed = io.StringIO()
+        with contextlib.redirect_stdout(printed):
+            rc = main(["design", "--model", str(model), "--weights",
+                       str(ROOT / "config" / "design.yaml"), "-o", str(out / "controller.yaml"),
+                       "--json", "--report", str(out / "rep")])
+        assert rc == 0, printed.getvalue()
+        (out / "design.json").write_text(printed.getvalue())
+
+    return shared_folder("design-truth", make, tmp_path_factory)

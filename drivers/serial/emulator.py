@@ -42,7 +42,11 @@ class FrontendEmulator:
     hold_v : float
         Drive voltage the device applies on its own when the host is silent (r0), V.
     hold_timeout : float
-        Host silence after which the device holds ``hold_v``, s.
+        The **host heartbeat**: no valid drive frame with outputs enabled *and a host cycle
+        counter that advanced* for this long, s, and the device applies ``hold_v`` on its
+        own (``holding``; status bit ``DEV_HOST_TIMEOUT``) until the next advancing frame — a
+        host that froze (a stopped process, a stuck loop) or whose link replays its last
+        frame is safe in hardware. A frame with outputs disabled holds at once.
     omega_rpm : float
         Shaft speed of the model (encoder angle advances at this rate), rpm.
     fd : int, optional
@@ -78,6 +82,7 @@ class FrontendEmulator:
         self.late_dropped = 0        # samples modelled but not sent: the emulator was late
         self.drive_frames = 0
         self.drive_crc_errors = 0
+        self.repeated_frames = 0     # enabled drive frames whose host counter did not advance
         self.last_drive = np.full(6, np.nan)   # seq, flags, v1..v4 of the last drive frame
         self.applied = np.full(4, hold_v)       # what the "valves" get
         self.holding = True
@@ -179,6 +184,7 @@ class FrontendEmulator:
         t0 = time.monotonic()
         dt = 1.0 / self.fs
         last_host = time.monotonic()
+        host_seq = -1
         phi = 0.0
         pending = bytearray()
         max_pending = int(self.max_pending_s * self.fs) * sp.SENSOR_FRAME
@@ -208,12 +214,19 @@ class FrontendEmulator:
                         if r == 1:
                             self.drive_frames += 1
                             self.last_drive[:] = row
-                            last_host = now
                             self.armed = True
-                            if int(row[1]) & 1:
+                            enabled = int(row[1]) & 1
+                            if enabled and int(row[0]) == host_seq:
+                                # the host's counter did not move: a replayed frame is no
+                                # heartbeat (a frozen host whose link repeats its buffer)
+                                self.repeated_frames += 1
+                            elif enabled:
+                                host_seq = int(row[0])
+                                last_host = now
                                 self.applied[:] = row[2:6]
                                 self.holding = False
                             else:
+                                last_host = now
                                 self.applied[:] = self.hold_v
                                 self.holding = True
                             i += sp.DRIVE_FRAME

@@ -29,8 +29,14 @@ Drive payload (14 bytes, type 0x02)::
     u16 v1..v4    valve drive voltages, 1 mV/LSB, clamped to 0…10 000
 
 At 30 bytes per sensor frame, 5 kHz is 150 kB/s: a USB CDC-ACM link (baud rate ignored) or a
-UART at ≥ 2 Mbaud. The device holds its safe voltage when no valid drive frame arrived for
-``hold_timeout`` (default 2 ms) and reports it with ``DEV_HOST_TIMEOUT``.
+UART at ≥ 2 Mbaud.
+
+Host heartbeat: the device holds its safe voltage (r0 on every valve) when no valid drive
+frame with outputs enabled and a host cycle counter different from the previous one arrived
+for ``hold_timeout`` (default 2 ms, 10 periods), and reports it with ``DEV_HOST_TIMEOUT``
+until the host drives again; so a host that freezes — its loop stopped, the process
+suspended, a link replaying the last frame — leaves the valves safe in hardware, whatever
+the host can still do.
 
 The decoding functions are numba-compiled, work on preallocated arrays and allocate nothing:
 they run inside the 5 kHz cycle.

@@ -59,6 +59,17 @@ class SimPlantDriver(SimulatedPlantDriver):
         self._blocks = ParamBlocks(self.opts, self.fs)
         self.reset()
 
+    def plant_time_constant_s(self) -> float:
+        """The fastest envelope time constant 1 / (ζ ω_n) of the bearing modes over the whole
+        operating range (Ω 0–6000 rpm, P_I 3–7 bar; K∞ off: the plant as the loop holds it),
+        s — 18.1 ms for the paper's plant (3 bar, 6000 rpm, the second mode)."""
+        best = np.inf
+        for p_inj in np.linspace(3.0, 7.0, 9):
+            for omega in np.linspace(0.0, 6000.0, 7):
+                f, z = phys.bearing_modes(float(omega), float(p_inj))
+                best = min(best, float(np.min(1.0 / (z * 2.0 * np.pi * f))))
+        return best
+
     # --- plant control ------------------------------------------------------------------
     def reset(self, drive_v: float | None = None) -> None:
         """Put the plant at rest under a constant drive (default ``valves.initial_drive_v``).

@@ -100,6 +100,12 @@ def status_summary(st: dict) -> str:
     else:
         k = "off" if blend <= 0.0 else f"switching off (blend {blend:.2f})"
     state = "running" if st.get("running") else "stopped"
+    age = st.get("age_s")
+    if st.get("stalled"):
+        state = (f"STALLED (no cycle for {age:.3f} s, stall bound "
+                 f"{(st.get('stall_bound_s') or 0) * 1e3:g} ms)")
+    elif age is not None:
+        state += f" (last cycle {age * 1e3:.1f} ms ago)"
     return f"state: {state}, cycle {st.get('seq')}, {fault}\nK∞: {k}" + _recorder_line(st)
 
 

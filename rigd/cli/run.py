@@ -64,6 +64,10 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("needs --controller or a controller: key in the config",
                              "--enable-controller")
     lc = load_config(args.config)
+    if args.duration != 0 and not getattr(args, "no_notify", False):
+        from rigd.service.notify import extend_start_up
+
+        extend_start_up()   # a cold numba cache compiles for tens of seconds (systemd)
     loop = build_loop(lc, clock="lockstep" if args.lockstep else None,
                       controller=args.controller)
     if args.duration == 0:

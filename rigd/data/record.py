@@ -213,8 +213,10 @@ def invalid_samples_error(bad: np.ndarray, fs: float, offset: int, column: str, 
         c, d = max(runs, key=lambda r: r[1] - r[0])
         pick = f"; the longest valid stretch is --range {offset + c}:{offset + d} " \
                f"({(d - c) / fs:.3g} s)"
+    first = (f"sample {offset + a} (t {(offset + a) / fs:.4g} s)" if b - a == 1 else
+             f"samples {offset + a}:{offset + b} (t {(offset + a) / fs:.4g}-"
+             f"{(offset + b) / fs:.4g} s)")
     return InputError(
         f"{int(bad.sum())} invalid samples (NaN: no valid data from the driver, the record's "
         f"fault column says why) in column {column!r}{by}, in {len(edges) // 2} stretch(es), "
-        f"the first at samples {offset + a}:{offset + b} (t {(offset + a) / fs:.4g}-"
-        f"{(offset + b) / fs:.4g} s); choose a valid stretch with --range{pick}", source)
+        f"the first at {first}; choose a valid stretch with --range{pick}", source)

@@ -239,6 +239,8 @@ class PointRunner:
                 fault = (self.loop.status() or {}).get("fault")
             except Exception:  # noqa: BLE001 - the fault is named either way
                 fault = None
+            if err.n_flushed is None and not (fault or {}).get("code"):
+                raise PointFailed(str(err)) from None     # refused before it began
             raise RecordFault(str(err), fault) from None
         with self.critical():
             rename_new(part, path)

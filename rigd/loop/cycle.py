@@ -44,6 +44,7 @@ from rigd.loop.layout import (
     P_ENC_OMEGA,
     P_FS,
     P_GAP_MAX,
+    P_GRACE_N,
     P_KA,
     P_KB,
     P_KC,
@@ -52,11 +53,15 @@ from rigd.loop.layout import (
     P_KFF,
     P_KN,
     P_KP,
+    P_LOST_DECAY,
     P_PEQ_ALPHA,
+    P_PERIOD_NS,
     P_R0,
     P_RAMP_STEP,
     P_RING_N,
     P_STALE_N,
+    P_STALL_NS,
+    P_STORM_NS,
     P_SUP_ON,
     P_VERR_N,
     P_VERR_V,
@@ -78,6 +83,7 @@ from rigd.loop.layout import (
     S_LAST_DRVSEQ,
     S_LAST_PHI,
     S_LISTED,
+    S_LOST_NS,
     S_NFAULT,
     S_PEQ_INIT,
     S_PEQ_X,
@@ -93,13 +99,27 @@ from rigd.loop.layout import (
     S_SLOW_OMEGA,
     S_SLOW_PINJ,
     S_STALE_CNT,
+    S_STALL_SEEN,
     S_VERR_CNT,
     S_W,
     S_X,
     S_XN,
     S_Y,
 )
-from rigd.loop.safeword import W_ACK_CODE, W_ACK_FAULT_SEQ, W_ACK_N, W_ACK_SEQ, W_REQ, W_SEQ
+from rigd.loop.safeword import (
+    W_ACK_CODE,
+    W_ACK_FAULT_SEQ,
+    W_ACK_N,
+    W_ACK_SEQ,
+    W_CYCLE_NS,
+    W_FAULT,
+    W_FAULT_SEQ,
+    W_LOOP_GAP_NS,
+    W_REQ,
+    W_SEQ,
+    W_STALL_FROM,
+    W_STALL_REQ,
+)
 
 N_IN = F.N_IN
 IN_E_X, IN_E_Y, IN_PHI = F.IN_E_X, F.IN_E_Y, F.IN_PHI
@@ -327,6 +347,43 @@ def take_safe(sw, st):
         sw[W_ACK_CODE] = int(st[S_FAULT])
         sw[W_ACK_FAULT_SEQ] = int(st[S_FAULT_SEQ])
         sw[W_ACK_N] += 1
+    stall = sw[W_STALL_REQ]
+    if stall != st[S_STALL_SEEN]:      # the watchdog process saw the loop stand still
+        st[S_STALL_SEEN] = stall
+        latch(st, FC.LOOP_STALL, -1)
+    # the fault in force, for readers in other processes (status reads its own writes)
+    sw[W_FAULT] = int(st[S_FAULT])
+    sw[W_FAULT_SEQ] = int(st[S_FAULT_SEQ])
+
+
+@njit(cache=True)
+def watch_cycle(prm, st, sw, now_ns):
+    """Liveness of the real-time cycle, measured by the cycle itself (:mod:`rigd.loop.liveness`).
+
+    ``now_ns`` is this cycle's wake-up (``CLOCK_MONOTONIC``); the previous one is in the safe
+    word (``W_CYCLE_NS``, what other processes read the loop's age from). A gap between two
+    cycles longer than the stall bound latches ``loop_stall``. The control time lost since the
+    previous cycle — the gap beyond two periods: a cycle up to one period late is a late
+    update, beyond that the outputs stood with no update at all — goes into a leaky bucket
+    (decay ``exp(-T/W)`` per cycle); beyond the storm bound it latches ``overrun_storm``.
+    O(1): a few loads and stores, a multiply, two compares.
+    """
+    prev = sw[W_CYCLE_NS]
+    sw[W_CYCLE_NS] = now_ns
+    lost = st[S_LOST_NS] * prm[P_LOST_DECAY]
+    if prev > 0 and st[S_SEQ] >= prm[P_GRACE_N]:   # not during the start-up grace
+        gap = float(now_ns - prev)
+        # up to one period late is a late update (jitter); beyond, no update at all
+        absent = gap - 2.0 * prm[P_PERIOD_NS]
+        if absent > 0.0:
+            lost += absent
+        if prm[P_STALL_NS] > 0.0 and gap > prm[P_STALL_NS]:
+            sw[W_LOOP_GAP_NS] = int(gap)
+            sw[W_STALL_FROM] = int(st[S_SEQ]) - 1
+            latch(st, FC.LOOP_STALL, -1)
+    st[S_LOST_NS] = lost
+    if prm[P_STORM_NS] > 0.0 and lost > prm[P_STORM_NS]:
+        latch(st, FC.OVERRUN_STORM, -1)
 
 
 @njit(cache=True, inline="always")
@@ -506,7 +563,8 @@ def _hist_add(hist, row, ns):
 
 
 @njit(cache=True)
-def rt_cycle(fin, prm, st, drive, ring, exc, exc_i, hist, late_ns, prev_compute_ns, sw):
+def rt_cycle(fin, prm, st, drive, ring, exc, exc_i, hist, late_ns, prev_compute_ns, sw,
+             now_ns):
     """One cycle on the real-time clock: timing samples into ``hist``, a SAFE request from the
     word ``sw`` (:func:`take_safe`), excitation row ``exc[exc_i]`` (none when ``exc_i < 0``),
     then :func:`cycle`.
@@ -517,6 +575,7 @@ def rt_cycle(fin, prm, st, drive, ring, exc, exc_i, hist, late_ns, prev_compute_
     _hist_add(hist, 1, late_ns)
     if prev_compute_ns >= 0:
         _hist_add(hist, 0, prev_compute_ns)
+    watch_cycle(prm, st, sw, now_ns)
     take_safe(sw, st)
     if exc_i >= 0:
         cycle(fin, prm, st, drive, ring, exc[exc_i, 0], exc[exc_i, 1])

@@ -28,7 +28,7 @@ STALE_FRAME = 3         # the fast driver's frame counter (drv_seq) repeated too
 ENCODER_LOST = 4        # phi frozen while Ω > threshold, or driver status bit ENCODER
 VALVE_TRACKING = 5      # |r_p,i - y_p,i| above the limit for longer than allowed
 SHAFT_DISPLACEMENT = 6  # radial shaft displacement beyond the allowed fraction of the film gap
-OVERRUN_STORM = 7       # too many real-time overruns within the window
+OVERRUN_STORM = 7       # too much control time lost to late/skipped cycles (rigd.loop.liveness)
 DRIVER_EXCEPTION = 8    # a driver raised in read/write (Python side)
 DRIVER_STATUS = 9       # the fast driver reported a fault status bit (other than encoder)
 RECORDER_OVERFLOW = 10  # the recorder ring buffer was full: frames could not be recorded
@@ -36,6 +36,7 @@ SLOW_DRIVER = 11        # a slow driver failed (device unreachable) or its data 
 OPERATOR_STOP = 12      # safe state requested by the operator / service
 LOOP_DIED = 13          # the loop thread died or a cycle raised: outputs set safe, loop stopped
 OPERATOR_SAFE = 14      # the operator's safe-state button (`rigd ctl safe`, the console)
+LOOP_STALL = 15         # no cycle for longer than the stall bound (loop or watchdog saw it)
 
 #: code -> (name, one-line explanation)
 FAULTS: dict[int, tuple[str, str]] = {
@@ -48,7 +49,9 @@ FAULTS: dict[int, tuple[str, str]] = {
     VALVE_TRACKING: ("valve_tracking", "a valve stayed far from its reference for too long"),
     SHAFT_DISPLACEMENT: ("shaft_displacement",
                          "shaft displacement beyond the allowed fraction of the 25 um film gap"),
-    OVERRUN_STORM: ("overrun_storm", "too many real-time cycle overruns"),
+    OVERRUN_STORM: ("overrun_storm",
+                    "the loop lost as much control time (periods with no cycle) within the "
+                    "plant's memory as one stall that matters"),
     DRIVER_EXCEPTION: ("driver_exception", "a driver raised an exception"),
     DRIVER_STATUS: ("driver_status", "the fast driver reported a fault status"),
     RECORDER_OVERFLOW: ("recorder_overflow",
@@ -59,6 +62,8 @@ FAULTS: dict[int, tuple[str, str]] = {
                 "the loop thread died or a cycle raised; outputs set safe, loop stopped"),
     OPERATOR_SAFE: ("operator_safe",
                     "safe state requested by the operator (safe command); reset to leave it"),
+    LOOP_STALL: ("loop_stall",
+                 "the loop stood still longer than its stall bound (no cycle ran)"),
 }
 
 #: fast-driver status bits (``drv_status`` input channel; rigd.driver): any bit is a fault

@@ -51,7 +51,14 @@ P_KA = _S + 16                      # A, n x n row-major (room for K_NMAX^2)
 P_KB = P_KA + K_NMAX * K_NMAX       # B, n x 2
 P_KC = P_KB + K_NMAX * 2            # C, 2 x n
 P_KD_MAT = P_KC + 2 * K_NMAX        # D, 2 x 2
-N_PRM = P_KD_MAT + 4
+#: liveness (rigd.loop.liveness): a gap between two real-time cycles longer than this latches
+#: loop_stall, ns (0: off)
+P_STALL_NS = P_KD_MAT + 4
+P_LOST_DECAY = P_STALL_NS + 1   # per-cycle decay of the lost-control-time bucket, exp(-T/W)
+P_STORM_NS = P_LOST_DECAY + 1   # lost control time in the bucket that latches overrun_storm, ns
+P_PERIOD_NS = P_STORM_NS + 1    # the loop period, ns
+P_GRACE_N = P_PERIOD_NS + 1     # cycles from the start not measured (start-up transient)
+N_PRM = P_GRACE_N + 1
 
 # --- state --------------------------------------------------------------------------------
 S_SEQ = 0           # number of the next cycle (= frames produced so far)
@@ -93,7 +100,9 @@ S_X = S_FREQ + 3 * N_REQ_SRC  # K∞ state x (K_NMAX)
 S_XN = S_X + K_NMAX           # scratch for x+ (K_NMAX)
 S_Y = S_XN + K_NMAX           # calibrated input frame (N_IN)
 S_LISTED = S_Y + N_IN         # bit per fault code already in the log since the latch
-N_ST = S_LISTED + 1
+S_STALL_SEEN = S_LISTED + 1   # the safe word's stall request value last taken (private)
+S_LOST_NS = S_STALL_SEEN + 1  # lost control time, leaky bucket (rigd.loop.liveness), ns
+N_ST = S_LOST_NS + 1
 
 # --- timing histograms (int64, shape (2, H_NB + 3)) ----------------------------------------
 H_COMPUTE = 0       # row: per-cycle compute time

@@ -19,6 +19,7 @@ import numpy as np
 from rigd.frame import N_REC
 from rigd.loop import cycle as C
 from rigd.loop import layout as L
+from rigd.loop.safeword import W_CYCLE_NS
 from rigd.loop.segment import NO_EXCITATION
 
 
@@ -159,6 +160,7 @@ class LockstepClock:
             if seg is not None:
                 seg.i += k
             rec.publish(int(st[L.S_W]))
+            p.safe.word[W_CYCLE_NS] = time.monotonic_ns()   # the loop's age, for status
             if sup.unseen:
                 sup.poll()
             if halt and st[L.S_FAULT] != 0.0:    # the batch ends at the latching cycle

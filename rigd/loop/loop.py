@@ -39,10 +39,12 @@ from rigd.loop import requests as RQ
 from rigd.loop.clock import boosted
 from rigd.loop.commands import DROP_LATE, DROP_SAFE, CommandDropped, CommandQueue, Ticket
 from rigd.loop.cycle import cycle, hist_new, rt_cycle
+from rigd.loop.liveness import derive as derive_liveness
+from rigd.loop.liveness import fill as fill_liveness
 from rigd.loop.lockstep import LockstepClock
 from rigd.loop.realtime import RealTimeClock
 from rigd.loop.recorder import Recorder
-from rigd.loop.safeword import W_ACK_CODE, W_ACK_FAULT_SEQ, SafeWord
+from rigd.loop.safeword import W_ACK_CODE, W_ACK_FAULT_SEQ, W_STALL_BOUND_NS, SafeWord
 from rigd.loop.segment import Segment, SegmentPlayer, SegmentResult, segment_inputs
 from rigd.loop.setpoint import SetPoint
 from rigd.loop.sinks import FileSink, MemorySink, RecordSpec, Sink, make_sink
@@ -111,6 +113,12 @@ class ControlLoop:
                                         first_poll_s=cfg.supervisor.slow_first_poll_s)
         self.supervisor.slow = self.slow_pollers
         self.supervisor.fast = self.fast
+        self.supervisor.safe = self.safe
+        #: stall and overrun-storm bounds derived from the plant (rigd.loop.liveness)
+        self.liveness = derive_liveness(cfg.supervisor, fast_driver)
+        fill_liveness(self.state.prm, self.liveness, self.fs)
+        if self.clock == "realtime":       # the watchdog and the status read it (0: no watch)
+            self.safe.word[W_STALL_BOUND_NS] = int(self.liveness.stall_s * 1e9)
         self.rt = RealTimeClock(cfg, self)
         self.lockstep = LockstepClock(cfg, self)
         #: what ``set_operating_point`` last applied (``status()["set_point"]``); a simulated
@@ -157,7 +165,7 @@ class ControlLoop:
         prm = s.prm.copy()
         prm[L.P_RING_N] = 4
         rt_cycle(s.fin.copy(), prm, s.st.copy(), s.drive.copy(), ring, np.zeros((1, 2)), -1,
-                 hist_new(), 0, -1, self.safe.word.copy())
+                 hist_new(), 0, -1, self.safe.word.copy(), 0)
         cycle(s.fin.copy(), prm, s.st.copy(), s.drive.copy(), ring, 0.0, 0.0)
         self.lockstep.warm_up()
         f, pk = self.fast, getattr(self.fast, "kernel", None)

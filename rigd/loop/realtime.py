@@ -5,7 +5,8 @@ The loop thread sets itself up (SCHED_FIFO, mlockall, CPU pinning, gc frozen; se
 driver ``read`` → segment bookkeeping and queued commands → :func:`rigd.loop.cycle.rt_cycle`
 (a segment played with ``stop_on_fault`` is flagged as ended when a fault is latched) → fast
 driver ``write`` → publish the frame to the recorder → overrun accounting (skip or
-catch up; an overrun storm requests the safe state).
+catch up; the kernel measures the gaps between cycles: a stall latches ``loop_stall``, lost
+control time beyond its bound ``overrun_storm``, :mod:`rigd.loop.liveness`).
 
 If anything in the loop thread raises, the supervisor puts the outputs in the safe state at
 once, latches ``loop_died`` and stops the loop (:meth:`rigd.loop.supervisor.Supervisor.loop_died`).
@@ -22,6 +23,7 @@ from rigd.loop import clock as CLK
 from rigd.loop import cycle as C
 from rigd.loop import faults as FC
 from rigd.loop import layout as L
+from rigd.loop.safeword import W_CYCLE_NS
 from rigd.loop.segment import NO_EXCITATION
 
 
@@ -124,10 +126,14 @@ class RealTimeClock:
         period = int(round(1e9 / self.fs))
         spin = int(cfg.spin_us * 1000)
         skip = cfg.overrun == "skip"
-        storm: collections.deque = collections.deque(maxlen=sup.overrun_storm_count)
-        storm_ns = int(sup.overrun_storm_window_s * 1e9)
+        # the former count rule, only when configured (the lost-time rule in the kernel,
+        # rigd.loop.liveness, is the overrun storm's meaning)
+        count = sup.overrun_storm_count
+        storm: collections.deque | None = (collections.deque(maxlen=count) if count else None)
+        storm_ns = int(p.liveness.storm_window_s * 1e9)
         S_W, S_FAULT = L.S_W, L.S_FAULT
         prev = -1
+        sw[W_CYCLE_NS] = 0        # no gap measured across a start
         nxt = perf() + period
         self._started.set()
         while not stop.is_set():
@@ -147,9 +153,10 @@ class RealTimeClock:
                 commands.apply()
             if seg is None:
                 rt_cycle(fin, prm, st, drive, ring, NO_EXCITATION, -1, hist, wake - nxt, prev,
-                         sw)
+                         sw, wake)
             else:
-                rt_cycle(fin, prm, st, drive, ring, seg.exc, seg.i, hist, wake - nxt, prev, sw)
+                rt_cycle(fin, prm, st, drive, ring, seg.exc, seg.i, hist, wake - nxt, prev, sw,
+                         wake)
                 seg.i += 1
                 if seg.stop_on_fault and st[S_FAULT] != 0.0:
                     player.stopped_for_fault(seg, st)     # flag only: the caller finishes it
@@ -165,10 +172,11 @@ class RealTimeClock:
             nxt += period
             if done > nxt:
                 self.overruns += 1
-                storm.append(done)
-                if len(storm) == storm.maxlen and done - storm[0] <= storm_ns:
-                    post(FC.OVERRUN_STORM)
-                    storm.clear()
+                if storm is not None:
+                    storm.append(done)
+                    if len(storm) == storm.maxlen and done - storm[0] <= storm_ns:
+                        post(FC.OVERRUN_STORM)
+                        storm.clear()
                 if skip:
                     missed = (done - nxt) // period + 1
                     nxt += missed * period

@@ -21,6 +21,20 @@ Layout (int64 slots, :data:`N_SLOTS` of them, at the start of one 4 KiB page):
 ``W_ACK_CODE``       kernel: the fault latched then (``operator_safe``, or an earlier fault: the
                      first one wins; the safe state is the same)
 ``W_ACK_FAULT_SEQ``  kernel: the cycle at which that fault latched
+``W_CYCLE_NS``       the loop: ``CLOCK_MONOTONIC`` time of its latest cycle, ns (real time: the
+                     cycle's wake-up, written by the kernel; lock-step: after each batch)
+``W_FAULT``          kernel: the fault latched now (0: none), written every cycle
+``W_FAULT_SEQ``      kernel: the cycle at which it latched
+``W_STALL_REQ``      **the watchdog process writes a fresh value here** when the loop stalled
+                     longer than its bound (:mod:`rigd.service.watchdog`): the kernel latches
+                     ``loop_stall`` in the first cycle that runs
+``W_STALL_FROM``     watchdog: the cycle number the loop stood at when the stall was seen
+``W_STALL_NS``       watchdog: how long the loop has stood (while it stands; the whole stall
+                     once it cycles again), ns
+``W_LOOP_GAP_NS``    kernel: the latest gap between two cycles beyond the stall bound (the
+                     stall's length as the loop measured it when it ran again), ns
+``W_STALL_BOUND_NS`` the owner: the stall bound, ns (:mod:`rigd.loop.liveness`; 0: no watch)
+``W_WATCH_NS``       watchdog: ``CLOCK_MONOTONIC`` time of its latest look, ns (is it alive?)
 ==================  ===========================================================================
 
 The value the kernel last took lives in the loop's private state array (``st[S_SAFE_SEEN]``),
@@ -41,12 +55,17 @@ from __future__ import annotations
 import mmap
 import os
 import tempfile
+import time
+import weakref
 
 import numpy as np
 
-MAGIC = 0x72696764_5346_01      # "rigd" "SF", layout 1
+MAGIC = 0x72696764_5346_01      # "rigd" "SF", layout 1 (slots 8.. appended: liveness)
 W_MAGIC, W_PID, W_REQ, W_SEQ, W_ACK_N, W_ACK_SEQ, W_ACK_CODE, W_ACK_FAULT_SEQ = range(8)
-N_SLOTS = 16
+(W_CYCLE_NS, W_FAULT, W_FAULT_SEQ, W_STALL_REQ, W_STALL_FROM, W_STALL_NS, W_LOOP_GAP_NS,
+ W_STALL_BOUND_NS) = range(8, 16)
+W_WATCH_NS = 16
+N_SLOTS = 32
 #: bytes of the shared file (one page)
 SIZE = 4096
 
@@ -71,11 +90,22 @@ class SafeWord:
     """
 
     def __init__(self) -> None:
-        self._mm = mmap.mmap(-1, SIZE)
+        #: descriptor of the memory (a memfd until :meth:`attach_file`): handed to the
+        #: watchdog and socket processes (:meth:`handle`)
+        self.fd = os.memfd_create("rigd-safe", os.MFD_CLOEXEC)
+        self._fds = [self.fd]                       # closed when the word is collected
+        weakref.finalize(self, _close_all, self._fds)
+        os.ftruncate(self.fd, SIZE)
+        self._mm = mmap.mmap(self.fd, SIZE, flags=mmap.MAP_SHARED,
+                             prot=mmap.PROT_READ | mmap.PROT_WRITE)
         self.word = _view(self._mm)
         self._init()
         self.path: str | None = None
         self._ino: tuple[int, int] | None = None
+
+    def handle(self) -> WordHandle:
+        """What another process needs to map this word (pickled through ``spawn``)."""
+        return WordHandle(self.fd)
 
     def _init(self) -> None:
         self.word[:] = 0
@@ -110,8 +140,9 @@ class SafeWord:
             except FileNotFoundError:
                 pass
             raise
-        os.close(fd)
         old = self.word.copy()
+        self.fd = fd
+        self._fds.append(fd)
         self._mm = mm
         self.word = _view(mm)
         self.word[:] = old
@@ -141,6 +172,88 @@ class SafeWord:
     def acknowledged_at(self) -> int:
         """The cycle at which the kernel took the last request (-1: none yet)."""
         return int(self.word[W_ACK_SEQ]) if int(self.word[W_ACK_N]) else -1
+
+
+class WordHandle:
+    """A SAFE word's descriptor for another process (duplicated into it by
+    :mod:`multiprocessing` when it is spawned, like the ring's :class:`RingHandle`)."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+
+    def __reduce__(self):
+        from multiprocessing import reduction
+
+        return (_rebuild, (reduction.DupFd(self.fd),))
+
+    def map(self, writable: bool = False) -> np.ndarray:
+        """The word as an int64 array in this process (read-only unless ``writable``)."""
+        prot = mmap.PROT_READ | (mmap.PROT_WRITE if writable else 0)
+        mm = mmap.mmap(self.fd, SIZE, flags=mmap.MAP_SHARED, prot=prot)
+        view = np.ndarray((N_SLOTS,), dtype=np.int64, buffer=mm)
+        if not writable:
+            view.flags.writeable = False
+        return view
+
+
+def _rebuild(dupfd) -> WordHandle:
+    return WordHandle(dupfd.detach())
+
+
+def stall_text(w) -> str:
+    """The ``loop_stall`` fault's words from a SAFE word ``w`` (any process): how long the loop
+    stood, after which cycle, against which bound."""
+    gap = max(int(w[W_LOOP_GAP_NS]), int(w[W_STALL_NS]))
+    bound = int(w[W_STALL_BOUND_NS])
+    text = "the loop stood still"
+    if gap > 0:
+        text += f" for {gap / 1e9:.3f} s"
+    if int(w[W_STALL_FROM]) > 0:
+        text += f" after cycle {int(w[W_STALL_FROM])}"
+    if bound > 0:
+        text += f" (stall bound {bound / 1e6:g} ms)"
+    return text + "; outputs held, then safe"
+
+
+def age_s(w, now_ns: int | None = None) -> float | None:
+    """Seconds since the loop's latest cycle (``W_CYCLE_NS``), None before its first."""
+    t = int(w[W_CYCLE_NS])
+    if t <= 0:
+        return None
+    return max(0, (time.monotonic_ns() if now_ns is None else now_ns) - t) / 1e9
+
+
+def live(w, now_ns: int | None = None) -> dict:
+    """What the word says of the loop now (any process; the socket process's ``status`` and
+    ``ping`` overlay it on the daemon's snapshot, which can be older).
+
+    Returns
+    -------
+    dict
+        ``seq`` (the cycle running now), ``age_s`` (s since its latest cycle; None before the
+        first), ``stall_bound_s`` (None: not watched), ``stalled`` (older than the bound, or
+        the watchdog's stall still open), ``fault`` (code, seq of the fault in force, as the
+        kernel wrote it last), ``stall`` (the latest stall: ``cycle``, ``length_s``, ``text``;
+        None before one).
+    """
+    now = time.monotonic_ns() if now_ns is None else now_ns
+    age = age_s(w, now)
+    bound = int(w[W_STALL_BOUND_NS])
+    stalled = bound > 0 and age is not None and age * 1e9 > bound
+    gap = max(int(w[W_LOOP_GAP_NS]), int(w[W_STALL_NS]))
+    return {"seq": int(w[W_SEQ]), "age_s": None if age is None else round(age, 6),
+            "stall_bound_s": bound / 1e9 if bound > 0 else None, "stalled": stalled,
+            "fault": {"code": int(w[W_FAULT]), "seq": int(w[W_FAULT_SEQ])},
+            "stall": ({"cycle": int(w[W_STALL_FROM]), "length_s": round(gap / 1e9, 6),
+                       "text": stall_text(w)} if gap > 0 or stalled else None)}
+
+
+def _close_all(fds: list[int]) -> None:
+    for fd in fds:
+        try:
+            os.close(fd)
+        except OSError:
+            pass
 
 
 def fresh_value() -> int:

@@ -18,6 +18,7 @@ from rigd.loop import faults as FC
 from rigd.loop import layout as L
 from rigd.loop import requests as RQ
 from rigd.loop.cycle import latch
+from rigd.loop.safeword import stall_text
 
 
 class Supervisor:
@@ -49,6 +50,7 @@ class Supervisor:
         self.loop_error: BaseException | None = None
         self.slow = None            # rigd.loop.slow.SlowPollers, set by the loop
         self.fast = None            # the fast driver (its words for drv_status), set by the loop
+        self.safe = None            # the SAFE word (a stall's length), set by the loop
 
     # --- requests from Python ------------------------------------------------------------
     def driver_failed(self, exc: BaseException) -> None:
@@ -103,6 +105,8 @@ class Supervisor:
                 parts.append(words or FC.status_words(rest))
             return f"{FC.fault_text(code)}: {'; '.join(parts)}"
         text = FC.describe(code, detail)
+        if code == FC.LOOP_STALL and self.safe is not None:
+            text = stall_text(self.safe.word)
         if code == FC.SLOW_DRIVER and self.slow is not None:
             why = self.slow.reason()
             if why:

@@ -71,9 +71,22 @@ def summary(hist: np.ndarray, *, overruns: int = 0, skipped: int = 0,
         "lateness_us": {k: v for k, v in late.items() if k != "n"},
         "overruns": int(overruns),
         "skipped_periods": int(skipped),
-        "miss_fraction": (overruns / n) if n else 0.0,
+        # periods without an on-time cycle (a late cycle, or no cycle at all: skipped) over
+        # the periods elapsed (docs/loop.md): a stalled loop raises it
+        "miss_fraction": miss_fraction(overruns, skipped, n),
+        # late cycles over the cycles run (the former miss_fraction: blind to skipped periods)
+        "overrun_fraction": (overruns / n) if n else 0.0,
         "histogram_us": {"compute": coarse(hist, H_COMPUTE), "lateness": coarse(hist, H_LATE)},
     }
+
+
+def miss_fraction(overruns: int, skipped: int, cycles: int) -> float:
+    """Periods missed over periods elapsed: ``(overruns + skipped) / (cycles + skipped)``.
+
+    A late cycle (overrun) missed its period; a skipped period had no cycle at all. Both count,
+    so a loop that stood still for a while shows it (overruns / cycles alone *fell* then)."""
+    periods = cycles + skipped
+    return (overruns + skipped) / periods if periods else 0.0
 
 
 def format_summary(t: dict) -> str:

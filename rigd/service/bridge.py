@@ -74,6 +74,9 @@ class SocketFrontend:
     idle_s : float, optional
         A client that completed no request this long is closed, s (default
         :data:`rigd.service.server.IDLE_S`).
+    word : callable, optional
+        Called once the socket is bound (the SAFE word file goes beside it): returns the
+        loop's SAFE word handle (:class:`rigd.loop.safeword.WordHandle`) or None.
     gates : dict, optional
         The config's ``controller_gates`` as plain values, for the socket process's checks.
     """
@@ -84,7 +87,8 @@ class SocketFrontend:
                  helper_priority: int | None = None, ring=None,
                  safe_generation: Callable[[], int] | None = None,
                  fs_hz: float | None = None, runs_root: str | None = None,
-                 idle_s: float | None = None, gates: dict[str, Any] | None = None):
+                 idle_s: float | None = None, gates: dict[str, Any] | None = None,
+                 word: Callable[[], Any] | None = None):
         self.path = str(path)
         self.mode = mode
         self.handle_command = handle_command
@@ -96,6 +100,9 @@ class SocketFrontend:
         self.opts = {"path": self.path, "nice": nice, "max_clients": max_clients,
                      "ring": ring, "fs_hz": fs_hz, "runs_root": runs_root, "idle_s": idle_s,
                      "gates": gates}
+        #: called once the socket is bound: the loop's SAFE word handle for the socket
+        #: process (status and ping read the loop's liveness from it), or None
+        self._word_fn = word
         self.ready = threading.Event()
         self.restarts = 0
         self.pid: int | None = None
@@ -115,6 +122,8 @@ class SocketFrontend:
     def start(self) -> SocketFrontend:
         """Bind the socket (InputError if unusable), spawn the socket process, start threads."""
         self._lsock = listen(self.path, self.mode)
+        if self._word_fn is not None:
+            self.opts["word"] = self._word_fn()
         self._spawn()
         for target, name in ((self._publish_run, "rigd-snapshot"),
                              (self._command_run, "rigd-commands"),

@@ -125,6 +125,7 @@ class Daemon:
         self.last_reload: dict[str, Any] = {"state": "none"}
         self.exit_reason = ""
         self._timing: tuple[float, dict] | None = None
+        self._watchdog = None
 
     # --- life cycle -------------------------------------------------------------------
     def __enter__(self) -> Daemon:
@@ -148,8 +149,9 @@ class Daemon:
                                          runs_root=runs_root,
                                          gates=self._gates(),
                                          idle_s=getattr(self.args, "client_idle_s",
-                                                        None)).start()
-            self._attach_safe_word(sock, mode)
+                                                        None),
+                                         word=lambda: self._share_word(sock, mode)).start()
+        self._start_watchdog()
         self._faults = self.loop.subscribe()
         if threading.current_thread() is threading.main_thread():
             for s, h in ((signal.SIGTERM, self._on_stop_signal),
@@ -167,6 +169,7 @@ class Daemon:
 
     def __exit__(self, *exc) -> None:
         err = getattr(self.loop, "loop_error", None)
+        self._quiet_watchdog()   # the run is over (stopped, or died): not a stall
         if err is not None:   # the loop died: say so (STATUS=, the log, the socket), then go
             self.exit_reason = f"loop died: {err!r}"
             self._drain_faults()
@@ -183,6 +186,7 @@ class Daemon:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(5.0)
+        self._stop_watchdog()
         if self.server is not None:
             self.server.stop()
         safe = getattr(self.loop, "safe", None)
@@ -214,6 +218,12 @@ class Daemon:
                              "recording unaffected", reason=shared.unshared)
         return shared.handle()
 
+    def _share_word(self, sock: str, mode: int):
+        """Attach the SAFE word beside the bound socket; its handle for the socket process."""
+        self._attach_safe_word(sock, mode)
+        safe = getattr(self.loop, "safe", None)
+        return safe.handle() if hasattr(safe, "handle") else None
+
     def _attach_safe_word(self, sock: str, mode: int) -> None:
         """Put the loop's SAFE word in a file beside the socket (before the cycles start)."""
         from rigd.loop.safeword import word_path
@@ -232,6 +242,47 @@ class Daemon:
                              error=exc.strerror or str(exc))
             return
         self.log.info("SAFE word shared", path=path)
+
+    def _start_watchdog(self) -> None:
+        """Spawn the loop's watchdog process (:mod:`rigd.service.watchdog`) on the SAFE word:
+        a real-time loop only (its stall bound is in the word; 0: nothing to watch)."""
+        from rigd.loop.safeword import W_STALL_BOUND_NS
+
+        safe = getattr(self.loop, "safe", None)
+        if safe is None or not hasattr(safe, "handle") or int(safe.word[W_STALL_BOUND_NS]) <= 0:
+            return
+        import multiprocessing
+
+        ctx = multiprocessing.get_context("spawn")
+        here, there = ctx.Pipe(duplex=False)
+        proc = ctx.Process(target=spawned.call, name="rigd-watchdog", daemon=True,
+                           args=("rigd.service.watchdog", "main", safe.handle(), here,
+                                 self._helper_priority()))
+        proc.start()
+        here.close()
+        self._watchdog = (proc, there)
+        self.log.info("loop watchdog started", pid=proc.pid,
+                      **getattr(getattr(self.loop, "liveness", None), "as_dict", dict)())
+
+    def _stop_watchdog(self) -> None:
+        self._quiet_watchdog()
+        wd, self._watchdog = self._watchdog, None
+        if wd is None:
+            return
+        proc, conn = wd
+        conn.close()              # EOF: the watchdog exits
+        proc.join(5.0)
+        if proc.is_alive():
+            proc.kill()
+            proc.join(2.0)
+
+    def _quiet_watchdog(self) -> None:
+        """The loop is about to stop on purpose: nothing to watch any more (bound 0)."""
+        from rigd.loop.safeword import W_STALL_BOUND_NS
+
+        safe = getattr(self.loop, "safe", None)
+        if safe is not None and hasattr(safe, "word"):
+            safe.word[W_STALL_BOUND_NS] = 0
 
     def _safe_generation(self) -> int | None:
         gen = getattr(self.loop, "safe_generation", None)
@@ -296,6 +347,7 @@ class Daemon:
         # time let only 3 run on a loaded machine); the bound is for a hung loop only, whose
         # close() writes the safe drive anyway
         self.loop.wait_cycles(SAFE_CYCLES_ON_STOP, timeout=5.0)
+        self._quiet_watchdog()
         self.loop.stop()
 
     def _on_hup(self, _signum, _frame) -> None:

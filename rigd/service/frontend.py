@@ -48,7 +48,7 @@ from typing import Any
 from rigd.errors import InputError
 from rigd.loop.shared_ring import RingReader
 from rigd.plain import plain
-from rigd.service import protocol, reader
+from rigd.service import liveview, protocol, reader
 from rigd.service.protocol import (
     RequestError,
     check_content,
@@ -117,8 +117,11 @@ class SnapshotHandler:
                  max_commands_per_s: float = MAX_COMMANDS_PER_S,
                  max_in_flight: int = MAX_IN_FLIGHT, timeout_s: float = COMMAND_TIMEOUT_S,
                  ring=None, fs_hz: float | None = None, runs_root: str | None = None,
-                 gates: dict | None = None):
+                 gates: dict | None = None, word=None):
         self.cmd_conn = cmd_conn
+        #: the loop's SAFE word, read-only (rigd.service.liveview: status and ping as the
+        #: loop is now); None: answered from the snapshot alone
+        self._word = word.map() if word is not None else None
         self.fs_hz = fs_hz
         self.runs_root = runs_root
         self.gates = gates
@@ -190,6 +193,13 @@ class SnapshotHandler:
                 self._encoded[cmd] = enc
         return enc
 
+    def _status_json(self) -> bytes:
+        """``status`` overlaid with the SAFE word: reads its own writes, shows a stall."""
+        with self._lock:
+            st = self._snap.get("status") or {}
+        return json.dumps(plain(liveview.status(st, self._word)), separators=(",", ":"),
+                          allow_nan=False).encode()
+
     # --- requests ----------------------------------------------------------------------
     def handle_line(self, line: bytes) -> bytes | Future | tuple:
         """One request line to one reply line, to a future of it for a forwarded command, or
@@ -221,10 +231,15 @@ class SnapshotHandler:
             if cmd == "ping":
                 with self._lock:
                     info = dict(self._snap.get("info", {}))
+                    st = self._snap.get("status") or {}
+                why = liveview.not_cycling(st, self._word)
+                if why is not None:      # alive only while the loop cycles
+                    raise RequestError(f"ping: {why}", req_id)
                 return protocol.ok(req_id, {"pong": True, **info, "clients": self.clients(),
                                             "socket_pid": os.getpid(),
                                             "commands_waiting": self.in_flight})
-            body = self._result_json(cmd)
+            body = (self._status_json() if cmd == "status" and self._word is not None
+                    else self._result_json(cmd))
             head = json.dumps({"id": plain(req_id)}, separators=(",", ":"))[:-1]
             return head.encode() + b',"ok":true,"result":' + body + b"}\n"
         except RequestError as exc:
@@ -391,7 +406,8 @@ def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
                            **({} if idle is None else {"idle_s": float(idle)}))
     handler = SnapshotHandler(cmd_conn, clients=lambda: server.n_clients,
                               ring=opts.get("ring"), fs_hz=opts.get("fs_hz"),
-                              runs_root=opts.get("runs_root"), gates=opts.get("gates"))
+                              runs_root=opts.get("runs_root"), gates=opts.get("gates"),
+                              word=opts.get("word"))
     server.handle = handler.handle_line
     # the first snapshot before serving, then tell the daemon we are up
     try:

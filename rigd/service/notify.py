@@ -13,6 +13,16 @@ from __future__ import annotations
 
 import os
 import socket
+import threading
+import time
+
+#: while starting (kernels compiling into a cold numba cache: 42 s measured on a loaded 2-core
+#: machine), ``EXTEND_TIMEOUT_USEC`` is sent this often, each asking for this much more, s
+EXTEND_EVERY_S = 10.0
+EXTEND_BY_S = 30.0
+#: ... for at most this long in total: a start-up still not READY after it is a hang, and
+#: ``TimeoutStartSec=`` fails it as before
+EXTEND_MAX_S = 300.0
 
 
 class Notifier:
@@ -79,7 +89,9 @@ class Notifier:
             return False
 
     def ready(self, status: str | None = None) -> bool:
-        """``READY=1`` (plus ``STATUS=``, and ``MAINPID=`` for forking helpers)."""
+        """``READY=1`` (plus ``STATUS=``, and ``MAINPID=`` for forking helpers); ends the
+        start-up extension (:func:`extend_start_up`)."""
+        _READY.set()
         f = ["READY=1", f"MAINPID={os.getpid()}"]
         if status:
             f.append(f"STATUS={status}")
@@ -101,3 +113,32 @@ class Notifier:
         if self._sock is not None:
             self._sock.close()
             self._sock = None
+
+
+_READY = threading.Event()
+
+
+def extend_start_up(environ=None, *, every_s: float = EXTEND_EVERY_S,
+                    by_s: float = EXTEND_BY_S, max_s: float = EXTEND_MAX_S) -> bool:
+    """Keep systemd's start timeout from running out while the daemon compiles its kernels.
+
+    A thread sends ``EXTEND_TIMEOUT_USEC=<by_s>`` every ``every_s`` (``STATUS=`` says why) until
+    ``READY=1`` is sent (:meth:`Notifier.ready`) or ``max_s`` have passed — never longer: a
+    start-up that hangs still fails ``TimeoutStartSec=``. No-op without ``NOTIFY_SOCKET``;
+    True if the thread runs.
+    """
+    n = Notifier(environ=environ)
+    if not n.enabled:
+        return False
+
+    def run() -> None:
+        t0 = time.monotonic()
+        while not _READY.is_set() and time.monotonic() - t0 < max_s:
+            n.notify(f"EXTEND_TIMEOUT_USEC={int(by_s * 1e6)}",
+                     f"STATUS=starting: compiling the loop's kernels "
+                     f"({time.monotonic() - t0:.0f} s)")
+            _READY.wait(every_s)
+        n.close()
+
+    threading.Thread(target=run, name="rigd-start-up", daemon=True).start()
+    return True

@@ -82,7 +82,9 @@ def test_export_refuses_nan_leaves_no_file(tmp_path):
     p = tmp_path / "r.h5"
     write_h5(p, rec)
     out = tmp_path / "o.csv"
-    with pytest.raises(InputError, match="channel 'e_y' at sample 45000"):
+    # an invalid sample (NaN) of a recording: named, with the valid stretch to export
+    with pytest.raises(InputError, match=r"column 'e_y', used by the export, in 1 stretch\(es\), "
+                                         r"the first at sample 45000 .*--range 0:45000"):
         export_csv(p, out, block_rows=10_000)
     assert sorted(x.name for x in tmp_path.iterdir()) == ["r.h5"]
 

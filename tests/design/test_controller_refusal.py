@@ -5,7 +5,6 @@ reaches the loop: refused by load_controller, by ControlLoop.load_controller and
 import numpy as np
 import pytest
 import yaml
-from design_helpers import truth_model_file
 
 from rigd.cli import main
 from rigd.controller import load_controller
@@ -13,13 +12,10 @@ from rigd.errors import InputError
 
 
 @pytest.fixture(scope="module")
-def good(tmp_path_factory):
-    d = tmp_path_factory.mktemp("ctrl")
-    model = truth_model_file(d / "G_p.yaml")
-    out = d / "controller.yaml"
-    assert main(["design", "--model", str(model), "--weights", "config/design.yaml",
-                 "-o", str(out)]) == 0
-    return out
+def good(truth_design):
+    """The controller ``rigd design`` made for the simulated plant's truth (made once per test
+    run: tests/conftest.py ``truth_design``)."""
+    return truth_design / "controller.yaml"
 
 
 def _variant(good, tmp_path, name, edit):

@@ -152,20 +152,18 @@ def test_the_design_meets_its_own_certificate_and_reports_the_reduction_it_reach
         1 / rob.sigma[:, band].max(), rel=1e-9)
 
 
-def test_cli_design_writes_a_loadable_controller(tmp_path, capsys):
-    model = truth_model_file(tmp_path / "G_p.yaml")
-    out = tmp_path / "controller.yaml"
-    rc = main(["design", "--model", str(model), "--weights", CFG, "-o", str(out), "--json",
-               "--report", str(tmp_path / "rep")])
-    assert rc == 0
-    s = json.loads(capsys.readouterr().out)
+def test_cli_design_writes_a_loadable_controller(truth_design):
+    """``rigd design --model --weights -o --json --report`` (run once per test run:
+    tests/conftest.py ``truth_design``) writes a controller the loop loads."""
+    out = truth_design / "controller.yaml"
+    s = json.loads((truth_design / "design.json").read_text())
     ctrl = load_controller(out, expected_fs_hz=5000.0, plant=simtruth.plant_z(4000.0, 7.0))
     assert ctrl.order == s["controller_order"]
     assert ctrl.meta["gamma"] == pytest.approx(s["gamma"])
     assert ctrl.meta["model_hash"].startswith("sha256:")
     assert s["design_point_sensitivity"]["peak"] <= 2.0
     for name in ("weights.png", "controller.png", "index.html"):
-        assert (tmp_path / "rep" / name).exists()
+        assert (truth_design / "rep" / name).exists()
 
 
 def test_cli_design_bad_weights_exit_2(tmp_path, capsys):

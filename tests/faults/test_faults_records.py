@@ -22,23 +22,25 @@ import json
 import os
 import signal
 import subprocess
-import sys
+import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from daemon_helpers import PROCESS_S, RIGD, Daemon, make_config
+from faultkit import read_frames, wait_for
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "service"))
-from daemon_helpers import PROCESS_S, RIGD, Daemon, make_config  # noqa: E402
-from faultkit import read_frames, wait_for  # noqa: E402
-
-from rigd.frame import REC  # noqa: E402
-from rigd.loop import faults as FC  # noqa: E402
-from rigd.recording.h5sink import open_recording  # noqa: E402
+from rigd.frame import REC
+from rigd.loop import faults as FC
+from rigd.recording.h5sink import open_recording
 
 FS = 5000.0
 ENDED = "interrupted (process ended)"
+
+#: hang bound per test, s: the kill fixture starts three daemons one after the other (a
+#: daemon's READY alone took minutes at load average 20 on the shared 2-core machine)
+pytestmark = pytest.mark.timeout(3 * PROCESS_S)
 
 
 def prbs(name, duration_s):
@@ -62,9 +64,17 @@ def _flushed(run):
     if not parts:
         return 0
     try:
-        return len(read_frames(parts[0]))
+        with open_recording(parts[0]) as f:     # SWMR: the extent of its last flush
+            return int(f["frames"].shape[0])
     except (OSError, KeyError):
         return 0
+
+
+def _watch_flushed(run, seen, done):
+    """Note the frames flushed to the run's record until ``done`` (what the
+    writer had made safe before the fault, seen from outside), every 50 ms."""
+    while not done.wait(0.05):
+        seen.append(_flushed(run))
 
 
 def _gone(pid):
@@ -80,14 +90,18 @@ def _gone(pid):
 
 
 def _start_experiment(d, spec, run, at_frames):
-    """Start ``spec`` into ``run``; wait until ``at_frames`` frames of its record are flushed.
-    Returns (experiment process pid, frames flushed then)."""
-    d.ctl("start", str(spec), "--run-dir", str(run))
-    assert wait_for(lambda: d.ctl_json("experiment")["state"] != "starting", PROCESS_S)
-    exp = d.ctl_json("experiment")
-    assert exp["state"] == "running", exp
-    assert wait_for(lambda: _flushed(run) >= at_frames, PROCESS_S), d.hang_report()
-    return exp["pid"], _flushed(run)
+    """Start ``spec`` into ``run``; wait until ``at_frames`` frames of its record are flushed,
+    watching the run folder itself (a `rigd ctl` call takes seconds on a loaded machine: the
+    record must not end meanwhile). Returns (experiment process pid: the manifest's owner,
+    frames flushed then, the `rigd ctl start` process)."""
+    ctl = subprocess.Popen([RIGD, "ctl", "--socket", d.sock, "start", str(spec), "--run-dir",
+                            str(run)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           text=True)
+    assert wait_for(lambda: _flushed(run) >= at_frames or ctl.poll() not in (None, 0),
+                    PROCESS_S), d.hang_report()
+    n = _flushed(run)
+    assert n >= at_frames, (ctl.communicate(timeout=PROCESS_S), d.log())
+    return _manifest(run)["owner"]["pid"], n, ctl
 
 
 def _dir(tmp, name):
@@ -125,20 +139,22 @@ def kills(tmp_path_factory):
     try:
         a.wait_notify("READY=1")
         run = runs / "exp-killed"
-        pid, seen["exp_before"] = _start_experiment(a, _spec(tmp, "exp-killed", 3.0), run,
-                                                    int(1.0 * FS))
+        pid, seen["exp_before"], ctl = _start_experiment(
+            a, _spec(tmp, "exp-killed", 20.0), run, int(1.0 * FS))
         os.kill(pid, signal.SIGKILL)
+        assert ctl.wait(PROCESS_S) == 0
         assert wait_for(lambda: a.ctl_json("experiment")["state"] not in ("running",
                                                                           "failed"), PROCESS_S)
         seen["exp_state"] = a.ctl_json("experiment")
         seen["exp_faults"] = a.ctl_json("faults")
         # 2. the daemon killed 10 s into a 30 s PRBS
         run = runs / "daemon-killed"
-        exp_pid, seen["daemon_before"] = _start_experiment(
+        exp_pid, seen["daemon_before"], ctl = _start_experiment(
             a, _spec(tmp, "daemon-killed", 30.0), run, int(10.0 * FS))
         seen["daemon_before_s"] = seen["daemon_before"] / FS
     finally:
         _kill_daemon(a)
+    ctl.wait(PROCESS_S)
     assert wait_for(lambda: _gone(exp_pid), PROCESS_S)   # it finishes its run, then ends
     # the next start
     b = Daemon(_dir(tmp, "b"), cfg, "--runs-dir", str(runs))
@@ -150,11 +166,12 @@ def kills(tmp_path_factory):
         seen["next_faults"] = b.ctl_json("faults")
         # 3. the experiment process and the daemon killed together
         run = runs / "both-killed"
-        pid, seen["both_before"] = _start_experiment(b, _spec(tmp, "both-killed", 20.0), run,
-                                                     int(2.0 * FS))
+        pid, seen["both_before"], ctl = _start_experiment(
+            b, _spec(tmp, "both-killed", 20.0), run, int(2.0 * FS))
         os.kill(pid, signal.SIGKILL)
     finally:
         _kill_daemon(b)
+    ctl.wait(PROCESS_S)
     seen["journal_left"] = _manifest(runs / "both-killed")["status"]
     c = Daemon(_dir(tmp, "c"), cfg, "--runs-dir", str(runs))
     try:
@@ -232,18 +249,20 @@ def test_disk_full_during_an_experiment_keeps_and_lists_the_record(tmp_path):
         cfg = make_config(tmp_path, clock={"spin_us": 0.0}, recorder={"flush_interval_s": 0.1})
         d = Daemon(tmp_path, cfg, "--runs-dir", str(runs), fsize_limit=disk is None)
         run = runs / "full"
-        seen = []
+        seen = [0]
         try:
             d.wait_notify("READY=1")
             if disk is None:          # no mount here: a file-size limit, as the writer sees it
                 d.limit_fsize(3 * 1024 * 1024, d.writer_pid())
+            done = threading.Event()
+            watch = threading.Thread(target=_watch_flushed, args=(run, seen, done), daemon=True)
+            watch.start()
             d.ctl("start", str(_spec(tmp_path, "full", 30.0)), "--run-dir", str(run))
-
-            def over():
-                seen.append(_flushed(run))
-                return d.ctl_json("experiment")["state"] not in ("starting", "running")
-
-            assert wait_for(over, PROCESS_S), d.hang_report()
+            over = wait_for(lambda: d.ctl_json("experiment")["state"] not in (
+                "starting", "running"), PROCESS_S)
+            done.set()
+            watch.join(PROCESS_S)
+            assert over, d.hang_report()
             exp = d.ctl_json("experiment")
             st = d.ctl_json("status")
             faults = d.ctl_json("faults")

@@ -70,3 +70,60 @@ def test_notify_never_blocks_on_a_full_queue(tmp_path):
         assert results[0] and not results[-1] and n.errors > 0
     finally:
         srv.close()
+
+
+def test_start_up_is_extended_while_compiling_until_ready(tmp_path):
+    """EXTEND_TIMEOUT_USEC is sent while the daemon starts (a cold numba cache compiles for
+    tens of seconds) and stops with READY=1; without NOTIFY_SOCKET nothing runs."""
+    import time
+
+    from rigd.service import notify
+
+    path = str(tmp_path / "notify.sock")
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    srv.bind(path)
+    notify._READY.clear()                # a READY=1 sent by another test of this process
+    try:
+        assert not notify.extend_start_up(environ={})
+        assert notify.extend_start_up(environ={"NOTIFY_SOCKET": path}, every_s=0.05,
+                                      by_s=30.0, max_s=60.0)
+        msgs = [_recv(srv) for _ in range(2)]
+        for m in msgs:
+            assert "EXTEND_TIMEOUT_USEC=30000000" in m.split("\n")
+            assert "STATUS=starting: compiling" in m
+        assert Notifier(environ={"NOTIFY_SOCKET": path}).ready("up")
+        end = time.monotonic() + 5
+        while "READY=1" not in _recv(srv) and time.monotonic() < end:
+            pass
+        srv.settimeout(0.5)              # ten of its periods: nothing more after READY
+        with pytest.raises(TimeoutError):
+            while True:
+                m = srv.recv(4096).decode()
+                assert "EXTEND_TIMEOUT_USEC" not in m, m
+    finally:
+        srv.close()
+
+
+def test_start_up_extension_is_bounded(tmp_path):
+    """A start-up that never gets READY is extended for ``max_s`` at most (then
+    TimeoutStartSec fails it as before)."""
+    from rigd.service import notify
+
+    path = str(tmp_path / "notify.sock")
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    srv.bind(path)
+    notify._READY.clear()
+    try:
+        assert notify.extend_start_up(environ={"NOTIFY_SOCKET": path}, every_s=0.02,
+                                      max_s=0.1)
+        srv.settimeout(2.0)
+        n = 0
+        try:
+            while True:
+                srv.recv(4096)
+                n += 1
+        except TimeoutError:
+            pass
+        assert 1 <= n <= 10, n
+    finally:
+        srv.close()
