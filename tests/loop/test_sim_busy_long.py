@@ -2,9 +2,10 @@
 real time beside a busy loop on every core (as ``under-load`` does), latches no fault.
 
 Marked ``long`` (``make test-long``; not in ``make test``). It keeps the overrun and stall
-rules as shipped (docs/loop.md, "Liveness": bounds derived from the plant's fastest
-closed-loop time constant) — they must not trip on a busy machine's jitter;
-``tests/loop/test_liveness.py`` shows that they still trip on a stall that matters.
+rules as shipped (docs/loop.md, "Liveness": a simulated plant stands still with the loop, so
+its bounds are the service's, 1 s) — they must not trip on a busy machine's scheduling
+delays; ``tests/loop/test_liveness.py`` and ``tests/faults/test_faults_liveness.py`` show that
+they still trip on a stall that matters.
 """
 
 import json
