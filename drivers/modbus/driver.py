@@ -116,6 +116,8 @@ class ModbusDriver(SlowDriver):
         self._thread: threading.Thread | None = None
         self._fails = 0
         self._next_connect = 0.0
+        #: why the device was last found down (the retry-wait message says it)
+        self._why_down = "not connected yet"
         self.n_polls = 0
         self.n_errors = 0
         self.n_faults = 0
@@ -141,11 +143,14 @@ class ModbusDriver(SlowDriver):
             return
         now = time.monotonic()
         if now < self._next_connect:
-            raise FaultError("modbus: not connected (waiting to retry)")
+            # the loss in words, also between retries: where, and why the last try failed
+            raise FaultError(f"modbus: {self._where()}: not connected ({self._why_down}; "
+                             f"next try within {self.opts.reconnect_s:g} s)")
         self._next_connect = now + self.opts.reconnect_s
         if c is None:
             c = self._client = self._make_client()
         if not c.connect():
+            self._why_down = "the connection was refused or timed out"
             raise FaultError(f"modbus: cannot connect to {self._where()}")
 
     def _where(self) -> str:
@@ -215,9 +220,11 @@ class ModbusDriver(SlowDriver):
             self._send_setpoints()
         except ModbusException as exc:
             self._drop()
+            self._why_down = str(exc)
             raise FaultError(f"modbus: {self._where()}: {exc}") from None
         except OSError as exc:
             self._drop()
+            self._why_down = str(exc)
             raise FaultError(f"modbus: {self._where()}: {exc}") from None
         return out
 
