@@ -74,7 +74,7 @@ def test_commands_reach_the_loop(served):
     (b'{"id": 1, "cmd": "operating_point.set", "omega_rpm": NaN, "p_inj_bar": 4}\n',
      "omega_rpm"),
     (b'{"id": 1, "cmd": "operating_point.set", "omega_rpm": -1, "p_inj_bar": 4}\n',
-     "greater than or equal"),
+     "must be >= 0"),
     (b'{"id": 1, "cmd": "controller.load"}\n', "path"),
     (b'{"id": 1, "cmd": "controller.load", "path": "relative.yaml"}\n', "absolute"),
     # a path alone is never opened (the daemon reads no file a client names)
