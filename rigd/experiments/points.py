@@ -262,8 +262,11 @@ class PointRunner:
         if pending is None:
             return
         part, path, point, info = pending
-        if not part.exists():
-            return                       # never created (the open was refused)
+        if not part.exists():            # never created (cut before the open, or refused):
+            if point is not None and point.get("recording"):
+                point["recording"] = None    # the manifest names no file that is not there
+                self.manifest.write()
+            return
         end = time.monotonic() + RELEASE_WAIT_S
         while holders(part) and time.monotonic() < end:
             time.sleep(0.05)

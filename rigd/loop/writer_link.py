@@ -161,9 +161,17 @@ class WriterLink:
             self._opened[slot] = (ev, answer)
         if not self._send(("open", slot, sink.spec())):
             ev.set()
-        while not ev.wait(0.05):
-            if self.gone.is_set():
-                break
+        try:
+            while not ev.wait(0.05):
+                if self.gone.is_set():
+                    break
+        except BaseException:
+            # interrupted (SIGINT) while the writer creates the file: nobody will finish this
+            # sink, so it is closed here at once (nothing recorded), not held open by the
+            # writer until the loop closes
+            sink.closing = True
+            self.close(sink)
+            raise
         with self._lock:
             self._opened.pop(slot, None)
         if answer and answer[0] is None:

@@ -90,8 +90,18 @@ def test_sweep_sigint_keeps_completed_points(tmp_path):
     for pt in done:                      # every completed point is whole and readable
         rec = load_record(out / pt["files"][0])
         assert rec.n == int(1.05 * 5000) and rec.omega_rpm == pt["omega_rpm"]
+    # the point the SIGINT cut short (if it had begun) is kept and listed, never deleted nor
+    # left as a .part: every file in the folder is the manifest or a file it lists
+    listed = {f for pt in man["points"] for f in pt["files"]}
     names = {x.name for x in out.iterdir()}
-    assert names == {"manifest.json"} | {pt["files"][0] for pt in done}   # no partial file
+    assert names == {"manifest.json"} | listed, json.dumps(man, indent=1)
+    assert all(pt.get("recording") is None for pt in man["points"])
+    for entry in man["files"]:
+        if entry["path"] in {pt["files"][0] for pt in done}:
+            continue
+        assert entry["complete"] is False and entry["incomplete_reason"], entry
+        rec = load_record(out / entry["path"])      # readable, its frames as listed (all
+        assert rec.n == entry["n_frames"] <= int(1.05 * 5000), entry   # when cut at the end)
 
 
 @pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
