@@ -166,6 +166,9 @@ class LockstepClock:
             if halt and st[L.S_FAULT] != 0.0:    # the batch ends at the latching cycle
                 seg.stop_for_fault(st)
                 break
+            if seg is not None and seg.cancelled and seg.i < seg.n:   # its owner is gone
+                seg.stop_cancelled(commands)
+                break
         self.cycles += done
         self.wall_s += time.perf_counter() - t0
         return done

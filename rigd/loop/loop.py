@@ -553,6 +553,13 @@ class ControlLoop:
                              sink.frames if isinstance(sink, MemorySink) else None,
                              faults[n_fault0:], seg.fault_event(faults, self.state.st))
 
+    def cancel_segment(self, why: str) -> bool:
+        """End the segment playing now at the next cycle (any thread): its excitation stops
+        and its recording closes after that cycle; ``run_segment`` returns what was played.
+        For a segment whose owner is gone (the experiment process died). False when no
+        segment is playing."""
+        return self.player.cancel(why)
+
     def close(self) -> None:
         """Stop the loop, put safe outputs on the valves, flush and close recordings, release
         the drivers (deactivate with the safe drive, then clean up)."""

@@ -162,6 +162,8 @@ class RealTimeClock:
                     player.stopped_for_fault(seg, st)     # flag only: the caller finishes it
                 elif seg.i >= seg.n:
                     player.finished(seg, commands)
+                elif seg.cancelled:                       # its owner is gone
+                    player.cancelled(seg, commands)
             try:
                 write(drive)
             except Exception as exc:  # noqa: BLE001

@@ -78,6 +78,10 @@ class Segment:
         #: code and cycle of the latched fault that ended it (0 / -1: none)
         self.fault_code = 0
         self.fault_seq = -1
+        #: set by any thread (:meth:`SegmentPlayer.cancel`) to end it at the next cycle: its
+        #: owner is gone and nobody must go on exciting the rig for it
+        self.cancelled = False
+        self.cancel_why = ""
 
     # --- the thread running the cycles ----------------------------------------------------
     def begin(self, st: np.ndarray, commands) -> None:
@@ -129,6 +133,19 @@ class Segment:
             self.sink.last_seq = self.last_seq
         self.fault_seq = int(st[L.S_FAULT_SEQ])
         self.fault_code = int(st[L.S_FAULT])
+
+    def stop_cancelled(self, commands) -> None:
+        """End after cycle ``i - 1`` because it was cancelled: the range and the recording end
+        there, K∞ is restored as :meth:`finish` does and the caller is woken.
+
+        Runs in: loop thread — O(1), allocation-free, non-blocking.
+        """
+        self.last_seq = self.first_seq + self.i - 1
+        if self.sink is not None:         # before the next frame is published
+            self.sink.last_seq = self.last_seq
+        if self.prev_target is not None:
+            commands.enable(bool(self.prev_target))
+        self.done.set()
 
     def finish_faulted(self, commands) -> None:
         """The caller's side of :meth:`stop_for_fault`: restore K∞ as :meth:`finish` does,
@@ -188,6 +205,25 @@ class SegmentPlayer:
         """
         self.current = None
         seg.stop_for_fault(st)
+
+    def cancelled(self, seg: Segment, commands) -> None:
+        """``seg`` was cancelled (:meth:`cancel`): free the slot, end it at this cycle.
+
+        Runs in: loop thread — O(1), allocation-free, non-blocking.
+        """
+        self.current = None
+        seg.stop_cancelled(commands)
+
+    def cancel(self, why: str) -> bool:
+        """Ask the thread running the cycles to end the current segment at its next cycle
+        (any thread; the excitation stops there and its recording is closed after it).
+        False when no segment is playing."""
+        seg = self.current
+        if seg is None:
+            return False
+        seg.cancel_why = str(why)
+        seg.cancelled = True
+        return True
 
     def abort(self, why: str) -> None:
         """Abort the current segment, if any (after the cycles stopped)."""

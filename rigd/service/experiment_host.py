@@ -30,6 +30,7 @@ waiting for it to complete).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import mmap
 import multiprocessing
@@ -323,7 +324,7 @@ class ExperimentHost:
                     self._state.update(msg[1])
                     return
                 elif kind == "call":
-                    answer = self._answer(conn, msg[1], msg[2:])
+                    answer = self._answer(conn, msg[1], msg[2:], proc)
                     try:
                         conn.send(answer)
                     except OSError:           # it died while its call ran (a segment)
@@ -342,10 +343,11 @@ class ExperimentHost:
             started.set()
             conn.close()
 
-    def _answer(self, conn: Any, name: str, args: tuple) -> tuple:
+    def _answer(self, conn: Any, name: str, args: tuple, proc: Any = None) -> tuple:
         try:
             if name == "segment":
-                return ("ok", self._segment(conn, *args))
+                with self._owner_watched(proc):
+                    return ("ok", self._segment(conn, *args))
             if name == "status":
                 return ("ok", self.loop.status())
             if name == "enable":
@@ -363,6 +365,37 @@ class ExperimentHost:
             return ("raise", "fault", str(exc))
         except Exception as exc:  # noqa: BLE001 - the experiment fails, the daemon lives
             return ("raise", "internal", f"{type(exc).__name__}: {exc}")
+
+    @contextlib.contextmanager
+    def _owner_watched(self, proc: Any):
+        """While a segment plays for ``proc``: if that process ends, the segment is cancelled
+        at the next cycle (nobody is left to want its excitation; its record is kept as far
+        as it was played), instead of playing on to its planned end."""
+        if proc is None:
+            yield
+            return
+        over = threading.Event()
+
+        def watch() -> None:
+            while not over.is_set() and not wait([proc.sentinel], 0.1):
+                pass
+            # it ended: cancel the segment as soon as it plays (the call may still be on its
+            # way to the loop: the file being created, not yet offered) until the call is over
+            while not over.is_set():
+                if self.loop.cancel_segment("the experiment process ended"):
+                    if self.log is not None:
+                        self.log.warning("experiment segment cancelled",
+                                         reason="the experiment process ended")
+                    return
+                over.wait(0.01)
+
+        t = threading.Thread(target=watch, name="rigd-segment-owner", daemon=True)
+        t.start()
+        try:
+            yield
+        finally:
+            over.set()
+            t.join(1.0)
 
     def _segment(self, conn: Any, n: int, record: Any, events: list, controller_on: Any,
                  stop_on_fault: bool, pre: int, post: int) -> dict[str, Any]:

@@ -11,10 +11,11 @@ from design_helpers import assert_impacts_meet_the_predicted_damping
 
 from rigd.cli import main
 
-# the whole seeded demo runs in the first test's setup: minutes of CPU, and `make test` runs
-# this part at `nice` beside the timing tests (and beside `under-load`'s busy loops it got
-# a tenth of a core: the 600 s hang guard fired in the demo's structured design)
-pytestmark = pytest.mark.timeout(2400)
+# the whole seeded demo runs in the first test's setup: minutes of CPU (beside `under-load`'s
+# busy loops it got a tenth of a core: the 600 s hang guard fired in the demo's structured
+# design). A long run: `make test-long` (marker `long`) runs it; `make test` runs the same
+# steps on the quick demo (tests/design/test_demo_e2e.py)
+pytestmark = [pytest.mark.timeout(2400), pytest.mark.long]
 
 
 @pytest.fixture(scope="module")

@@ -1,10 +1,14 @@
 """The experiment process killed while its PRBS plays in the real daemon: ``rigd ctl
 experiment`` says ``interrupted (process ended)`` and how it ended (no state left at
-``running``: the daemon recovers the run at once, its record kept and listed), the loop cycles
-on without a fault, and the next experiment runs to ``complete``."""
+``running``: the daemon recovers the run at once, its record kept and listed), its excitation
+ends when its process does (the 60 s PRBS does not play on for nobody: the kept record is
+seconds long), the loop cycles on without a fault, and the next experiment runs to
+``complete``."""
 
+import json
 import os
 import signal
+from pathlib import Path
 
 import yaml
 from daemon_helpers import PROCESS_S, Daemon, make_config
@@ -27,13 +31,19 @@ def test_a_killed_experiment_process_fails_the_experiment_and_the_loop_cycles_on
         assert wait_for(lambda: d.ctl_json("experiment")["state"] != "starting", PROCESS_S)
         exp = d.ctl_json("experiment")
         assert exp["state"] == "running", exp
-        os.kill(exp["pid"], signal.SIGKILL)
-        # bounded by the segment playing when it died (60 s at most), then said
+        journal = Path(exp["run_dir"]) / "manifest.json"
+        assert wait_for(lambda: any(p.get("recording") for p in
+                                    json.loads(journal.read_text())["points"]), PROCESS_S)
+        os.kill(exp["pid"], signal.SIGKILL)      # while its PRBS plays and is recorded
+        # the segment is cancelled at the next cycle when its process ends, then said
         assert wait_for(lambda: d.ctl_json("experiment")["state"] != "running", PROCESS_S)
         assert wait_for(lambda: d.ctl_json("experiment")["state"] != "failed", PROCESS_S)
         exp = d.ctl_json("experiment")
         assert exp["state"] == "interrupted (process ended)", exp
         assert "killed by SIGKILL" in exp["message"] and "records kept" in exp["message"], exp
+        man = json.loads((Path(exp["run_dir"]) / "manifest.json").read_text())
+        kept = [f for f in man["files"] if f.get("complete") is False]
+        assert kept and kept[0]["n_frames"] < 30 * 5000, (man["files"], open("/tmp/dlog.txt", "w").write(d.log()))
         st = d.ctl_json("status")
         assert st["running"] and st["fault"]["code"] == 0, st
         seq = st["seq"]
