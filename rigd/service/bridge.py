@@ -74,6 +74,9 @@ class SocketFrontend:
     idle_s : float, optional
         A client that completed no request this long is closed, s (default
         :data:`rigd.service.server.IDLE_S`).
+    evict_s : float or "never", optional
+        When every slot is held, the client idle longest (at least this long, s) is closed to
+        make room for a new one (default :data:`rigd.service.server.EVICT_IDLE_S`; "never").
     word : callable, optional
         Called once the socket is bound (the SAFE word file goes beside it): returns the
         loop's SAFE word handle (:class:`rigd.loop.safeword.WordHandle`) or None.
@@ -87,7 +90,8 @@ class SocketFrontend:
                  helper_priority: int | None = None, ring=None,
                  safe_generation: Callable[[], int] | None = None,
                  fs_hz: float | None = None, runs_root: str | None = None,
-                 idle_s: float | None = None, gates: dict[str, Any] | None = None,
+                 idle_s: float | None = None, evict_s: float | str | None = None,
+                 gates: dict[str, Any] | None = None,
                  word: Callable[[], Any] | None = None):
         self.path = str(path)
         self.mode = mode
@@ -99,7 +103,7 @@ class SocketFrontend:
         self.helper_priority = helper_priority
         self.opts = {"path": self.path, "nice": nice, "max_clients": max_clients,
                      "ring": ring, "fs_hz": fs_hz, "runs_root": runs_root, "idle_s": idle_s,
-                     "gates": gates}
+                     "evict_s": evict_s, "gates": gates}
         #: called once the socket is bound: the loop's SAFE word handle for the socket
         #: process (status and ping read the loop's liveness from it), or None
         self._word_fn = word

@@ -78,6 +78,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--client-idle-s", type=_positive, default=None, metavar="S",
                    help="close a socket client that completed no request for S seconds "
                         "(default 60; bytes of an unfinished line do not count)")
+    g.add_argument("--client-evict-s", type=_nonnegative_or_never, default=None, metavar="S",
+                   help="when every client slot is held, close the client idle longest (at "
+                        "least S seconds) to make room for a new one (default 1; 'never': "
+                        "a full daemon refuses new clients but the few kept for control)")
     g.add_argument("--runs-dir", default="runs", metavar="DIR",
                    help="where experiments started over the socket write their runs")
 
@@ -89,6 +93,18 @@ def _positive(text: str) -> float:
         v = float("nan")
     if not v > 0 or v == float("inf"):
         raise argparse.ArgumentTypeError(f"not a positive number of seconds: {text!r}")
+    return v
+
+
+def _nonnegative_or_never(text: str) -> float | str:
+    if text == "never":
+        return "never"
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not v >= 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"not a number of seconds >= 0 nor 'never': {text!r}")
     return v
 
 
@@ -150,6 +166,7 @@ class Daemon:
                                          gates=self._gates(),
                                          idle_s=getattr(self.args, "client_idle_s",
                                                         None),
+                                         evict_s=getattr(self.args, "client_evict_s", None),
                                          word=lambda: self._share_word(sock, mode)).start()
         self._start_watchdog()
         self._faults = self.loop.subscribe()

@@ -400,10 +400,12 @@ def main(lsock, snap_conn, cmd_conn, opts: dict[str, Any]) -> None:
         os.setpriority(os.PRIO_PROCESS, 0, max(cur, int(opts.get("nice", 10))))
     except OSError:
         pass
-    idle = opts.get("idle_s")
+    idle, evict = opts.get("idle_s"), opts.get("evict_s")
     server = ControlServer(opts["path"], lambda line: b"",
                            max_clients=opts.get("max_clients", 64),
-                           **({} if idle is None else {"idle_s": float(idle)}))
+                           **({} if idle is None else {"idle_s": float(idle)}),
+                           **({} if evict is None else
+                              {"evict_idle_s": None if evict == "never" else float(evict)}))
     handler = SnapshotHandler(cmd_conn, clients=lambda: server.n_clients,
                               ring=opts.get("ring"), fs_hz=opts.get("fs_hz"),
                               runs_root=opts.get("runs_root"), gates=opts.get("gates"),

@@ -7,7 +7,12 @@ silent or hostile client can never block another one or the loop:
   is disconnected (its buffer is bounded);
 * a client that does not read its replies is disconnected once ``max_pending`` bytes of
   replies are waiting;
-* beyond ``max_clients`` connections, :data:`RESERVED` more are accepted for control only
+* when ``max_clients`` connections are held and another arrives, the one idle longest (no
+  request in flight, no stream, silent for ``evict_idle_s``, default :data:`EVICT_IDLE_S`) is
+  closed with one
+  error line to make room: idle connections can never lock the operator out, whatever
+  their number;
+* beyond ``max_clients`` busy connections, :data:`RESERVED` more are accepted for control only
   (:data:`rigd.service.protocol.CONTROL`: ``safe``, reset, the controller, the operating
   point, experiments — a query or a stream there gets one error line saying the daemon is
   full, and is closed): however many clients hold the slots, the operator can still act;
@@ -51,6 +56,9 @@ from rigd.service.listen import listen
 
 #: connections accepted beyond ``max_clients``, for control commands only (protocol.CONTROL)
 RESERVED = 4
+#: a client silent this long may be closed to make room for a new one when every slot is
+#: held, s (a connection just made, whose first request is on its way, is not)
+EVICT_IDLE_S = 1.0
 #: a client that completed no request this long is closed, s (default of
 #: ``ControlServer(idle_s=...)``; bytes of an unfinished line do not count)
 IDLE_S = 60.0
@@ -100,7 +108,8 @@ class ControlServer:
 
     def __init__(self, path: str | Path, handle: Callable[[bytes], bytes], *, mode: int = 0o660,
                  max_line: int = protocol.MAX_LINE, max_clients: int = 64,
-                 max_pending: int = 1 << 20, idle_s: float = IDLE_S):
+                 max_pending: int = 1 << 20, idle_s: float = IDLE_S,
+                 evict_idle_s: float | None = EVICT_IDLE_S):
         self.path = str(path)
         self.handle = handle
         self.mode = mode
@@ -108,6 +117,9 @@ class ControlServer:
         self.max_clients = max_clients
         self.max_pending = max_pending
         self.idle_s = idle_s
+        #: a client silent this long may be closed for a new one when every slot is held, s
+        #: (None: never; the reserved control slots and the refusal at the door remain)
+        self.evict_idle_s = evict_idle_s
         self._next_sweep = 0.0
         self._sel = selectors.DefaultSelector()
         self._lsock: socket.socket | None = None
@@ -119,7 +131,8 @@ class ControlServer:
         self._pushing: dict[int, _Client] = {}  # clients with a push subscription
         self._owns_path = False
         self.stats = {"connections": 0, "requests": 0, "dropped_clients": 0,
-                      "too_long": 0, "refused_clients": 0, "deferred": 0, "pushed": 0,
+                      "too_long": 0, "refused_clients": 0, "evicted_clients": 0, "deferred": 0,
+                      "pushed": 0,
                       "idle_closed": 0}
 
     # --- life cycle ---------------------------------------------------------------------
@@ -220,6 +233,26 @@ class ControlServer:
                 self.stats["idle_closed"] += 1
                 self._close(c)
 
+    def _evict_idlest(self) -> bool:
+        """Close the client idle longest (no request in flight, no stream, silent for
+        ``evict_idle_s``) with one error line, to make room for a new one. False when
+        every held connection is busy or fresh."""
+        now = time.monotonic()
+        idle = [c for c in self._clients.values()
+                if c.waiting is None and c.push is None and not c.closed and not c.wbuf
+                and now - c.last >= self.evict_idle_s]
+        if not idle:
+            return False
+        c = min(idle, key=lambda c: c.last)
+        self.stats["evicted_clients"] += 1
+        try:
+            c.sock.send(protocol.error(None, f"closed: every slot (max {self.max_clients}) "
+                                             "was held and this connection was idle longest"))
+        except OSError:
+            pass
+        self._close(c)
+        return True
+
     # --- pushed lines (the live stream) ---------------------------------------------------
     def _push_timeout(self) -> float | None:
         sweep = max(0.0, self._next_sweep - time.monotonic()) if self._clients else None
@@ -265,6 +298,8 @@ class ControlServer:
                 self.stats["refused_clients"] += 1
             return
         self.stats["connections"] += 1
+        if len(self._clients) >= self.max_clients and self.evict_idle_s is not None:
+            self._evict_idlest()
         reserved = len(self._clients) >= self.max_clients
         if reserved and sum(c.reserved for c in self._clients.values()) >= RESERVED:
             self.stats["refused_clients"] += 1

@@ -77,7 +77,7 @@ def test_ctl_refused_at_the_door_says_so_never_exit_0(tmp_path, capsys, monkeypa
     gets EPIPE on its send: `rigd ctl` says "too many clients" in one line, exit 2 — it was
     exit 0 with no output (the CLI took the socket's broken pipe for a closed stdout)."""
     with ControlServer(tmp_path / "s.sock", Dispatcher(FakeLoop()).handle_line,
-                       max_clients=1) as srv:
+                       max_clients=1, evict_idle_s=None) as srv:
         held = []
         for _ in range(1 + RESERVED):        # the one slot and the ones kept for control
             held.append(socket.socket(socket.AF_UNIX, socket.SOCK_STREAM))

@@ -21,7 +21,8 @@ from rigd.service.server import RESERVED, ControlServer
 def served(tmp_path):
     loop = FakeLoop()
     disp = Dispatcher(loop, info=lambda: {"pid": os.getpid()})
-    srv = ControlServer(tmp_path / "rigd.sock", disp.handle_line, max_line=4096, max_clients=8)
+    srv = ControlServer(tmp_path / "rigd.sock", disp.handle_line, max_line=4096, max_clients=8,
+                        evict_idle_s=None)     # the refusal at the door (eviction: below)
     with srv:
         yield srv, loop, disp
 
@@ -173,7 +174,8 @@ def test_a_full_daemon_keeps_a_slot_for_control_and_says_it_is_full(tmp_path):
     full (it once said "reply id None does not match"). A nested line there is refused, and
     the server goes on serving (a RecursionError in its thread would have ended it)."""
     loop = _SafeFake()
-    srv = ControlServer(tmp_path / "rigd.sock", Dispatcher(loop).handle_line, max_clients=8)
+    srv = ControlServer(tmp_path / "rigd.sock", Dispatcher(loop).handle_line, max_clients=8,
+                        evict_idle_s=None)
     srv.start()
     socks = []
     for _ in range(8):
@@ -323,3 +325,48 @@ def test_a_stopped_push_ends_the_client_stream_at_once(tmp_path):
         with pytest.raises(ControlError, match="push stopped: internal error: ValueError"):
             next(it)
         c.close()
+
+
+def test_idle_clients_make_room_for_a_new_one_busy_ones_do_not(tmp_path):
+    """Every slot held by idle connections: a new client's query is served (not refused at
+    the door) — the connection idle longest is closed with one line saying why; a client
+    whose request is still being answered is never the one closed."""
+    import time
+    from concurrent.futures import Future
+
+    pending: Future = Future()
+
+    def handle(line):
+        req = json.loads(line)
+        if req["cmd"] == "slow":
+            return pending
+        return json.dumps({"id": req["id"], "ok": True, "result": {"pong": True}}).encode() \
+            + b"\n"
+
+    with ControlServer(tmp_path / "s.sock", handle, max_clients=3, evict_idle_s=0.05) as srv:
+        busy = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        busy.settimeout(30)
+        busy.connect(srv.path)
+        busy.sendall(b'{"id": 1, "cmd": "slow"}\n')     # its answer is on its way
+        idle = []
+        for _ in range(2):
+            idle.append(socket.socket(socket.AF_UNIX, socket.SOCK_STREAM))
+            idle[-1].settimeout(30)
+            idle[-1].connect(srv.path)
+        while srv.stats["connections"] < 3 or srv.stats["requests"] < 1:
+            time.sleep(0.01)
+        time.sleep(0.1)                                   # all three silent for > 0.05 s
+        with ControlClient(srv.path, timeout=30) as c1:   # one idle closed for it
+            assert c1.call("ping") == {"pong": True}
+            assert srv.stats["evicted_clients"] == 1
+            closed = idle[0].recv(4096)                  # the idlest: the older idle one
+            assert b"idle longest" in closed and b"max 3" in closed, closed
+            time.sleep(0.1)
+            with ControlClient(srv.path, timeout=30) as c2:   # and the next one for this one
+                assert c2.call("ping") == {"pong": True}
+            assert srv.stats["evicted_clients"] == 2
+            assert b"idle longest" in idle[1].recv(4096)  # idle since before c1's answer
+        pending.set_result(b'{"id": 1, "ok": true, "result": {}}\n')
+        assert json.loads(busy.recv(4096))["id"] == 1   # the busy one was kept and answered
+        for s in [busy, *idle]:
+            s.close()

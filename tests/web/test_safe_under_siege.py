@@ -12,7 +12,9 @@ client that completed no request for ``--client-idle-s`` (60 s by default, count
 connection for a client that never sends a whole request — bytes of an unfinished line do not
 count), and on a busy machine the `rigd ctl` calls here take longer than that, so this daemon
 runs with an idle time longer than the test can last (``IDLE_S``) and the held connections
-stay silent.
+stay silent; nor about making room (by default an idle connection is closed for a newcomer
+when every slot is held: tests/faults/test_faults_liveness.py), so this daemon runs with
+``--client-evict-s never``.
 Then ``enable`` is refused while the fault is latched (CLI exit 2, HTTP 409, the fault's text)
 and SIGUSR1 is SAFE too."""
 
@@ -144,7 +146,8 @@ class _Siege:
 def test_safe_latches_within_250_cycles_with_every_slot_taken(tmp_path):
     streams, idle = [], []
     siege = None
-    with daemon_and_web(tmp_path, daemon_args=("--client-idle-s", str(IDLE_S))) as (d, web):
+    with daemon_and_web(tmp_path, daemon_args=("--client-idle-s", str(IDLE_S),
+                                               "--client-evict-s", "never")) as (d, web):
         try:
             for _ in range(N_STREAMS):
                 streams.append(_open_stream(web.url, web.token))
