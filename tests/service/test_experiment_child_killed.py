@@ -43,7 +43,7 @@ def test_a_killed_experiment_process_fails_the_experiment_and_the_loop_cycles_on
         assert "killed by SIGKILL" in exp["message"] and "records kept" in exp["message"], exp
         man = json.loads((Path(exp["run_dir"]) / "manifest.json").read_text())
         kept = [f for f in man["files"] if f.get("complete") is False]
-        assert kept and kept[0]["n_frames"] < 30 * 5000, (man["files"], open("/tmp/dlog.txt", "w").write(d.log()))
+        assert kept and kept[0]["n_frames"] < 30 * 5000, man["files"]   # not the whole 60 s
         st = d.ctl_json("status")
         assert st["running"] and st["fault"]["code"] == 0, st
         seq = st["seq"]
