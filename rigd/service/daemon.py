@@ -80,7 +80,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(default 60; bytes of an unfinished line do not count)")
     g.add_argument("--client-evict-s", type=_nonnegative_or_never, default=None, metavar="S",
                    help="when every client slot is held, close the client idle longest (at "
-                        "least S seconds) to make room for a new one (default 1; 'never': "
+                        "least S seconds) to make room for a new one (default 0; 'never': "
                         "a full daemon refuses new clients but the few kept for control)")
     g.add_argument("--runs-dir", default="runs", metavar="DIR",
                    help="where experiments started over the socket write their runs")

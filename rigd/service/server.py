@@ -8,10 +8,9 @@ silent or hostile client can never block another one or the loop:
 * a client that does not read its replies is disconnected once ``max_pending`` bytes of
   replies are waiting;
 * when ``max_clients`` connections are held and another arrives, the one idle longest (no
-  request in flight, no stream, silent for ``evict_idle_s``, default :data:`EVICT_IDLE_S`) is
-  closed with one
-  error line to make room: idle connections can never lock the operator out, whatever
-  their number;
+  request in flight, no stream, silent for ``evict_idle_s``, default :data:`EVICT_IDLE_S`:
+  any) is closed with one error line to make room: idle connections can never lock the
+  operator out, whatever their number;
 * beyond ``max_clients`` busy connections, :data:`RESERVED` more are accepted for control only
   (:data:`rigd.service.protocol.CONTROL`: ``safe``, reset, the controller, the operating
   point, experiments — a query or a stream there gets one error line saying the daemon is
@@ -57,8 +56,10 @@ from rigd.service.listen import listen
 #: connections accepted beyond ``max_clients``, for control commands only (protocol.CONTROL)
 RESERVED = 4
 #: a client silent this long may be closed to make room for a new one when every slot is
-#: held, s (a connection just made, whose first request is on its way, is not)
-EVICT_IDLE_S = 1.0
+#: held, s. 0: any idle one, the longest idle first — the newcomer is always the freshest, and
+#: a burst of connections is accepted faster than their first requests arrive, so a minimum
+#: age would only let a flood of fresh idle connections lock the operator out
+EVICT_IDLE_S = 0.0
 #: a client that completed no request this long is closed, s (default of
 #: ``ControlServer(idle_s=...)``; bytes of an unfinished line do not count)
 IDLE_S = 60.0

@@ -61,7 +61,9 @@ def _ctl(d, *args):
 
 
 def _status(d):
-    return json.loads(_ctl(d, "status", "--json").stdout)
+    r = _ctl(d, "status", "--json")
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout)
 
 
 def _assert_contiguous(fr, at_least):
