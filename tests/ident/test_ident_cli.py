@@ -76,7 +76,9 @@ def test_silverbox_linear_1dof(tmp_path, capsys):
         pytest.skip("Silverbox data not available")
     common = ["--fs", "10000000/16384", "--inputs", "V1", "--outputs", "V2"]
     out = tmp_path / "sb.yaml"
-    assert main(["identify", str(path), *common, "--range", "40000:", "--offset-samples",
+    # 30,000 samples of the multisine part (~49 s, a third of it) keep every bound below with
+    # margin (measured: f_n 69.6 Hz, fit 88 %, arrow 74 %)
+    assert main(["identify", str(path), *common, "--range", "40000:70000", "--offset-samples",
                  "100000", "--no-median", "-o", str(out), "--json"]) == 0
     js = json.loads(capsys.readouterr().out)
     f_n = js["readouts"]["modes"][0]["f_n_hz"]
