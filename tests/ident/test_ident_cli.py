@@ -15,10 +15,12 @@ from rigd.ident.modelfile import load_model
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
+    """1.2 s records at 5 kHz (PRBS, a held-out PRBS, run-out): fits ~98 % (identify, compare)
+    and ~93 % with a delay added, above the bounds of the tests (95 %, 90 %)."""
     d = tmp_path_factory.mktemp("ident")
-    write_csv(d / "prbs.csv", rotor_record(n=9000, seed=11, omega_rpm=3000, runout=1.0))
-    write_csv(d / "prbs2.csv", rotor_record(n=9000, seed=12, omega_rpm=3000, runout=1.0))
-    write_csv(d / "runout.csv", rotor_record(n=9000, seed=13, omega_rpm=3000, runout=1.0,
+    write_csv(d / "prbs.csv", rotor_record(n=6000, seed=11, omega_rpm=3000, runout=1.0))
+    write_csv(d / "prbs2.csv", rotor_record(n=6000, seed=12, omega_rpm=3000, runout=1.0))
+    write_csv(d / "runout.csv", rotor_record(n=6000, seed=13, omega_rpm=3000, runout=1.0,
                                              excite=False, kind="runout"))
     return d
 
