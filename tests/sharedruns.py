@@ -18,8 +18,8 @@ import os
 import pickle
 import shutil
 from collections.abc import Callable
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 import pytest
 
