@@ -8,15 +8,18 @@ the session's pytest base folder (under pytest-xdist its parent, which the worke
 An exclusive ``flock`` per name: the first process makes the folder, the others wait for it
 and read it; a failed attempt leaves no ``.done`` mark and the next process makes it anew
 (so a failure is reported by every test that needs the folder, never hidden).
+:func:`shared_value` is the same for one picklable result (a diagnosis, a fit).
 """
 
 from __future__ import annotations
 
 import fcntl
 import os
+import pickle
 import shutil
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -61,3 +64,31 @@ def shared_folder(name: str, make: Callable[[Path], None],
             make(out)
             done.touch()
     return out
+
+
+def shared_value(name: str, make: Callable[[], Any],
+                 tmp_path_factory: pytest.TempPathFactory) -> Any:
+    """``make()``, computed by the first process of the run that asks and read back (pickled
+    in ``root/name``) by every other one: an expensive result two test modules, or two tests
+    of one module on two pytest-xdist workers, share.
+
+    Parameters
+    ----------
+    name : str
+        The folder's name under :func:`shared_root` (one name per result).
+    make : callable
+        Returns the result (picklable); raises or fails an assertion when it cannot.
+    tmp_path_factory : pytest.TempPathFactory
+        The session's, for the root when ``$RIGD_TEST_SHARED`` is not set.
+
+    Returns
+    -------
+    object
+        A fresh copy of the result (unpickled for each call: a test may change it).
+    """
+    def write(out: Path) -> None:
+        value = make()
+        out.mkdir()
+        (out / "value.pkl").write_bytes(pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
+
+    return pickle.loads((shared_folder(name, write, tmp_path_factory) / "value.pkl").read_bytes())

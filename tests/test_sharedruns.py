@@ -11,7 +11,7 @@ import textwrap
 import time
 
 import pytest
-from sharedruns import ENV, shared_folder
+from sharedruns import ENV, shared_folder, shared_value
 from testpaths import ROOT
 
 
@@ -68,3 +68,17 @@ def test_a_second_process_waits_for_the_first(tmp_path, tmp_path_factory, monkey
         assert (out / "by").read_text() == "child"
     finally:
         assert child.wait(timeout=120) == 0
+
+
+def test_shared_value_made_once_read_back_as_a_copy(tmp_path, tmp_path_factory, monkeypatch):
+    monkeypatch.setenv(ENV, str(tmp_path))
+    calls = []
+
+    def make():
+        calls.append(1)
+        return {"fit": [1.0, 2.0]}
+
+    a = shared_value("value", make, tmp_path_factory)
+    a["fit"].append(3.0)                       # a test changing its copy changes no other
+    assert shared_value("value", make, tmp_path_factory) == {"fit": [1.0, 2.0]}
+    assert len(calls) == 1

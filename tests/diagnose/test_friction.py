@@ -69,14 +69,28 @@ def stage(seed=0, fs=1000.0, n=12000, m=95.0, c=200.0, fc=20.0, closed=True, uni
     return Record({"tau_N": force, "q": q}, fs, meta, f"<stage seed {seed}>")
 
 
+def _free_stage():
+    return stage(seed=3, closed=False, m=10.0, c=30.0, fc=5.0)
+
+
+@pytest.fixture(scope="module")
+def free_stage_diagnosis(tmp_path_factory):
+    """The default diagnosis of the free stage (``_free_stage``), made once per test run
+    (tests/sharedruns.py: both tests below read it, on whichever worker they run)."""
+    from sharedruns import shared_value
+
+    return shared_value("diagnosis-friction-free-stage",
+                        lambda: diagnose_record(_free_stage()), tmp_path_factory)
+
+
 # a default diagnosis of 12,000 samples (the restoring-force hysteresis's RK4 refits among
 # its screened effects): ≈ 5 min at load 10 on the 2-core machine, over 10 min at load 25
 @pytest.mark.timeout(1800)
-def test_dry_friction_named_with_its_size_and_error_falls():
+def test_dry_friction_named_with_its_size_and_error_falls(free_stage_diagnosis):
     """Coulomb friction of 5 N on a 10 kg stage under a random force: ``friction`` named, the
     held-out error falls ≥ 3×, the refitted Coulomb force (through the base's input gain) is
     the true 5 N within 30 %; the free mass is named an integrator from the base."""
-    d = diagnose_record(stage(seed=3, closed=False, m=10.0, c=30.0, fc=5.0))
+    d = free_stage_diagnosis
     out = d.to_json()
     named = [f["effect"] for f in out["findings"] if f["significant"]]
     assert "friction" in named and "friction" in [s["added"] for s in out["steps"]], named
@@ -90,13 +104,13 @@ def test_dry_friction_named_with_its_size_and_error_falls():
 
 
 @pytest.mark.timeout(3600)  # two default diagnoses of the stage (see above)
-def test_friction_rescaled_same_diagnosis():
+def test_friction_rescaled_same_diagnosis(free_stage_diagnosis):
     """The same stage with the position × 1000 (m → mm) and the rate × 1000: the same
     findings, steps and fits (±0.1 point; tests/diagnose/test_metamorphic.py's digest)."""
     import test_metamorphic as M
 
-    rec = stage(seed=3, closed=False, m=10.0, c=30.0, fc=5.0)
-    ref = M._digest(diagnose_record(rec))
+    rec = _free_stage()
+    ref = M._digest(free_stage_diagnosis)
     assert "friction" in [added for added, _ in ref[1]], ref
     sy, sr = 1e3, 1e3
     M._same(ref, M._digest(diagnose_record(M._variant(rec, 1.0, sy, sr)), sr))

@@ -20,13 +20,23 @@ def _ident(rec, **kw):
     return sub.submodels["generic"], sub.split["base"]
 
 
+@pytest.fixture(scope="module")
+def default_model(rec):
+    """``identify`` with the defaults on ``rec``, fitted once (three tests read it)."""
+    return api.identify(rec, "generic").model
+
+
+def _default(model):
+    return model.submodels["generic"], model.split["base"]
+
+
 def _diag(rec, **kw):
     d = api.diagnose(rec, effects="delay", **kw).diagnosis
     return d.parts[0], d.to_json()["base"]["generic"]
 
 
-def test_diagnose_base_is_identify_model(rec):
-    sm, base_i = _ident(rec)
+def test_diagnose_base_is_identify_model(rec, default_model):
+    sm, base_i = _default(default_model)
     part, base_d = _diag(rec)
     assert list(sm.structure.names) == list(part.steps[0].structure.names)
     np.testing.assert_allclose(part.steps[0].theta, sm.theta, rtol=1e-9, atol=1e-12)
@@ -43,17 +53,18 @@ def test_identify_default_method_is_the_papers_on_the_rotor_and_diagnoses_on_a_g
     assert exc.value.where == "--method"
 
 
-def test_identify_pem_on_a_generic_record_is_another_model(rec):
+def test_identify_pem_on_a_generic_record_is_another_model(rec, default_model):
     """The default matters: the same record by PEM is a different fit (so the equality above
     is the defaults', not a coincidence)."""
-    sm, _ = _ident(rec)
+    sm, _ = _default(default_model)
     sm_pem, base_pem = _ident(rec, method="pem")
     assert base_pem["method"] == "pem" and sm.method == "oe"
     assert not np.allclose(sm_pem.theta, sm.theta, rtol=1e-6)
 
 
-def test_init_is_honoured_by_both(rec, tmp_path):
-    sm, base_i = _ident(rec, out=tmp_path / "m.yaml")
+def test_init_is_honoured_by_both(rec, default_model, tmp_path):
+    sm, base_i = _default(default_model)
+    default_model.save(tmp_path / "m.yaml")              # what ``out=`` writes
     assert base_i["start"] == "automatic"
     sm2, base_i2 = _ident(rec, init=tmp_path / "m.yaml")
     part2, base_d2 = _diag(rec, init=tmp_path / "m.yaml")

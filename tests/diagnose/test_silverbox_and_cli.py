@@ -10,9 +10,14 @@ from rigd.diagnose import residual as R
 
 
 def test_silverbox_cubic_first_and_error_halved(capsys, tmp_path):
+    """Estimated on 12,000 samples of the multisine part (20 s; the whole part, 91,000
+    samples, names the same at several times the cost), validated on the arrow (the first
+    40,000 samples, amplitude rising past the multisine's): the error falls ~10× with cubic
+    stiffness (≥ 2× asserted; 12,000 other multisine samples give ~6× on the arrow's first
+    half)."""
     path = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
     rc = main(["diagnose", str(path), "--fs", "610.3515625", "--inputs", "V1", "--outputs", "V2",
-               "--est", "40600:", "--val", "0:40000", "--json", "--report", str(tmp_path)])
+               "--est", "40600:52600", "--val", "0:40000", "--json", "--report", str(tmp_path)])
     assert rc == 0
     out = json.loads(capsys.readouterr().out)
     top = out["findings"][0]

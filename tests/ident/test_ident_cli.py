@@ -15,10 +15,12 @@ from rigd.ident.modelfile import load_model
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
+    """1.2 s records at 5 kHz (PRBS, a held-out PRBS, run-out): fits ~98 % (identify, compare)
+    and ~93 % with a delay added, above the bounds of the tests (95 %, 90 %)."""
     d = tmp_path_factory.mktemp("ident")
-    write_csv(d / "prbs.csv", rotor_record(n=9000, seed=11, omega_rpm=3000, runout=1.0))
-    write_csv(d / "prbs2.csv", rotor_record(n=9000, seed=12, omega_rpm=3000, runout=1.0))
-    write_csv(d / "runout.csv", rotor_record(n=9000, seed=13, omega_rpm=3000, runout=1.0,
+    write_csv(d / "prbs.csv", rotor_record(n=6000, seed=11, omega_rpm=3000, runout=1.0))
+    write_csv(d / "prbs2.csv", rotor_record(n=6000, seed=12, omega_rpm=3000, runout=1.0))
+    write_csv(d / "runout.csv", rotor_record(n=6000, seed=13, omega_rpm=3000, runout=1.0,
                                              excite=False, kind="runout"))
     return d
 
@@ -76,7 +78,9 @@ def test_silverbox_linear_1dof(tmp_path, capsys):
         pytest.skip("Silverbox data not available")
     common = ["--fs", "10000000/16384", "--inputs", "V1", "--outputs", "V2"]
     out = tmp_path / "sb.yaml"
-    assert main(["identify", str(path), *common, "--range", "40000:", "--offset-samples",
+    # 30,000 samples of the multisine part (~49 s, a third of it) keep every bound below with
+    # margin (measured: f_n 69.6 Hz, fit 88 %, arrow 74 %)
+    assert main(["identify", str(path), *common, "--range", "40000:70000", "--offset-samples",
                  "100000", "--no-median", "-o", str(out), "--json"]) == 0
     js = json.loads(capsys.readouterr().out)
     f_n = js["readouts"]["modes"][0]["f_n_hz"]
