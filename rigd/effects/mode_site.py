@@ -193,14 +193,16 @@ class ModeEffect(Effect):
         return np.concatenate([[1.0], self.law_start(1.0, 1.0, np.zeros(0))])
 
     def param_bounds(self, base):
+        """The mode's index within [0.5, pairs + 0.5] (an index, held: never at a bound),
+        the law's own bounds."""
         nc = max(int(getattr(base_of(base), "nc", 1) or 1), 1)
         lo, hi = self.law_bounds(None)
-        return np.array([1.0] + lo), np.array([float(nc)] + hi)
+        return np.array([0.5] + lo), np.array([nc + 0.5] + hi)
 
     def record_bounds(self, base, rec):
         nc = max(int(getattr(base_of(base), "nc", 1) or 1), 1)
         lo, hi = self.law_bounds(float(np.max(rec.u_spread)))
-        return np.array([1.0] + lo), np.array([float(nc)] + hi)
+        return np.array([0.5] + lo), np.array([nc + 0.5] + hi)
 
     def law_bounds(self, spread: float | None) -> tuple[list[float], list[float]]:
         raise NotImplementedError
