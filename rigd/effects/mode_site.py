@@ -8,14 +8,16 @@ mode by a parameter ``<name>_mode`` (the pair's index in the base, 1-based, held
 fit) and is worded by the mode's frequency ("a joint at the 7.8 Hz mode").
 
 * ``joint`` — an Iwan element: :data:`N_SLIDERS` Jenkins elements (a spring in series with a
-  Coulomb slider) with slip forces spread evenly up to ``joint_fslip`` (input unit). The base's
+  Coulomb slider) with slip forces spread evenly up to ``joint_fslip`` (input unit) over a
+  share ``joint_spread`` of it (0: one Jenkins element, 1: from zero). The base's
   mode is the joint stuck; as the sliders slip the mode softens by up to ``joint_share`` of
   its stiffness and the hysteresis loops dissipate: stiffness and damping that depend on
   amplitude.
 * ``clearance`` — a dead-zone spring: ``clearance_share`` · ω² beyond a gap whose force in the
   mode's linear spring is ``clearance_gapf`` (input unit): the mode stiffens with amplitude.
-* ``mode_cubic`` — a cubic stiffness on the mode: φ = c3 ω² q (ω² q)² (``mode_cubic_c3`` per
-  input unit squared).
+* ``mode_cubic`` — a stiffening cubic spring on the mode: φ = c3 ω² q (ω² q)², c3 ≥ 0
+  (``mode_cubic_c3`` per input unit squared; a softening cubic loses the stiffness at a finite
+  amplitude, a softening that levels off is the joint's).
 
 Which mode: the signature of each law is regressed, mode by mode, for every lightly damped
 pair where the input has power; the mode whose regressors explain the most of the held-out
@@ -104,11 +106,15 @@ class ModeEffect(Effect):
         """(kernel parameters, sliders, added stiffness rad²/s²) from the effect's own."""
         raise NotImplementedError
 
-    def law_start(self, w2: float, q_std: float, beta: np.ndarray) -> np.ndarray:
+    def law_starts(self, w2: float, q_std: float) -> list[np.ndarray]:
+        """Plausible sizes of the law on a mode of ω² = ``w2`` whose coordinate has the
+        spread ``q_std``: the nonlinear signatures and the refit's starts."""
         raise NotImplementedError
 
     # --- mode choice ---------------------------------------------------------------------
     def mode_regressors(self, base, theta_b, data, k: int, est: slice) -> tuple[list, dict]:
+        """First-order signature of the law on mode ``k``: the output change of each of
+        :meth:`forces` fed into the mode; and the mode's ``info`` (NM.mode_force)."""
         info = NM.mode_force(base, theta_b, data, k)
         q, v = info["q"], info["v"]
         qs, vs = max(q[est].std(), 1e-300), max(v[est].std(), 1e-300)
@@ -116,58 +122,76 @@ class ModeEffect(Effect):
         fs = float(data.fs)
         return [NM.force_response(info, f, fs) for f in self.forces(q / qs, v / vs)], info
 
-    def choose_mode(self, structure, theta, data, residual, est: slice
-                    ) -> tuple[int, dict[int, float]]:
-        """(the mode whose regressors explain most of the ``residual`` on ``est``, {mode:
-        share}): every mode has as many regressors, so the in-sample shares compare
-        (held out, a long modal transient at the record's start can flip them); (0, {})
-        when the base excites none."""
+    def scan(self, structure, theta, data, residual, est: slice) -> dict[int, dict]:
+        """Per excited mode (:func:`in_band_modes`): the first-order regressors plus the
+        output change of the law at the size of :meth:`law_starts` that explains most of
+        the ``residual`` on ``est`` (a strong joint's first-order signature is poor: the
+        base's mode is a compromise of amplitudes); ``score`` the in-sample share of all
+        of them (every mode has as many regressors, so the shares compare; held out, a long
+        modal transient at the record's start can flip them), ``starts`` the sizes ranked."""
         base, tb = _base_theta(structure, theta)
-        scores = {}
+        ext = self.extend(base)
+        y0 = np.asarray(base.simulate(tb, data), float)
+        out = {}
         for k in in_band_modes(base, tb, data, est):
             try:
-                regs, _ = self.mode_regressors(base, tb, data, k, est)
+                regs, info = self.mode_regressors(base, tb, data, k, est)
             except ValueError:
                 continue
-            scores[k] = _share(regs, residual, est, est)
-        if not scores:
+            cands = []
+            d0 = self.direct_start(base, info)
+            for p in self.law_starts(info["w2"], info["q_std"]):
+                p = np.r_[p, d0]
+                try:
+                    dy = np.asarray(ext.simulate(np.r_[tb, float(k), p], data), float) - y0
+                except (ValueError, FloatingPointError):
+                    continue
+                if np.all(np.isfinite(dy)) and np.any(dy):
+                    cands.append((_share([dy], residual, est, est), p, dy))
+            cands.sort(key=lambda c: -c[0])
+            full = regs + [cands[0][2]] if cands else regs
+            out[k] = {"score": _share(full, residual, est, est), "regs": full, "info": info,
+                      "starts": [c[1] for c in cands]}
+        return out
+
+    def choose_mode(self, structure, theta, data, residual, est: slice
+                    ) -> tuple[int, dict[int, dict]]:
+        """(the mode of the highest :meth:`scan` score, the scan); (0, {}) when the base
+        excites no mode."""
+        sc = self.scan(structure, theta, data, residual, est)
+        if not sc:
             return 0, {}
-        return max(scores, key=scores.get), scores
+        return max(sc, key=lambda k: sc[k]["score"]), sc
 
     def _signature(self, ctx):
-        k, scores = self.choose_mode(ctx.structure, ctx.theta, ctx.data, ctx.residual,
-                                     ctx.est)
-        ctx.cache[("mode", self.name)] = (k, scores)
-        if not k:
-            return signature_fit(ctx, [])
-        base, tb = _base_theta(ctx.structure, ctx.theta)
-        regs, info = self.mode_regressors(base, tb, ctx.data, k, ctx.est)
-        ctx.cache[("mode_info", self.name)] = info
-        return signature_fit(ctx, regs)
+        k, sc = self.choose_mode(ctx.structure, ctx.theta, ctx.data, ctx.residual, ctx.est)
+        ctx.cache[("mode", self.name)] = (k, sc)
+        return signature_fit(ctx, sc[k]["regs"] if k else [])
+
+    def refit_starts(self, ctx, sig) -> list[np.ndarray | None]:
+        """The two sizes of the law that explained most of the residual, at the chosen
+        mode (the refit keeps the lower estimation cost)."""
+        k, sc = ctx.cache.get(("mode", self.name), (0, {}))
+        if not k or not sc[k]["starts"]:
+            return [None]
+        return [np.r_[float(k), p] for p in sc[k]["starts"][:2]]
 
     def warm_start(self, ctx, sig):
-        k, _ = ctx.cache.get(("mode", self.name), (0, {}))
-        info = ctx.cache.get(("mode_info", self.name))
-        if not k or info is None:
-            return None
-        return np.concatenate([[float(k)], self.law_start(info["w2"], info["q_std"],
-                                                          np.asarray(sig.beta, float))])
+        return self.refit_starts(ctx, sig)[0]
 
     def start_on(self, structure, theta, data) -> np.ndarray | None:
-        """Start values on the fitted ``structure`` (``rigd identify --add``): the mode by
-        :meth:`choose_mode` on ``data``."""
+        """Start values on the fitted ``structure`` (``rigd identify --add``): the mode and
+        size by :meth:`choose_mode` on ``data``."""
         y = np.asarray(data.y, float)
         r = y - np.asarray(structure.simulate(theta, data), float)
-        k, _ = self.choose_mode(structure, theta, data, r, slice(0, len(y)))
-        if not k:
+        k, sc = self.choose_mode(structure, theta, data, r, slice(0, len(y)))
+        if not k or not sc[k]["starts"]:
             return None
-        base, tb = _base_theta(structure, theta)
-        _, info = self.mode_regressors(base, tb, data, k, slice(0, len(y)))
-        return np.concatenate([[float(k)], self.law_start(info["w2"], info["q_std"],
-                                                          np.zeros(0))])
+        return np.r_[float(k), sc[k]["starts"][0]]
 
     def explain(self, ctx, sig):
-        k, scores = ctx.cache.get(("mode", self.name), (0, {}))
+        k, sc = ctx.cache.get(("mode", self.name), (0, {}))
+        scores = {m: v["score"] for m, v in sc.items()}
         if not k:
             return f"{self.physics}: the input excites no mode of the model", {}
         base, tb = _base_theta(ctx.structure, ctx.theta)
@@ -182,7 +206,22 @@ class ModeEffect(Effect):
 
     # --- extension -------------------------------------------------------------------
     def param_names(self, base):
-        return [f"{self.name}_mode"] + [f"{self.name}_{n}" for n in self.law_names()]
+        """The mode, the law's parameters, the force's direct share of each output
+        (``<name>_d<i>``: a sensor of the mode's acceleration sees it at once)."""
+        ny = len(getattr(base_of(base), "output_names", []) or []) or 1
+        return ([f"{self.name}_mode"] + [f"{self.name}_{n}" for n in self.law_names()]
+                + [f"{self.name}_d{i + 1}" for i in range(ny)])
+
+    def _ny(self, base) -> int:
+        return len(getattr(base_of(base), "output_names", []) or []) or 1
+
+    def direct_start(self, base, info) -> np.ndarray:
+        """The direct share of each output at the start: with a feedthrough in the base
+        (sensors of acceleration) the output row on [q, q̇] is c·(−ω² q − 2ζω q̇) and the
+        share c = −(row on q)/ω²; without one, 0."""
+        if not getattr(base_of(base), "feedthrough", False):
+            return np.zeros(self._ny(base))
+        return -np.asarray(info["Cq"][:, 0], float) / info["w2"]
 
     def fixed_names(self, base):
         return [f"{self.name}_mode"]
@@ -190,19 +229,30 @@ class ModeEffect(Effect):
     def theta0_effect(self, base, data):
         """Mode 1, the law's start for a unit mode (the refit's and ``--add``'s starts are
         :meth:`warm_start` / :meth:`start_on`, on the fitted base)."""
-        return np.concatenate([[1.0], self.law_start(1.0, 1.0, np.zeros(0))])
+        return np.r_[1.0, self.law_starts(1.0, 1.0)[0], np.zeros(self._ny(base))]
 
     def param_bounds(self, base):
         """The mode's index within [0.5, pairs + 0.5] (an index, held: never at a bound),
         the law's own bounds."""
         nc = max(int(getattr(base_of(base), "nc", 1) or 1), 1)
         lo, hi = self.law_bounds(None)
-        return np.array([0.5] + lo), np.array([nc + 0.5] + hi)
+        ny = self._ny(base)
+        return (np.array([0.5] + lo + [-np.inf] * ny),
+                np.array([nc + 0.5] + hi + [np.inf] * ny))
 
     def record_bounds(self, base, rec):
         nc = max(int(getattr(base_of(base), "nc", 1) or 1), 1)
         lo, hi = self.law_bounds(float(np.max(rec.u_spread)))
-        return np.array([0.5] + lo), np.array([nc + 0.5] + hi)
+        ny = self._ny(base)
+        return (np.array([0.5] + lo + [-np.inf] * ny),
+                np.array([nc + 0.5] + hi + [np.inf] * ny))
+
+    def param_typical(self, base, rec):
+        """1 for the mode, the law's (:meth:`law_typical`), output per input spread for
+        the direct shares."""
+        ny = self._ny(base)
+        d = np.asarray(rec.y_spread, float)[:ny] / max(float(np.max(rec.u_spread)), 1e-300)
+        return np.r_[1.0, self.law_typical(rec), np.broadcast_to(d, (ny,))]
 
     def law_bounds(self, spread: float | None) -> tuple[list[float], list[float]]:
         raise NotImplementedError
@@ -218,8 +268,10 @@ class ModeEffect(Effect):
         k = int(round(te[0]))
         s = NM.mode_states(base, k)
         w2 = float(abs(np.linalg.det(base.matrices(theta_b)["A"][s:s + 2, s:s + 2])))
-        p, nel, extra = self.law_params(te[1:], w2)
-        return NM.simulate_nonlinear_mode(base, theta_b, data, k, self.law, p, nel, extra)
+        nl = len(self.law_names())
+        p, nel, extra = self.law_params(te[1:1 + nl], w2)
+        return NM.simulate_nonlinear_mode(base, theta_b, data, k, self.law, p, nel, extra,
+                                          te[1 + nl:])
 
 
 class Joint(ModeEffect):
@@ -230,27 +282,34 @@ class Joint(ModeEffect):
                "its damping rises with amplitude")
 
     def law_names(self):
-        return ["share", "fslip"]
+        return ["share", "fslip", "spread"]
 
     def forces(self, q, v):
         return [q * np.abs(q), v * np.abs(q)]
 
     def law_params(self, te, w2):
+        """Element e of :data:`N_SLIDERS` slips at fslip·(1 − spread·(N − 1 − e)/N): all
+        at fslip (spread 0, a Jenkins element), evenly from fslip/N (spread 1)."""
         share, fslip = float(te[0]), max(float(te[1]), 1e-300)
+        spread = float(np.clip(te[2], 0.0, 1.0))
         ke = share * w2 / N_SLIDERS
-        slip = fslip * np.arange(1, N_SLIDERS + 1) / N_SLIDERS
+        e = np.arange(N_SLIDERS)
+        slip = fslip * (1.0 - spread * (N_SLIDERS - 1 - e) / N_SLIDERS)
         return np.concatenate([[ke], slip]), N_SLIDERS, 0.0
 
-    def law_start(self, w2, q_std, beta):
-        share = 0.1
-        return np.array([share, share * w2 * 2.0 * q_std])
+    def law_starts(self, w2, q_std):
+        """A tenth and a third of the stiffness in the joint, the sliders slipping from
+        one and from three spreads of the coordinate, their slip forces spread evenly from
+        zero or within a fifth of the largest."""
+        return [np.array([sh, sh * w2 * a * q_std, sp]) for sh in (0.1, 0.3)
+                for a in (1.0, 3.0) for sp in (1.0, 0.2)]
 
     def law_bounds(self, spread):
         s = 1.0 if spread is None else spread
-        return [0.0, 1e-6 * s], [0.9, 1e4 * s]
+        return [0.0, 1e-6 * s, 0.0], [0.9, 1e4 * s, 1.0]
 
-    def param_typical(self, base, rec):
-        return np.array([1.0, 0.1, float(np.max(rec.u_spread))])
+    def law_typical(self, rec):
+        return np.array([0.1, float(np.max(rec.u_spread)), 0.1])
 
 
 class Clearance(ModeEffect):
@@ -269,15 +328,17 @@ class Clearance(ModeEffect):
         kc = float(te[0]) * w2
         return np.array([kc, max(float(te[1]), 0.0) / w2]), 0, kc
 
-    def law_start(self, w2, q_std, beta):
-        return np.array([0.05, w2 * 1.5 * q_std])
+    def law_starts(self, w2, q_std):
+        """A tenth and a half of the stiffness beyond gaps of a half and one and a half
+        spreads of the coordinate."""
+        return [np.array([sh, w2 * a * q_std]) for sh in (0.1, 0.5) for a in (0.5, 1.5)]
 
     def law_bounds(self, spread):
         s = 1.0 if spread is None else spread
         return [0.0, 0.0], [3.0, 1e4 * s]
 
-    def param_typical(self, base, rec):
-        return np.array([1.0, 0.05, float(np.max(rec.u_spread))])
+    def law_typical(self, rec):
+        return np.array([0.05, float(np.max(rec.u_spread))])
 
 
 class ModeCubic(ModeEffect):
@@ -295,15 +356,17 @@ class ModeCubic(ModeEffect):
     def law_params(self, te, w2):
         return np.array([float(te[0]) * w2 ** 3]), 0, 0.0
 
-    def law_start(self, w2, q_std, beta):
-        b = float(beta[0]) if beta.size else 0.0
-        return np.array([b / (q_std ** 3 * w2 ** 3) if b else 1e-3 / (w2 * q_std) ** 2])
+    def law_starts(self, w2, q_std):
+        """Stiffening by a tenth and by a half of the linear force at two spreads."""
+        return [np.array([c / (2.0 * w2 * q_std) ** 2]) for c in (0.1, 0.5)]
 
     def law_bounds(self, spread):
-        return [-np.inf], [np.inf]
+        """Stiffening only: a softening cubic loses the mode's stiffness at a finite
+        amplitude (the model diverges beyond it); a softening that levels off is a joint."""
+        return [0.0], [np.inf]
 
-    def param_typical(self, base, rec):
-        return np.array([1.0, 1.0 / max(float(np.max(rec.u_spread)), 1e-300) ** 2])
+    def law_typical(self, rec):
+        return np.array([1.0 / max(float(np.max(rec.u_spread)), 1e-300) ** 2])
 
 
 def mode_effects() -> list[ModeEffect]:

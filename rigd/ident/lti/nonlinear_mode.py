@@ -15,8 +15,9 @@ restoring force φ(q, q̇; θe) fed back into that mode only,
 
 is what structural dynamicists call a nonlinear mode (a joint in one mode's load path). The
 other blocks stay linear: the output is the base's linear simulation plus C_k (x_k − x_k^lin),
-the difference of the mode's nonlinear and linear trajectories, both integrated by the same
-RK4 kernel on sub-steps (the input held or interpolated as the base's ZOH/FOH hold), so the
+the difference of the mode's nonlinear and linear trajectories (minus the force's direct share
+of each output, for a sensor of the mode's acceleration), both integrated by the same RK4
+kernel on sub-steps (the input held or interpolated as the base's ZOH/FOH hold), so the
 kernel's own discretisation error cancels in the difference.
 
 Laws φ (:data:`LAWS`; ``p`` the law's parameters, in the input's unit):
@@ -95,13 +96,13 @@ def mode_kernel(A, bu, b, w, wa, x0, law, p, nel, sub, dt, foh):  # pragma: no c
 
     Returns
     -------
-    (xn, xl, qn) : (n, 2), (n, 2), (n,)
-        The nonlinear and the linear trajectories at the samples and the nonlinear q.
+    (xn, xl, fn) : (n, 2), (n, 2), (n,)
+        The nonlinear and the linear trajectories at the samples and φ at the samples.
     """
     n = bu.shape[0]
     xn = np.empty((n, 2))
     xl = np.empty((n, 2))
-    qn = np.empty(n)
+    fn = np.empty(n)
     z = np.zeros(max(nel, 1))
     h = dt / sub
     a = np.array([x0[0], x0[1]])
@@ -111,7 +112,7 @@ def mode_kernel(A, bu, b, w, wa, x0, law, p, nel, sub, dt, foh):  # pragma: no c
     for i in range(n):
         xn[i, 0], xn[i, 1] = a[0], a[1]
         xl[i, 0], xl[i, 1] = c[0], c[1]
-        qn[i] = w[0] * a[0] + w[1] * a[1]
+        fn[i] = _phi(w[0] * a[0] + w[1] * a[1], z, law, p)
         j = i + 1 if i + 1 < n else i
         for t in range(sub):
             for st in range(4):
@@ -136,10 +137,10 @@ def mode_kernel(A, bu, b, w, wa, x0, law, p, nel, sub, dt, foh):  # pragma: no c
                 _commit(w[0] * a[0] + w[1] * a[1], z, p)
         if not (math.isfinite(a[0]) and math.isfinite(a[1])):
             for k in range(i + 1, n):
-                xn[k, 0], xn[k, 1], qn[k] = np.nan, np.nan, np.nan
+                xn[k, 0], xn[k, 1], fn[k] = np.nan, np.nan, np.nan
                 xl[k, 0], xl[k, 1] = c[0], c[1]
             break
-    return xn, xl, qn
+    return xn, xl, fn
 
 
 def modal_frame(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -193,31 +194,39 @@ def substeps(w_max: float, fs: float) -> int:
 
 
 def simulate_nonlinear_mode(base, theta_b, data, mode: int, law: str, p: np.ndarray,
-                            nel: int = 0, w_extra: float = 0.0) -> np.ndarray:
+                            nel: int = 0, w_extra: float = 0.0,
+                            direct: np.ndarray | None = None) -> np.ndarray:
     """Output (n, ny) of ``base`` at ``theta_b`` on ``data`` with the ``mode``-th pair's
     coordinate fed back through ``law`` with parameters ``p`` (module docstring);
-    ``w_extra``: the law's largest added stiffness (rad²/s²) for the sub-step count."""
+    ``w_extra``: the law's largest added stiffness (rad²/s²) for the sub-step count;
+    ``direct`` (ny,): the force's direct share in each output, y −= direct·φ (a sensor of
+    the mode's acceleration q̈ sees the force at once: its share of the base's D)."""
     y = np.asarray(base.simulate(theta_b, data), float)
     s, Ak, bu, b, w, wa, x0, Ck = _parts(base, theta_b, data, mode)
     wn = float(np.sqrt(abs(np.linalg.det(Ak)) + max(w_extra, 0.0)))
     fs = float(data.fs)
-    xn, xl, _ = mode_kernel(np.ascontiguousarray(Ak), bu, b, w, wa, x0, LAWS[law],
-                            np.ascontiguousarray(p, dtype=float), int(nel),
-                            substeps(wn, fs), 1.0 / fs, base.hold == "foh")
-    return y + (xn - xl) @ Ck.T
+    xn, xl, fn = mode_kernel(np.ascontiguousarray(Ak), bu, b, w, wa, x0, LAWS[law],
+                             np.ascontiguousarray(p, dtype=float), int(nel),
+                             substeps(wn, fs), 1.0 / fs, base.hold == "foh")
+    y = y + (xn - xl) @ Ck.T
+    if direct is not None:
+        y = y - fn[:, None] * np.asarray(direct, float)[None, :]
+    return y
 
 
 def mode_force(base, theta_b, data, mode: int) -> dict[str, np.ndarray]:
     """The base's linear modal coordinate of the ``mode``-th pair on ``data``: ``q``, ``v``
-    (q̇) (n,), ``C`` (ny, 2) its output columns, ``A``, ``b`` (the block and the direction
-    a force enters), for signatures: the output change of a force f into the mode is
+    (q̇) (n,), ``C`` (ny, 2) its output columns (``Cq`` the same on [q, q̇]), ``A``, ``b``
+    (the block and the direction a force enters), ``w2`` (ω², rad²/s²), for signatures: the output change of a force f into the mode is
     C·(response of ẋ = A x − b f)."""
     s, Ak, bu, b, w, wa, x0, Ck = _parts(base, theta_b, data, mode)
     wn = float(np.sqrt(abs(np.linalg.det(Ak))))
     _, xl, _ = mode_kernel(np.ascontiguousarray(Ak), bu, b, w, wa, x0, 0, np.zeros(1), 0,
                            substeps(wn, float(data.fs)), 1.0 / float(data.fs),
                            base.hold == "foh")
-    return {"q": xl @ w, "v": xl @ wa, "C": Ck, "A": Ak, "b": b, "w2": wn ** 2}
+    T = np.linalg.inv(np.vstack([w, wa]))                 # x = T [q, q̇]
+    return {"q": xl @ w, "v": xl @ wa, "C": Ck, "A": Ak, "b": b, "w2": wn ** 2,
+            "Cq": Ck @ T}
 
 
 def force_response(info: dict, f: np.ndarray, fs: float) -> np.ndarray:
