@@ -132,18 +132,19 @@ def test_mode_coordinate_obeys_the_companion_equation(hold="foh"):
     assert np.max(np.abs(y - m.simulate(th, d))) > 0.05 * np.std(y)
 
 
-def test_model_file_keeps_the_mode_effect(tmp_path):
-    from rigd.ident.modelfile import ModelFile, Submodel, load_model
+def test_identify_add_joint_fits_it_and_the_model_file_keeps_it(tmp_path):
+    """``rigd identify --add joint``: the mode chosen on the fitted base, the model file
+    rebuilt into the same model."""
+    from rigd.api.modelling import identify
+    from rigd.ident.modelfile import load_model
 
-    g, _, m, th = _case("iwan")
-    d = _data(g)
-    eff = REGISTRY["joint"]
-    s0 = eff.start_on(m, th, d.slice(0, 2 * d.n // 3))
-    assert int(s0[0]) == g.truth["joint_mode"] + 1
-    ext = eff.extend(m)
-    theta = np.r_[th, s0]
-    sub = Submodel("generic", ext, theta, np.zeros_like(theta), "oe", {}, {}, {})
-    path = ModelFile(d.fs, {"generic": sub}).save(tmp_path / "m.yaml")
+    g = _case("iwan")[0]
+    path = tmp_path / "m.yaml"
+    idf = identify(g.record(), order=2 * len(MODES), hold="foh", add="joint", out=path)
+    sm = idf.model.submodels["generic"]
+    par = dict(zip(sm.structure.names, sm.theta))
+    assert par["joint_mode"] == g.truth["joint_mode"] + 1 and par["joint_share"] > 0.01
     back = load_model(path, resolve_effects=resolve).submodels["generic"]
     assert back.structure.effects == ["joint"]
-    assert np.allclose(back.structure.simulate(back.theta, d), ext.simulate(theta, d))
+    d = _data(g)
+    assert np.allclose(back.structure.simulate(back.theta, d), sm.structure.simulate(sm.theta, d))
