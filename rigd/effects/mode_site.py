@@ -88,6 +88,9 @@ class ModeEffect(Effect):
     domains = STRUCTURAL
     submodels = ("bearing", "generic")
     law = "cubic"
+    #: refitted only on a decisive signature worth the gain (rigd.diagnose.selection.screen):
+    #: each refit integrates the mode per sample
+    costly_refit = True
     linear_note = ("amplitude-dependent: the base's mode is its small-amplitude (linear) "
                    "part")
 
