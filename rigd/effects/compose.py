@@ -196,8 +196,8 @@ class Composed:
     def _core(self, tb: np.ndarray, te: list[np.ndarray], data: Any) -> Sim:
         """The base's simulation with the feedback blocks in it."""
         own = [(e, t) for e, t in zip(self.effect_list, te)
-               if ("state" in e.sites or "mode" in e.sites) and callable(getattr(e, "state_simulate", None))
-               and e.owns_state(self.base)]
+               if ("state" in e.sites or "mode" in e.sites)
+               and callable(getattr(e, "state_simulate", None)) and e.owns_state(self.base)]
         fb = self.feedback(np.concatenate([tb] + te), data)
         if own:
             if len(own) > 1:

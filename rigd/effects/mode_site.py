@@ -28,8 +28,6 @@ model.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from rigd.effects import numbers as N

@@ -37,7 +37,7 @@ def _data(g) -> IdData:
     return IdData(g.u, g.y, g.fs, list(g.inputs), list(g.outputs))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _case(name: str):
     """(record at the case's level, at the other level, the base fitted on the first)."""
     kw = dict(CASES[name])

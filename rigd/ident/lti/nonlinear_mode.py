@@ -217,8 +217,8 @@ def simulate_nonlinear_mode(base, theta_b, data, mode: int, law: str, p: np.ndar
 def mode_force(base, theta_b, data, mode: int) -> dict[str, np.ndarray]:
     """The base's linear modal coordinate of the ``mode``-th pair on ``data``: ``q``, ``v``
     (q̇) (n,), ``C`` (ny, 2) its output columns (``Cq`` the same on [q, q̇]), ``A``, ``b``
-    (the block and the direction a force enters), ``w2`` (ω², rad²/s²), for signatures: the output change of a force f into the mode is
-    C·(response of ẋ = A x − b f)."""
+    (the block and the direction a force enters), ``w2`` (ω², rad²/s²), for signatures:
+    the output change of a force f into the mode is C·(response of ẋ = A x − b f)."""
     s, Ak, bu, b, w, wa, x0, Ck = _parts(base, theta_b, data, mode)
     wn = float(np.sqrt(abs(np.linalg.det(Ak))))
     _, xl, _ = mode_kernel(np.ascontiguousarray(Ak), bu, b, w, wa, x0, 0, np.zeros(1), 0,
