@@ -19,11 +19,14 @@ fit) and is worded by the mode's frequency ("a joint at the 7.8 Hz mode").
   (``mode_cubic_c3`` per input unit squared; a softening cubic loses the stiffness at a finite
   amplitude, a softening that levels off is the joint's).
 
-Which mode: the signature of each law is regressed, mode by mode, for every lightly damped
-pair where the input has power; the mode whose regressors explain the most of the held-out
-residual is the one the effect is refitted at (:func:`choose_mode`). Every effect requires
-``mode`` (a base with modal blocks, ``rigd.effects.compose.carries``); one mode effect per
-model.
+Which mode: the signature of each law — the output change of its forces fed into the mode
+(first order) and of the law itself at a few plausible sizes — is regressed, mode by mode,
+for every lightly damped pair where the input has power; the mode whose regressors explain
+the most of the estimation residual is the one the effect is refitted at
+(:meth:`ModeEffect.choose_mode`), from the two sizes that explained most. The law's force
+also has a direct share in each output (``<name>_d<i>``): an accelerometer sees the mode's
+q̈, so the force at once. Every effect requires ``mode`` (a base with modal blocks,
+``rigd.effects.compose.carries``); one mode effect per model.
 """
 
 from __future__ import annotations
@@ -194,7 +197,7 @@ class ModeEffect(Effect):
         k, sc = ctx.cache.get(("mode", self.name), (0, {}))
         scores = {m: v["score"] for m, v in sc.items()}
         if not k:
-            return f"{self.physics}: the input excites no mode of the model", {}
+            return f"{self.physics}: the input excites no mode of the model", {"site": "mode"}
         base, tb = _base_theta(ctx.structure, ctx.theta)
         f, z = NM.mode_hz(base, tb, k)
         ev = {"site": "mode", "mode": int(k), "mode_hz": float(f), "mode_zeta": float(z),
