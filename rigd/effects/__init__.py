@@ -26,6 +26,7 @@ from rigd.effects.extra_mode import ExtraMode
 from rigd.effects.friction import Friction
 from rigd.effects.hysteresis import Hysteresis
 from rigd.effects.integrator import Integrator
+from rigd.effects.mode_site import mode_effects
 from rigd.effects.restoring_hysteresis import RestoringHysteresis
 from rigd.effects.runout import Runout
 from rigd.effects.static_nonlinearity import StaticNonlinearity
@@ -37,6 +38,8 @@ REGISTRY: dict[str, Effect] = {e.name: e for e in (
     ExtraMode(), CrossCoupling(), RestoringHysteresis(),
     # domain-neutral entries (generic records): ../shared/DESIGN.md
     StaticNonlinearity(), Friction(), Integrator(), ExtraDynamics(),
+    # restoring forces on one mode of a modal LTI base (the ``mode`` site)
+    *mode_effects(),
 )}
 
 _ORDER = {"state": 0, "input": 1, "output": 2}

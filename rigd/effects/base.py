@@ -61,12 +61,15 @@ class Effect:
     sites : tuple of str
         Where it acts in a composed model (:mod:`rigd.effects.compose`): ``input``
         (:meth:`input_block`), ``output`` (:meth:`output_block`), ``state``
-        (:meth:`state_block`, a Lur'e feedback into the base's states).
+        (:meth:`state_block`, a Lur'e feedback into the base's states), ``mode`` (a
+        restoring force on one mode's coordinate of a modal base, ``state_simulate``:
+        :mod:`rigd.effects.mode_site`).
     requires : tuple of str
         What the base model must carry (:func:`rigd.effects.compose.carries`):
         ``mechanical`` (a mechanical state-space model, p̈ + D ṗ + K p = B u, whose simulator
         takes the feedback of state-level effects), ``rotation`` (a shaft angle in the
-        record); :meth:`not_offered` says why a base cannot.
+        record), ``mode`` (a modal LTI base with complex pairs); :meth:`not_offered` says
+        why a base cannot.
     domains : tuple of str or None
         The record domains (rigd.diagnose.domain: ``rotor``, ``mechanical``, ``process``,
         ``generic``) whose physics the effect belongs to; None: every domain (the
@@ -108,6 +111,11 @@ class Effect:
             return (f"{self.name} acts on the positions and velocities of a mechanical "
                     f"model (p̈ + D ṗ + K p = B u); the base model "
                     f"({getattr(structure, 'kind', type(structure).__name__)}) is not one")
+        if "mode" in self.requires and "mode" not in has:
+            return (f"{self.name} acts on one mode's coordinate of a modal model (q̈ + 2ζω q̇ "
+                    f"+ ω² q + φ = b·u); the base model "
+                    f"({getattr(structure, 'kind', type(structure).__name__)}) has no modal "
+                    f"(complex-pair) blocks")
         if "rotation" in self.requires and "rotation" not in has:
             return (f"{self.name} is locked to a shaft angle; the record carries none (no "
                     f"'phi' column)")

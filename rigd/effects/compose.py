@@ -41,11 +41,13 @@ from rigd.ident.model import base_of
 
 __all__ = ["Composed", "compose", "carries", "SITES", "REQUIREMENTS"]
 
-#: where an effect acts: before the base, after it, or fed back into its states
-SITES = ("input", "output", "state")
+#: where an effect acts: before the base, after it, fed back into its states, or into one
+#: mode's coordinate of a modal base (rigd.ident.lti.nonlinear_mode)
+SITES = ("input", "output", "state", "mode")
 #: what an effect may require: velocity states [p, ṗ] the simulator feeds back into
-#: (``mechanical``); a shaft angle in the record (``rotation``)
-REQUIREMENTS = ("mechanical", "rotation")
+#: (``mechanical``); a shaft angle in the record (``rotation``); complex-pair blocks whose
+#: modal coordinate a restoring force can act on (``mode``)
+REQUIREMENTS = ("mechanical", "rotation", "mode")
 
 Sim = Callable[[Any], np.ndarray]
 
@@ -56,7 +58,8 @@ def carries(structure: Any, data: Any = None) -> set[str]:
     ``mechanical``: its states are [p, ṗ] (``mechanical = True``), it has a continuous
     state-space form and its simulator takes the feedback of state-level effects.
     ``rotation``: the record ``data`` has a shaft angle (``phi``); without ``data`` it is
-    not known and assumed carried.
+    not known and assumed carried. ``mode``: a general LTI model in modal form with at
+    least one complex pair (:class:`rigd.ident.lti.statespace.StateSpaceModel`).
     """
     base = base_of(structure)
     out = set()
@@ -69,6 +72,9 @@ def carries(structure: Any, data: Any = None) -> set[str]:
         out.add("mechanical")
     if data is None or get_phi(data) is not None:
         out.add("rotation")
+    if getattr(base, "kind", None) == "lti" and int(getattr(base, "nc", 0) or 0) > 0 and \
+            callable(getattr(base, "block_states", None)):
+        out.add("mode")
     return out
 
 
@@ -190,8 +196,8 @@ class Composed:
     def _core(self, tb: np.ndarray, te: list[np.ndarray], data: Any) -> Sim:
         """The base's simulation with the feedback blocks in it."""
         own = [(e, t) for e, t in zip(self.effect_list, te)
-               if "state" in e.sites and callable(getattr(e, "state_simulate", None))
-               and e.owns_state(self.base)]
+               if ("state" in e.sites or "mode" in e.sites)
+               and callable(getattr(e, "state_simulate", None)) and e.owns_state(self.base)]
         fb = self.feedback(np.concatenate([tb] + te), data)
         if own:
             if len(own) > 1:

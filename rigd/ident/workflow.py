@@ -218,6 +218,10 @@ def _with_effects(bf, applied: list[Any], sm: str, init: ModelFile | None, metho
                          f"{', '.join(e.name for e in applied)}: {exc}", "--add") from None
     th_init = start_values(composed, init, sm, bf.est_data)
     starts = [None if th_init is None else th_init[nb:]]
+    if th_init is None and len(applied) == 1 and callable(getattr(applied[0], "start_on", None)):
+        # an effect that starts from the fitted base (a mode effect: which mode, its scale)
+        s0 = applied[0].start_on(structure, res.theta, bf.est_data)
+        starts = starts if s0 is None else [s0]
     structure, res2, *_ = refit_with(structure, res.theta, applied, bf.est_data, method,
                                     starts=starts)
     if res2 is None:
