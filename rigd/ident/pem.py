@@ -11,8 +11,8 @@ with ``scipy.optimize.least_squares`` (trust-region reflective), each output wei
 the Jacobian is a forward difference of the compiled predictor (one predictor run per
 parameter) — for output error, columns of parameters the output is linear in are exact where
 the structure offers them (:mod:`rigd.ident.jacobian`: the general LTI model's B, C, D, x0
-and offsets), the optimiser's steps unchanged. Standard deviations come from the Jacobian at the optimum:
-cov θ = σ² (JᵀJ)⁻¹ with σ² = SSE / (N − p).
+and offsets), the optimiser's steps unchanged. Standard deviations come from the Jacobian
+at the optimum: cov θ = σ² (JᵀJ)⁻¹ with σ² = SSE / (N − p).
 """
 
 from __future__ import annotations

@@ -64,7 +64,7 @@ def output_sensitivities(model, theta: np.ndarray, data) -> tuple[np.ndarray, np
     if not (np.all(np.isfinite(Ad)) and np.all(np.isfinite(G0))):
         return None
     ue = np.ascontiguousarray(ue, dtype=float)
-    n, nu, ny, nx = uu.shape[0], model.nu, model.ny, model.nx
+    n, nu, ny = uu.shape[0], model.nu, model.ny
     nue = ue.shape[1]
     Bd = G0 @ B if G1 is None else np.hstack([G0 @ B, G1 @ B])
     g = model.group_slices()
