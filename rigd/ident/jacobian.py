@@ -3,7 +3,9 @@ the structure's output is linear in the parameter, forward differences elsewhere
 
 A structure that offers ``output_sensitivities(theta, data) -> (indices, dY)`` (the general
 LTI model: :mod:`rigd.ident.lti.sensitivity`) has those columns computed from a few small
-simulations; the other free parameters get the forward difference
+simulations; one whose output offsets are added at its end (:func:`additive_offsets`: the
+mechanical models, with or without state-level effects) has theirs (ones); the other free
+parameters get the forward difference
 ``scipy.optimize.least_squares`` would take itself (``approx_derivative``, the same relative
 step and bounds), so the optimiser sees the all-difference Jacobian up to rounding and takes
 the same steps, with one simulation per non-linear parameter instead of one per parameter.
@@ -13,6 +15,26 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.optimize._numdiff import approx_derivative
+
+
+def additive_offsets(structure) -> list[int]:
+    """Indices of the output offsets of ``structure`` when its output is ``(…) + y_off``
+    whatever the other parameters: a structure that says so (``additive_offsets``), alone or
+    with effects around it (rigd.effects.compose) that act on its inputs or states only and
+    leave the simulation to it (an output-site curve acts after the offset; an effect that
+    simulates the states with a model of its own may not add it); else []."""
+    base, effects = vars(structure).get("base"), vars(structure).get("effect_list")
+    if base is None or effects is None:
+        base, effects = structure, []
+    if not getattr(type(base), "additive_offsets", False):
+        return []
+    for e in effects:
+        sites = set(getattr(e, "sites", ()) or ())
+        if not sites <= {"state", "input"}:
+            return []
+        if callable(getattr(e, "state_simulate", None)) and e.owns_state(base):
+            return []
+    return [int(i) for i in (getattr(base, "offset_index", None) or [])]
 
 
 def linear_jacobian(structure, data, fun, free: np.ndarray, scale: np.ndarray,
@@ -39,11 +61,18 @@ def linear_jacobian(structure, data, fun, free: np.ndarray, scale: np.ndarray,
     # looked up on the class: a wrapper that delegates to its base (rigd.effects.compose)
     # simulates more than the base and has no such columns
     method = getattr(type(structure), "output_sensitivities", None)
-    if not callable(method):
-        return None
+    if callable(method):
+        def sens(th, d):
+            return method(structure, th, d)
+    else:
+        off = additive_offsets(structure)
+        if not off:
+            return None
 
-    def sens(th, d):
-        return method(structure, th, d)
+        def sens(th, d):     # ŷ = (…) + y_off: ∂ŷ_i/∂y_off_i = 1
+            dY = np.zeros((d.n, len(off), len(off)))
+            dY[:, np.arange(len(off)), np.arange(len(off))] = 1.0
+            return np.asarray(off, int), dY
 
     free_idx = np.flatnonzero(free)
     pos = {int(p): k for k, p in enumerate(free_idx)}
