@@ -149,6 +149,9 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
     # measure of what is reachable for the unexplained structure)
     ys = (measure(bf.data.u, bf.data.y, bf.est, bf.val, float("nan"), bf.data.fs)
           if yardstick else None)
+    from rigd.diagnose.memo import RefitMemo
+
+    memo = RefitMemo()   # a refit asked again from the same model is not fitted again
 
     def run(structure, theta, ys, worth=None, only=None):
         return diagnose_data(bf.data, sub, structure=structure, est=bf.est, val=bf.val,
@@ -156,7 +159,7 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
                              base_theta=theta, method=bf.settings.method,
                              carried_worth=worth,
                              offsets=offsets, start=bf.window[0], yardstick=ys,
-                             record_meta=record.meta,
+                             record_meta=record.meta, memo=memo,
                              # a hold chosen by the linear base is asked again with the
                              # effects
                              other_hold=({"zoh": "foh", "foh": "zoh"}[bf.hold.hold]

@@ -120,7 +120,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                   max_steps: int = MAX_STEPS, offsets: dict[str, float] | None = None,
                   start: int = 0, other_hold: str | None = None, yardstick=None,
                   record_meta: dict | None = None, method: str = "oe", base_theta=None,
-                  carried_worth: dict[str, float] | None = None) -> SubDiagnosis:
+                  carried_worth: dict[str, float] | None = None, memo=None) -> SubDiagnosis:
     """Diagnose one sub-model on identification data by forward selection (module
     docstring: a stepwise regression over the catalogue).
 
@@ -155,6 +155,9 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         Per effect the base carries, the held-out fit points it loses without it (a delay:
         rigd.ident.lti.delay_worth); below ``MIN_FIT_GAIN`` the effect is not significant
         (rigd.diagnose.selection.carried).
+    memo : rigd.diagnose.memo.RefitMemo, optional
+        Refits done by an earlier run from the same models (rigd.diagnose.diagnosis runs
+        the selection again from the same base): handed back, not fitted again.
     offsets, start : dict (optional), int
         Prefilter offsets per channel and the index of ``data``'s first sample in the
         record (levels and samples under ``unexplained`` in the record's terms).
@@ -194,7 +197,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
                      "held, so its gain in fit is a lower bound (rigd identify --add refits "
                      "the same way)")
     sel = S.Selection(ctx0, context, refit, data_est, max_nfev, method, max_steps,
-                      other_hold, [], notes)
+                      other_hold, [], notes, memo)
     sd = _stepwise(sel, ctx0, dom, names, carried_worth)
     if yardstick is not None:
         yardstick.model_fit = sd.fit_percent

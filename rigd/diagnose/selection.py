@@ -155,9 +155,10 @@ def _refitted_words(eff, ctx: Context, f: Finding, theta_e: np.ndarray) -> None:
 
 def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             cannot: list[CannotReveal] | None, method: str = "oe",
-            kept: tuple[str, ...] = ()) -> tuple[list[Finding], dict[str, Refit]]:
+            kept: tuple[str, ...] = (), memo=None) -> tuple[list[Finding], dict[str, Refit]]:
     """Signature test (and refit) of each effect in ``names`` on the model of ``ctx``
-    (``kept``: parameters every refit keeps at their start, :func:`refit_effect`).
+    (``kept``: parameters every refit keeps at their start, :func:`refit_effect`; ``memo``:
+    refits done before on the same model, rigd.diagnose.memo).
 
     ``score`` is the share of *this* model's validation error energy the effect removes;
     effects the record cannot reveal go to ``cannot`` (when given) and are skipped.
@@ -194,7 +195,9 @@ def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             if getattr(eff, "costly_refit", False)
             else sig.score > 0.005 or sig.f_p < P_LEVEL)
         if refit and worth_refit:
-            ref = refit_effect(eff, ctx, sig, data_est, max_nfev, method, kept)
+            ref = (refit_effect(eff, ctx, sig, data_est, max_nfev, method, kept)
+                   if memo is None else
+                   memo.refit(refit_effect, eff, ctx, sig, data_est, max_nfev, method, kept))
             refits[name] = ref
             if ref.sig is not None and ref.sig is not sig:  # another form of it fits
                 sig = ref.sig
@@ -287,8 +290,10 @@ class Selection:
     ``refits`` keeps each added effect's refit, ``round_refits`` the last round's."""
 
     def __init__(self, ctx0: Context, context, refit: bool, data_est, max_nfev, method: str,
-                 max_steps: int, other_hold: str | None, steps: list, notes: list[str]):
+                 max_steps: int, other_hold: str | None, steps: list, notes: list[str],
+                 memo=None):
         self.ctx0, self.context, self.refit = ctx0, context, refit
+        self.memo = memo
         self.data_est, self.max_nfev, self.method = data_est, max_nfev, method
         self.max_steps, self.other_hold = max_steps, other_hold
         self.steps, self.notes = steps, notes
@@ -300,7 +305,8 @@ class Selection:
         """(added, remaining findings on the final model, its validation error energy)."""
         ctx, err_base = self.ctx0, val_err(self.ctx0, self.ctx0.yhat)
         findings, self.round_refits = screen(ctx, names, self.refit, self.data_est,
-                                              self.max_nfev, cannot, self.method)
+                                              self.max_nfev, cannot, self.method,
+                                              memo=self.memo)
         revealable = [f.effect for f in findings]
         added: list[Finding] = []
         while True:
@@ -316,7 +322,7 @@ class Selection:
                 break
             findings, self.round_refits = screen(ctx, rest, self.refit, self.data_est,
                                                   self.max_nfev, None, self.method,
-                                                  step.fixed)
+                                                  step.fixed, self.memo)
         return added, findings, err_cur
 
     def _add(self, ctx: Context, top: Finding, added: list[Finding], err_cur: float,
@@ -335,7 +341,12 @@ class Selection:
         step = Step(top.effect, ref.fit_percent, ref.structure, ref.theta, ref.yhat,
                     ref.fixed)
         hold = self.other_hold
-        alt = try_hold(step, self.ctx0, hold, self.data_est, self.method) if hold else None
+        alt = None
+        if hold and self.memo is not None:
+            alt = self.memo.try_hold(try_hold, step, self.ctx0, hold, self.data_est,
+                                     self.method)
+        elif hold:
+            alt = try_hold(step, self.ctx0, hold, self.data_est, self.method)
         if alt is not None:
             self.notes.append(f"inputs between samples: with {top.effect} in the model, "
                               f"{hold} fits {alt.fit_percent:.2f} % against "

@@ -9,8 +9,10 @@ with ``scipy.optimize.least_squares`` (trust-region reflective), each output wei
 1/std(y). Iterations stop when the relative improvement of the cost falls below
 ``ftol = 1e-4`` (as the paper). Parameters are scaled internally by their typical size and
 the Jacobian is a forward difference of the compiled predictor (one predictor run per
-parameter). Standard deviations come from the Jacobian at the optimum:
-cov θ = σ² (JᵀJ)⁻¹ with σ² = SSE / (N − p).
+parameter) — for output error, columns of parameters the output is linear in are exact where
+the structure offers them (:mod:`rigd.ident.jacobian`: the general LTI model's B, C, D, x0
+and offsets), the optimiser's steps unchanged. Standard deviations come from the Jacobian
+at the optimum: cov θ = σ² (JᵀJ)⁻¹ with σ² = SSE / (N − p).
 """
 
 from __future__ import annotations
@@ -233,8 +235,16 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
     bounded = bool(np.any(np.isfinite(zlo) | np.isfinite(zhi)))
     # MINPACK Levenberg-Marquardt (QR) when unbounded: much cheaper than trf's SVD of the
     # tall (n·ny × p) Jacobian; trust-region reflective when an effect brings bounds.
-    sol = least_squares(fun, z0, jac="2-point", bounds=(zlo, zhi) if bounded else
-                        (-np.inf, np.inf), method="trf" if bounded else "lm",
+    zb = (zlo, zhi) if bounded else (-np.inf, np.inf)
+    jac = "2-point"
+    if method == "oe":  # exact columns where the output is linear in the parameter
+        from rigd.ident.jacobian import linear_jacobian
+
+        wy = 1.0 / np.maximum(data.y[skip:].std(axis=0), 1e-300)
+        pair = linear_jacobian(structure, data, fun, free, scale, th0, wy, skip, zb, 1e-6)
+        if pair is not None:
+            fun, jac = pair
+    sol = least_squares(fun, z0, jac=jac, bounds=zb, method="trf" if bounded else "lm",
                         ftol=ftol, xtol=1e-10, gtol=1e-10, x_scale="jac", diff_step=1e-6,
                         max_nfev=max_nfev or 100 * nfree)
     theta = th0.copy()
@@ -278,13 +288,22 @@ def evaluate(structure: Structure, data: IdData, theta: np.ndarray, *, skip: int
     th = np.asarray(theta, float).copy()
     free, scale, fun = _problem(structure, data, "oe", th, None, skip)
     z = th[free] / scale[free]
-    r0 = fun(z)
-    jac = np.empty((r0.size, z.size))
-    for k in range(z.size):
-        h = 1e-6 * max(1.0, abs(z[k]))
-        zk = z.copy()
-        zk[k] += h
-        jac[:, k] = (fun(zk) - r0) / h
+    from rigd.ident.jacobian import linear_jacobian
+
+    wy = 1.0 / np.maximum(data.y[skip:].std(axis=0), 1e-300)
+    pair = linear_jacobian(structure, data, fun, free, scale, th, wy, skip,
+                           (-np.inf, np.inf), 1e-6)
+    if pair is not None:  # exact columns where the output is linear in the parameter
+        r0 = pair[0](z)
+        jac = pair[1](z)
+    else:
+        r0 = fun(z)
+        jac = np.empty((r0.size, z.size))
+        for k in range(z.size):
+            h = 1e-6 * max(1.0, abs(z[k]))
+            zk = z.copy()
+            zk[k] += h
+            jac[:, k] = (fun(zk) - r0) / h
     cost = 0.5 * float(r0 @ r0)
     std = _std(SimpleNamespace(jac=jac, cost=cost), free, scale)
     fp = _fit_at(structure, th, data, skip)

@@ -53,6 +53,9 @@ class MechanicalStructure(Structure):
     """
     #: states [p, ṗ] (p̈ + D ṗ + K p = B u): what state-level effects act on
     mechanical = True
+    #: y = p (+ parallel modes) + y_off: the offsets' Jacobian columns are ones
+    #: (rigd.ident.jacobian.additive_offsets)
+    additive_offsets = True
 
 
     def __init__(self, kind, mask_K, mask_D, mask_B, mask_Bd, prefix="", out_labels=None,

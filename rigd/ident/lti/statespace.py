@@ -277,6 +277,14 @@ class StateSpaceModel(Structure):
         y = simulate_linear(self.linear_part(theta), m["x0"], data.u, data.fs)
         return y + m["yoff"][None, :]
 
+    def output_sensitivities(self, theta, data):
+        """(indices, ∂ŷ/∂θ[indices] (n, ny, k)) of :meth:`simulate` for the parameters
+        the output is linear in (:func:`rigd.ident.lti.sensitivity.output_sensitivities`):
+        the fit's Jacobian takes them exactly, differences only for the poles."""
+        from rigd.ident.lti.sensitivity import output_sensitivities
+
+        return output_sensitivities(self, theta, data)
+
     def predict(self, theta, data):
         m = self.matrices(theta)
         y = predict_linear(self.linear_part(theta), m["x0"], data.u, data.y - m["yoff"],

@@ -1,0 +1,129 @@
+"""The Jacobian of :func:`rigd.ident.pem.fit`'s output-error residual: exact columns where
+the structure's output is linear in the parameter, forward differences elsewhere.
+
+A structure that offers ``output_sensitivities(theta, data) -> (indices, dY)`` (the general
+LTI model: :mod:`rigd.ident.lti.sensitivity`) has those columns computed from a few small
+simulations; one whose output offsets are added at its end (:func:`additive_offsets`: the
+mechanical models, with or without state-level effects) has theirs (ones); the other free
+parameters get the forward difference
+``scipy.optimize.least_squares`` would take itself (``approx_derivative``, the same relative
+step and bounds), so the optimiser sees the all-difference Jacobian up to rounding and takes
+the same steps, with one simulation per non-linear parameter instead of one per parameter.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize._numdiff import approx_derivative
+
+
+def additive_offsets(structure) -> list[int]:
+    """Indices of the output offsets of ``structure`` when its output is ``(…) + y_off``
+    whatever the other parameters: a structure that says so (``additive_offsets``), alone or
+    with effects around it (rigd.effects.compose) that act on its inputs or states only and
+    leave the simulation to it (an output-site curve acts after the offset; an effect that
+    simulates the states with a model of its own may not add it); else []."""
+    base, effects = vars(structure).get("base"), vars(structure).get("effect_list")
+    if base is None or effects is None:
+        base, effects = structure, []
+    if not getattr(type(base), "additive_offsets", False):
+        return []
+    for e in effects:
+        sites = set(getattr(e, "sites", ()) or ())
+        if not sites <= {"state", "input"}:
+            return []
+        if callable(getattr(e, "state_simulate", None)) and e.owns_state(base):
+            return []
+    return [int(i) for i in (getattr(base, "offset_index", None) or [])]
+
+
+def linear_jacobian(structure, data, fun, free: np.ndarray, scale: np.ndarray,
+                    theta_full: np.ndarray, wy: np.ndarray, skip: int, bounds,
+                    diff_step: float):
+    """(residual function, Jacobian function) of the scaled free parameters ``z``, or None
+    when ``structure`` offers no output sensitivities.
+
+    Parameters
+    ----------
+    structure, data
+        As :func:`rigd.ident.pem.fit` (output error; the structure bound to ``data``).
+    fun : callable
+        The residual ``z -> ((y − ŷ)[skip:] · wy).ravel()`` (:func:`rigd.ident.pem.
+        _residual_fn`).
+    free, scale, theta_full, wy, skip
+        Its free mask, parameter scales, full parameter vector, output weights (1/output
+        unit) and samples left out at the start.
+    bounds : (ndarray, ndarray)
+        Bounds of ``z`` as given to the optimiser (its finite differences respect them).
+    diff_step : float
+        The optimiser's relative difference step.
+    """
+    # looked up on the class: a wrapper that delegates to its base (rigd.effects.compose)
+    # simulates more than the base and has no such columns
+    method = getattr(type(structure), "output_sensitivities", None)
+    if callable(method):
+        def sens(th, d):
+            return method(structure, th, d)
+    else:
+        off = additive_offsets(structure)
+        if not off:
+            return None
+
+        def sens(th, d):     # ŷ = (…) + y_off: ∂ŷ_i/∂y_off_i = 1
+            dY = np.zeros((d.n, len(off), len(off)))
+            dY[:, np.arange(len(off)), np.arange(len(off))] = 1.0
+            return np.asarray(off, int), dY
+
+    free_idx = np.flatnonzero(free)
+    pos = {int(p): k for k, p in enumerate(free_idx)}
+    last: dict[str, np.ndarray] = {}
+
+    def res(z):
+        r = fun(z)
+        last["z"], last["r"] = np.array(z, float, copy=True), r
+        return r
+
+    def r_at(z):
+        if "z" in last and np.array_equal(last["z"], z):
+            return last["r"]
+        return res(z)
+
+    def jac(z):
+        z = np.asarray(z, float)
+        r0 = r_at(z)
+        th = theta_full.copy()
+        th[free] = z * scale[free]
+        # at a parameter set the model cannot simulate the residual is a constant penalty:
+        # its differences (zeros) are the optimiser's, not the model's sensitivities
+        penalty = bool(r0.size) and bool(np.all(r0 == r0[0]))
+        out = None if penalty else sens(th, data)
+        lin = [] if out is None else [(pos[int(p)], k) for k, p in enumerate(out[0])
+                                      if int(p) in pos]
+        J = np.empty((r0.size, z.size))
+        if lin:
+            cols = np.array([k for _, k in lin], int)
+            where = np.array([c for c, _ in lin], int)
+            dY = out[1][skip:]
+            if cols.size < dY.shape[2] or not np.array_equal(cols, np.arange(cols.size)):
+                dY = dY[:, :, cols]
+            dY *= wy[None, :, None]
+            dY *= -scale[free_idx[where]][None, None, :]
+            J[:, where] = dY.reshape(r0.size, cols.size)
+        done = np.zeros(z.size, bool)
+        done[[c for c, _ in lin]] = True
+        if not np.all(np.isfinite(J[:, done])):
+            done[:] = False
+        rest = np.flatnonzero(~done)
+        if rest.size:
+            def sub(zr):
+                zz = z.copy()
+                zz[rest] = zr
+                return fun(zz)
+
+            lo, hi = (np.broadcast_to(np.asarray(b, float), z.shape)[rest] for b in bounds)
+            J[:, rest] = np.atleast_2d(approx_derivative(
+                sub, z[rest], method="2-point", rel_step=diff_step, f0=r0,
+                bounds=(lo, hi))).reshape(r0.size, rest.size)
+        return J
+
+    return res, jac
