@@ -154,9 +154,11 @@ def test_large_file_in_several_blocks_locates_late_error(tmp_path):
 
 
 def test_silverbox_raw_refused_then_loaded_with_fs(tmp_path):
-    from testpaths import SHARED
+    """The Silverbox raw CSV as the repository ships it (examples/data, gzip: read as the
+    plain file) — a clone needs nothing beside it."""
+    from testpaths import ROOT
 
-    raw = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
+    raw = ROOT / "examples" / "data" / "silverbox.csv.gz"
     with pytest.raises(InputError, match="rigd export --from-csv"):
         load_record(raw)
     rec = load_record(raw, fs=1e7 / 2 ** 14, inputs="V1", outputs=["V2"])
