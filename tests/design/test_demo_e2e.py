@@ -146,11 +146,14 @@ def test_analyze_impact_bad_input_exit_2(tmp_path, capsys):
     assert "manifest.json" in capsys.readouterr().err
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_demo_add_effect_step_identifies_with_it(tmp_path, capsys):
     """``rigd demo --add NAME``: the add-effect step after diagnose is fitted into the models
     the design uses (it crashed with the names handed on as strings). A lag the data do not
-    need ends at its bound 0: the design goes on, saying so (never silently)."""
+    need ends at its bound 0: the design goes on, saying so (never silently).
+
+    A second whole demo (minutes of CPU): ``make test-long`` runs it; the steps it goes
+    through are the shared quick demo's, checked above in ``make test``."""
     from rigd.effects import resolve
     from rigd.ident.modelfile import load_model
     from rigd.ident.sanity import file_warnings
