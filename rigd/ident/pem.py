@@ -244,12 +244,17 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
         pair = linear_jacobian(structure, data, fun, free, scale, th0, wy, skip, zb, 1e-6)
         if pair is not None:
             fun, jac = pair
-    sol = least_squares(fun, z0, jac=jac, bounds=zb, method="trf" if bounded else "lm",
-                        ftol=ftol, xtol=1e-10, gtol=1e-10, x_scale="jac", diff_step=1e-6,
-                        max_nfev=max_nfev or 100 * nfree)
-    theta = th0.copy()
-    theta[free] = sol.x * scale[free]
-    std = _std(sol, free, scale)
+    # a trial step of a candidate that diverges overflows inside scipy's cost and Jacobian
+    # products: the fit judges that step by its (inf) cost and steps back; numpy's overflow
+    # warnings would only reach the operator's terminal as library noise (the fit's own
+    # figures say when a model diverges)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        sol = least_squares(fun, z0, jac=jac, bounds=zb, method="trf" if bounded else "lm",
+                            ftol=ftol, xtol=1e-10, gtol=1e-10, x_scale="jac", diff_step=1e-6,
+                            max_nfev=max_nfev or 100 * nfree)
+        theta = th0.copy()
+        theta[free] = sol.x * scale[free]
+        std = _std(sol, free, scale)
     fp = _fit_at(structure, theta, data, skip)
     at_bound = np.zeros(npar, bool)  # trust-region reflective: the active bounds at the end
     at_bound[free] = np.asarray(getattr(sol, "active_mask", np.zeros(nfree)), float) != 0
