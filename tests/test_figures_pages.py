@@ -46,6 +46,20 @@ def test_the_readme_table_quotes_measured_values_only():
     assert "docs/figures.md" in block
 
 
+def test_the_pages_carry_no_commit_date_or_host_note():
+    """Commit, date and free-text host notes are provenance kept in the JSON; the pages a
+    user reads hold where it was measured (CPU, cores, quiet/busy, load), not a diary."""
+    arts = artefact.load_all(ROOT)
+    text = rendered(ROOT)[FIGURES_MD]
+    for name, doc in arts.items():
+        m = doc["measured"]
+        assert m["commit"][:7] not in text, name
+        assert m["date"][:16] not in text, name
+        note = m["host"]["state"].partition(";")[2].strip()
+        assert not note or note not in text, name
+        assert f"{m['host']['cores']} cores, {m['host']['state'].split(':')[0]}" in text, name
+
+
 def _copy_repo(tmp_path):
     for rel in (README, FIGURES_MD, "bench/__init__.py"):
         (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)

@@ -2,8 +2,8 @@
 
 Each figure is one row: its name (the key in the JSON; a nested value as ``key.sub``), its
 value, what it is, the command that measures it and the artefact that holds it; the
-artefacts' provenance (host, load, commit, date, packages) is one table at the top of
-``docs/figures.md`` and nowhere else. The README's table shows a few values and their
+artefacts' provenance (host, load, packages) is one table at the top of ``docs/figures.md``
+and nowhere else; the commit and the date stay in the JSON, out of the pages. The README's table shows a few values and their
 commands only, and links here.
 """
 
@@ -128,18 +128,20 @@ def _what(name: str) -> str:
 
 
 def _provenance_table(artefacts: dict[str, dict]) -> list[str]:
-    lines = ["| artefact | command | host | load (1 / 5 / 15 min) | commit | date | "
-             "Python, packages |", "|---|---|---|---|---|---|---|"]
+    """Where each artefact was measured: host (CPU, cores, quiet or busy), load and packages.
+    The commit, the date and any ``RIGD_HOST_NOTE`` stay in the JSON (the page is for users,
+    the JSON is the provenance record)."""
+    lines = ["| artefact | command | host | load (1 / 5 / 15 min) | Python, packages |",
+             "|---|---|---|---|---|"]
     for name, doc in artefacts.items():
         m = doc["measured"]
         h = m["host"]
-        commit = str(m.get("commit", "unknown"))[:12] + (" (+ changes)"
-                                                         if m.get("tree_changed") else "")
+        state = str(h.get("state", "")).split(":")[0].strip()
         pk = ", ".join(f"{k} {v}" for k, v in m.get("packages", {}).items())
         load = " / ".join(f"{x:g}" for x in h.get("load", []))
         lines.append(f"| `docs/figures/{name}.json` | `{doc['command']}` | {h['cpu']}, "
-                     f"{h['cores']} cores — {h.get('state', '')} | {load} | {commit} | "
-                     f"{m['date']} | Python {m.get('python', '?')}; {pk} |")
+                     f"{h['cores']} cores, {state} | {load} | "
+                     f"Python {m.get('python', '?')}; {pk} |")
     return lines
 
 
@@ -159,8 +161,8 @@ def render_figures_md(artefacts: dict[str, dict], sections: list[str]) -> str:
            "```", "",
            "`make bench` and `make demo` render the pages themselves after saving; commit the "
            "JSON files with the pages. `make test` checks that the pages match the committed "
-           "JSON (`tests/test_figures_pages.py`). `RIGD_HOST_NOTE=\"...\"` adds words about "
-           "the host to the provenance.", "",
+           "JSON (`tests/test_figures_pages.py`). Each JSON file also records the commit, the "
+           "date and, with `RIGD_HOST_NOTE=\"...\"`, words about the host.", "",
            "## Where they were measured", ""]
     out += _provenance_table(artefacts)
     demo = artefacts.get("demo")
