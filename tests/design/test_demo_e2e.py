@@ -5,6 +5,7 @@ loaded by the loop -> impacts K∞ off/on."""
 
 import json
 
+import numpy as np
 import pytest
 from design_helpers import assert_impacts_meet_the_predicted_damping
 
@@ -92,8 +93,13 @@ def test_the_design_model_is_the_improved_model_with_its_effects(demo):
     g_with = gamma_on_set(model.plant(effects=True), cfg, Kz)[0]["gamma"]
     assert g_with == pytest.approx(s["gamma_per_model"]["design model"], rel=1e-3)
     if any(e["included"] for e in eff.values()):
-        g_base = gamma_on_set(model.plant(effects=False), cfg, Kz)[0]["gamma"]
-        assert g_base != pytest.approx(g_with, rel=1e-3)
+        # the effects' linear blocks are in the plant the design saw: its frequency response
+        # is not the base parts' (γ itself, a peak over frequency, may sit where they agree)
+        w = 2 * np.pi * np.logspace(0, np.log10(0.45 * ctl.fs_hz), 300)
+        h_with = model.plant(effects=True)(1j * w)
+        h_base = model.plant(effects=False)(1j * w)
+        rel = np.abs(h_with - h_base).max(axis=-1) / np.abs(h_base).max(axis=-1)
+        assert rel.max() > 1e-2, rel.max()
 
 
 def test_open_loop_damping_matches_the_plant(demo):

@@ -78,8 +78,10 @@ def test_mode_effect_named_at_its_mode_and_better_at_another_force_level(name):
     # the mode is the model's: a held parameter of the refit at the named mode
     k = ref.structure.names.index(f"{top.effect}_mode")
     assert ref.theta[k] == top.evidence["mode"] == truth["joint_mode"] + 1
-    # held out at another force level: the linear model's error at least halved
-    assert _error(m, th, other) >= 2.0 * _error(ref.structure, ref.theta, other)
+    # held out at another force level (2.7x or 3x the estimation level, or a third of it):
+    # the linear model's error falls by at least a third; a wrong block fitted at one level
+    # does not carry to another
+    assert _error(m, th, other) >= 1.5 * _error(ref.structure, ref.theta, other)
 
 
 def test_mode_effects_refused_on_a_base_without_modes_with_the_reason():

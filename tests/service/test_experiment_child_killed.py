@@ -32,8 +32,13 @@ def test_a_killed_experiment_process_fails_the_experiment_and_the_loop_cycles_on
         exp = d.ctl_json("experiment")
         assert exp["state"] == "running", exp
         journal = Path(exp["run_dir"]) / "manifest.json"
-        assert wait_for(lambda: any(p.get("recording") for p in
-                                    json.loads(journal.read_text())["points"]), PROCESS_S)
+        # the journal names the .part before the segment is asked for; the kill lands once
+        # the daemon's writer has the file (killed in between, there is rightly no record)
+        def part_on_disk():
+            names = [p.get("recording") for p in json.loads(journal.read_text())["points"]]
+            return any(n and (journal.parent / n).exists() for n in names)
+
+        assert wait_for(part_on_disk, PROCESS_S)
         os.kill(exp["pid"], signal.SIGKILL)      # while its PRBS plays and is recorded
         # the segment is cancelled at the next cycle when its process ends, then said
         assert wait_for(lambda: d.ctl_json("experiment")["state"] != "running", PROCESS_S)
