@@ -42,8 +42,8 @@ lint: $(STAMP)
 # either fails). 1. Everything but the timing-sensitive tests, on PYTEST_WORKERS processes
 # (pytest-xdist; worksteal: the long diagnosis tests do not leave one worker idle at the end),
 # at `nice` TEST_NICE so that they only take the CPU the other part leaves. 2. The
-# timing-sensitive tests (real-time daemons, sockets, the browser console) in one process of
-# their own, serially, beside part 1 at normal priority: they take about one core (a real-time
+# timing-sensitive tests (real-time daemons, sockets, the browser console) in REALTIME_WORKERS
+# processes of their own, beside part 1 at normal priority: they take about one core (a real-time
 # loop sleeps, then spins the end of each period), so run after part 1 (as before) they left
 # the other core idle for ≈ 6 min; they pass with every core busy (`under-load`), and part 1
 # yields to them. Their output is printed when part 1 ends. BLAS pinned to one thread per process so that they do not fight over the 2
@@ -65,6 +65,10 @@ REALTIME_TESTS := tests/service tests/loop tests/web tests/browser \
 # them out, `make test-long` runs them (and .ci/run runs it after `make test`)
 NOT_LONG := -m "not long"
 PYTEST_WORKERS ?= 2
+# part 2's tests mostly wait on real time (a daemon's start, seconds of a 5 kHz loop): two
+# processes (one file each at a time: --dist loadfile keeps a module's daemon fixture in one
+# process) halve its wall time for little CPU; they pass beside each other as under under-load
+REALTIME_WORKERS ?= 2
 TEST_NICE ?= 10
 ONE_BLAS_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 # a job started with `&` in make's (non-interactive) shell ignores SIGINT, and so would its
@@ -79,8 +83,9 @@ test: lint
 	trap 'exit 130' INT TERM; \
 	echo "make test [0/2]: numba's kernels compiled once into its cache (tests/warm_kernels.py)"; \
 	$(ONE_BLAS_THREAD) $(BIN)/python tests/warm_kernels.py || rc=1; \
-	echo "make test [2/2]: timing-sensitive tests, serially, beside part 1 (output when part 1 ends): $(REALTIME_TESTS)"; \
-	$(ONE_BLAS_THREAD) $(SIGINT_BACK) $(BIN)/python -m pytest -q $(NOT_LONG) $(REALTIME_TESTS) \
+	echo "make test [2/2]: timing-sensitive tests, $(REALTIME_WORKERS) workers, beside part 1 (output when part 1 ends): $(REALTIME_TESTS)"; \
+	$(ONE_BLAS_THREAD) $(SIGINT_BACK) $(BIN)/python -m pytest -q -n $(REALTIME_WORKERS) \
+	    --dist loadfile $(NOT_LONG) $(REALTIME_TESTS) \
 	    >"$$RIGD_TEST_SHARED/realtime.log" 2>&1 & rt=$$!; \
 	echo "make test [1/2]: compute tests, $(PYTEST_WORKERS) workers at nice $(TEST_NICE)"; \
 	$(ONE_BLAS_THREAD) nice -n $(TEST_NICE) $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) \

@@ -1,8 +1,8 @@
 """README.md and docs/*.md are guides for users: no commit hash, date or UTC time, no host
 note, issue number or path of a developer's machine or outside the repository (history is in
-CHANGELOG.md and git log; measured figures with their provenance only in the generated
-docs/figures/*.json, not on the pages), and within their line budgets. docs/service.md ends with the table of what
-rigd does when things go wrong, and every test it names exists."""
+CHANGELOG.md and git log; the figures' commit and date only in docs/figures/*.json), and
+within their line budgets. docs/service.md ends with the table of what rigd does when things
+go wrong, and every test it names exists."""
 
 import re
 

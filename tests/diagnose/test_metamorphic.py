@@ -12,7 +12,8 @@ of the effects and the engine is relative to the record, and the discretisation 
   shaft speed Ω × s (the shaft angle per sample is the record's). Then the physical
   parameters scale (natural frequencies × s, stiffness K × s²) and findings and fits are
   identical;
-* Silverbox (measured by others, ../shared/data): a 6000-sample slice of the multisine part;
+* Silverbox (measured by others, shipped as examples/data/silverbox.csv.gz): a
+  6000-sample slice of the multisine part;
 * every catalogue effect on its own: hysteresis and creep on the valve drive, delay, extra
   mode, actuator dynamics, cross-coupling hidden in the private rig, run-out (rotor), cubic
   stiffness (Duffing, Silverbox), Bouc–Wen restoring-force hysteresis (generic benchmark).
@@ -30,7 +31,7 @@ import dataclasses
 import benchmarks as B  # tests/diagnose/benchmarks.py
 import numpy as np
 import pytest
-from conftest_paths import SHARED
+from testpaths import ROOT
 
 import plant  # tests/diagnose/plant.py
 from rigd.data.record import Record
@@ -38,7 +39,7 @@ from rigd.diagnose.diagnosis import diagnose_record
 from rigd.diagnose.engine import diagnose_data
 from rigd.ident.greybox.submodels import structure_for
 
-SILVERBOX = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
+SILVERBOX = ROOT / "examples" / "data" / "silverbox.csv.gz"   # SNLS80mV, shipped
 SILVERBOX_FS = 610.3515625
 
 # (input scale, output scale, rate scale)

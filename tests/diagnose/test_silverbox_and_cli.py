@@ -3,7 +3,7 @@
 import json
 
 import numpy as np
-from conftest_paths import SHARED
+from testpaths import ROOT
 
 from rigd.cli import main
 from rigd.diagnose import residual as R
@@ -15,7 +15,7 @@ def test_silverbox_cubic_first_and_error_halved(capsys, tmp_path):
     40,000 samples, amplitude rising past the multisine's): the error falls ~10× with cubic
     stiffness (≥ 2× asserted; 12,000 other multisine samples give ~6× on the arrow's first
     half)."""
-    path = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
+    path = ROOT / "examples" / "data" / "silverbox.csv.gz"   # SNLS80mV, shipped
     rc = main(["diagnose", str(path), "--fs", "610.3515625", "--inputs", "V1", "--outputs", "V2",
                "--est", "40600:52600", "--val", "0:40000", "--json", "--report", str(tmp_path)])
     assert rc == 0
@@ -56,7 +56,7 @@ def test_whiteness_and_cross_correlation_bounds():
 def test_identify_and_diagnose_give_the_same_base_fit(capsys):
     """One hold convention and one split: `rigd identify --method oe` and `rigd diagnose`
     report the same validation fit of the base model on the same samples."""
-    path = SHARED / "data" / "silverbox" / "SNLS80mV.csv"
+    path = ROOT / "examples" / "data" / "silverbox.csv.gz"   # SNLS80mV, shipped
     common = [str(path), "--fs", "610.3515625", "--inputs", "V1", "--outputs", "V2",
               "--range", "40600:58600", "--json"]
     assert main(["identify", *common, "--method", "oe"]) == 0

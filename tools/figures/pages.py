@@ -3,8 +3,8 @@
 Each figure is one row: its name (the key in the JSON; a nested value as ``key.sub``), its
 value, what it is, the command that measures it and the artefact that holds it; the
 artefacts' provenance (host, load, packages) is one table at the top of ``docs/figures.md``
-and nowhere else; the commit and the date stay in the JSON, out of the pages. The README's table shows a few values and their
-commands only, and links here.
+and nowhere else; the commit and the date stay in the JSON, out of the pages. The README's
+table shows a few values and their commands only, and links here.
 """
 
 from __future__ import annotations
