@@ -68,7 +68,7 @@ PYTEST_WORKERS ?= 2
 # part 2's tests mostly wait on real time (a daemon's start, seconds of a 5 kHz loop): two
 # processes (one file each at a time: --dist loadfile keeps a module's daemon fixture in one
 # process) halve its wall time for little CPU; they pass beside each other as under under-load
-REALTIME_WORKERS ?= 2
+REALTIME_WORKERS ?= 1
 TEST_NICE ?= 10
 ONE_BLAS_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 # a job started with `&` in make's (non-interactive) shell ignores SIGINT, and so would its

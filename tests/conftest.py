@@ -68,3 +68,24 @@ def truth_design(tmp_path_factory):
         (out / "design.json").write_text(printed.getvalue())
 
     return shared_folder("design-truth", make, tmp_path_factory)
+
+
+# RIGD_TEST_CPU_LOG=FILE: append each test's CPU seconds (this process and the children it
+# waited for: CLI runs, daemons) to FILE.<pid>, a line "cpu_s<TAB>nodeid". CPU time, unlike
+# --durations' wall time, does not depend on what runs beside the test: it is what a test
+# costs the 2 cores `make test` shares.
+_CPU_LOG = os.environ.get("RIGD_TEST_CPU_LOG")
+if _CPU_LOG:
+    import resource
+
+    def _cpu_now():
+        s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(
+            resource.RUSAGE_CHILDREN)
+        return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime
+
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_runtest_protocol(item, nextitem):
+        t0 = _cpu_now()
+        yield
+        with open(f"{_CPU_LOG}.{os.getpid()}", "a") as f:
+            f.write(f"{_cpu_now() - t0:.2f}\t{item.nodeid}\n")

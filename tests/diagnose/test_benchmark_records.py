@@ -118,7 +118,7 @@ def test_three_mode_structure_with_one_mode_names_extra_mode():
     assert top["fit_percent_with"] - out["fit_percent"] >= 10.0
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0, 1])
 def test_bouc_wen_benchmark_hysteresis_in_the_restoring_force(seed, request):
     """Noël & Schoukens' hysteretic benchmark (Bouc–Wen restoring force; the seed picks the
     random-phase multisine and a parameter variant of β, γ, δ) diagnosed with the default
