@@ -402,12 +402,16 @@ class DiagnosisResult:
     diagnosis: Any
     source: dict[str, Any] = field(default_factory=dict)
     report: str | None = None
+    #: where ``save_model`` wrote the final model (a model file), or None
+    saved_model: str | None = None
 
     def summary(self) -> dict[str, Any]:
         """The ``rigd diagnose --json`` object (DESIGN.md contract, plus ``source``)."""
         out = self.diagnosis.to_json()
         if self.report:
             out["report"] = self.report
+        if self.saved_model:
+            out["saved_model"] = self.saved_model
         out["source"] = self.source
         return out
 
@@ -458,7 +462,8 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
              val: str | slice | None = None, split: float | None = None,
              effects: str | list[str] | None = None, refit: bool = True, hold: str = "auto",
              steps: int = 3, report: str | Path | None = None, order: str | int = "auto",
-             method: str = "oe", init: Any = None, **load_kw: Any) -> DiagnosisResult:
+             method: str = "oe", init: Any = None, save_model: str | Path | None = None,
+             **load_kw: Any) -> DiagnosisResult:
     """Diagnose a record: residual analysis, catalogue signatures, forward selection.
 
     Parameters
@@ -492,6 +497,11 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
         rigd.ident.pipeline).
     init : Identification, ModelFile or path, optional
         Start the base fit from this model's parameters (as :func:`identify`).
+    save_model : path, optional
+        Write the model the forward selection ends with (the base and the effects it added,
+        as fitted) as a model file (``rigd identify -o``'s format, written atomically):
+        ``rigd compare``, ``rigd design`` and ``--init`` read it
+        (:mod:`rigd.diagnose.save`).
 
     Returns
     -------
@@ -522,6 +532,12 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
                            max_steps=steps, order=order, method=method,
                            init=_as_model(init) if init is not None else None)
     res = DiagnosisResult(diag, describe_source(rec.meta))
+    if save_model:
+        from rigd.diagnose.save import diagnosis_model_file
+
+        mf = diagnosis_model_file(diag, rec, _data_hash(data))
+        mf.save(save_model)
+        res.saved_model = str(save_model)
     if report:
         from rigd.diagnose.report_page import write_report
 

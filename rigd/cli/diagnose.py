@@ -48,6 +48,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "prediction error")
     p.add_argument("--init", metavar="MODEL.yaml", help="start the base fit from a previous "
                    "model's parameters (as rigd identify --init)")
+    p.add_argument("--save-model", metavar="MODEL.yaml",
+                   help="write the model the diagnosis ends with (base + the effects it "
+                        "added, as fitted) as a model file for compare, design and --init")
     p.add_argument("--no-refit", action="store_true",
                    help="signature tests only (fit_percent_with = base fit)")
     p.add_argument("--fs", help="sample rate of a plain CSV without metadata, Hz (number or "
@@ -64,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
                        val=args.val, split=args.split, effects=args.effects,
                        refit=not args.no_refit, hold=args.hold, steps=args.steps,
                        order=args.order, method=args.method, init=args.init,
-                       report=args.report, **load_options(args))
+                       save_model=args.save_model, report=args.report,
+                       **load_options(args))
     out = res.summary()
     if args.json:
         print_json(out)
@@ -114,6 +118,9 @@ def summary(out: dict) -> str:
         lines.append("no catalogue effect is significant in this record"
                      + (" (see 'cannot tell' above for what it could not show)"
                         if out["cannot_reveal"] else ""))
+    if "saved_model" in out:
+        lines.append(f"model saved: {out['saved_model']} (rigd compare MODEL DATA to check it "
+                     "on another record)")
     if "report" in out:
         lines.append(f"report: {out['report']}")
     return "\n".join(lines)

@@ -185,6 +185,7 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
         if on is not None:
             sd.order["diagnosed_on"] = on
     sd.base = bf.to_json()
+    sd.base_fit = bf
     if on is not None:
         sd.base["diagnosed_on"] = on
     if rechosen is not None:

@@ -78,6 +78,9 @@ class SubDiagnosis:
     domain: Any = None
     #: how the base model was fitted (rigd.ident.pipeline.BaseFit.to_json)
     base: dict[str, Any] | None = None
+    #: the base fit itself (rigd.ident.pipeline.BaseFit: data, window, split), for
+    #: rigd.diagnose.save; not in the JSON
+    base_fit: Any = field(default=None, repr=False)
 
     @property
     def final(self) -> Step:

@@ -181,20 +181,45 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     # needs the mechanical base (rigd.ident.pipeline.FitSettings.mechanical)
     settings.mechanical = any("mechanical" in (getattr(e, "requires", None) or ())
                               for e in effects_for(effects, "generic"))
-    subs: dict[str, Submodel] = {}
-    prefilter_reports = {}
-    split_info = {}
+    fitted = []
     for sm in submodels:
         used = method_for(method, sm)
         bf = fit_base(record, sm, dataclasses.replace(settings, method=used))
-        prefilter_reports[sm] = bf.prefilter
         structure, res = _with_effects(bf, effects_for(effects, sm), sm, init, used)
+        fitted.append((bf, structure, res))
+    return model_file(record, fitted, data_hash, split if est is None else None)
+
+
+def model_file(record: Record, fitted: Sequence[tuple[Any, Any, Any]],
+               data_hash: str | None = None, split: float | None = None) -> ModelFile:
+    """The :class:`ModelFile` of fitted sub-models of ``record``, as ``rigd identify -o``
+    and ``rigd diagnose --save-model`` write it.
+
+    Parameters
+    ----------
+    record : Record
+        The whole record the sub-models were fitted on.
+    fitted : sequence of (BaseFit, structure, FitResult)
+        Per sub-model: how its base was fitted (:func:`rigd.ident.pipeline.fit_base`: the
+        prefiltered data, window and split), the structure kept (the base or the base with
+        effects) and its fit (``theta``, ``std``).
+    data_hash : str, optional
+        ``sha256:...`` of the data file.
+    split : float, optional
+        The estimation fraction, when the split was one.
+    """
+    subs: dict[str, Submodel] = {}
+    prefilter_reports = {}
+    split_info = {}
+    for bf, structure, res in fitted:
+        sm = bf.submodel
+        prefilter_reports[sm] = bf.prefilter
         subs[sm] = _submodel(sm, bf, structure, res)
         a, es, vs = bf.window[0], bf.est, bf.val
         split_info = {"estimation": [a + es.start, a + es.stop],
                       "validation": [a + vs.start, a + vs.stop],
-                      **({"fraction": split} if est is None and bf.window == (0, record.n)
-                         else {}),
+                      **({"fraction": split} if split is not None
+                         and bf.window == (0, record.n) else {}),
                       "base": bf.to_json()}
     return ModelFile(record.fs, subs,
                      {"omega_rpm": record.omega_rpm, "p_inj_bar": record.p_inj_bar},
