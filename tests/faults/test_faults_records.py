@@ -168,6 +168,11 @@ def kills(tmp_path_factory):
         run = runs / "both-killed"
         pid, seen["both_before"], ctl = _start_experiment(
             b, _spec(tmp, "both-killed", 20.0), run, int(2.0 * FS))
+        # together: both stopped first, so that neither sees the other end (a daemon that
+        # outlives its experiment process by a moment closes the run itself: right, but not
+        # this case), then both killed
+        os.kill(b.proc.pid, signal.SIGSTOP)
+        os.kill(pid, signal.SIGSTOP)
         os.kill(pid, signal.SIGKILL)
     finally:
         _kill_daemon(b)
