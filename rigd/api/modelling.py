@@ -463,7 +463,7 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
              effects: str | list[str] | None = None, refit: bool = True, hold: str = "auto",
              steps: int = 3, report: str | Path | None = None, order: str | int = "auto",
              method: str = "oe", init: Any = None, save_model: str | Path | None = None,
-             **load_kw: Any) -> DiagnosisResult:
+             model: Any = None, **load_kw: Any) -> DiagnosisResult:
     """Diagnose a record: residual analysis, catalogue signatures, forward selection.
 
     Parameters
@@ -497,6 +497,11 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
         rigd.ident.pipeline).
     init : Identification, ModelFile or path, optional
         Start the base fit from this model's parameters (as :func:`identify`).
+    model : Identification, ModelFile or path, optional
+        Diagnose this model on the record: it is the base, not refitted (only its initial
+        state and output offsets are estimated here); the same structure refitted here
+        says in words what moved (``given_model`` in the JSON; :mod:`rigd.diagnose.given`).
+        Not with ``init``.
     save_model : path, optional
         Write the model the forward selection ends with (the base and the effects it added,
         as fitted) as a model file (``rigd identify -o``'s format, written atomically):
@@ -527,10 +532,16 @@ def diagnose(data: Record | str | Path, *, runout: Record | str | Path | None = 
 
     if method not in FIT_METHODS:
         raise InputError(f"unknown fit method {method!r} (known: oe, pem)", "--method")
+    if model is not None and init is not None:
+        raise InputError("--model diagnoses a given model, --init fits a new one from it: "
+                         "use one of them", "--model")
     diag = diagnose_record(rec, runout=ro, submodels=submodels, est=est_s, val=val_s,
                            effects=names, refit=refit, hold=hold, split=split,
                            max_steps=steps, order=order, method=method,
-                           init=_as_model(init) if init is not None else None)
+                           init=_as_model(init) if init is not None else None,
+                           model=_as_model(model) if model is not None else None,
+                           model_path=str(model) if isinstance(model, (str, Path))
+                           else "the given model")
     res = DiagnosisResult(diag, describe_source(rec.meta))
     if save_model:
         from rigd.diagnose.save import diagnosis_model_file

@@ -48,6 +48,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "prediction error")
     p.add_argument("--init", metavar="MODEL.yaml", help="start the base fit from a previous "
                    "model's parameters (as rigd identify --init)")
+    p.add_argument("--model", metavar="MODEL.yaml",
+                   help="diagnose this model (rigd identify -o or --save-model) on DATA: "
+                        "not refitted; what it misses here and what moves when its "
+                        "structure is refitted here, in words")
     p.add_argument("--save-model", metavar="MODEL.yaml",
                    help="write the model the diagnosis ends with (base + the effects it "
                         "added, as fitted) as a model file for compare, design and --init")
@@ -67,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
                        val=args.val, split=args.split, effects=args.effects,
                        refit=not args.no_refit, hold=args.hold, steps=args.steps,
                        order=args.order, method=args.method, init=args.init,
-                       save_model=args.save_model, report=args.report,
+                       save_model=args.save_model, model=args.model, report=args.report,
                        **load_options(args))
     out = res.summary()
     if args.json:
@@ -83,9 +87,13 @@ def summary(out: dict) -> str:
 
     lines = [source_text(out.get("source") or {}), f"base model fit: {out['fit_percent']} %"]
     for sub, b in (out.get("base") or {}).items():
+        if sub in (out.get("given_model") or {}):
+            continue    # the given model's line below says what the base is
         lines.append(f"base model [{sub}]: {b['method_used']} fit, samples "
                      f"{b['window'][0]}:{b['window'][1]} of {b['record_samples']}, hold "
                      f"{b['hold']}, start values {b['start']}")
+    for sub, g in (out.get("given_model") or {}).items():
+        lines.append(f"given model [{sub}]: {g['text']}")
     for sub, o in (out.get("order") or {}).items():
         lines.append(f"base model [{sub}]: {order_text(o)}")
     for sub, y in (out.get("yardstick") or {}).items():

@@ -57,6 +57,8 @@ class Diagnosis:
             "yardstick": {p.submodel: p.yardstick.to_json() for p in self.parts
                           if p.yardstick is not None},
             "base": {p.submodel: p.base for p in self.parts if p.base is not None},
+            **({"given_model": {p.submodel: p.given for p in self.parts if p.given}}
+               if any(p.given for p in self.parts) else {}),
             "notes": list(self.notes),
         }
 
@@ -79,7 +81,8 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
                     max_samples: int | None = MAX_SAMPLES, options=None,
                     hold: str = "auto", split: float | None = None,
                     max_steps: int = MAX_STEPS, order: str | int = "auto",
-                    method: str = "oe", init=None, yardstick: bool = True) -> Diagnosis:
+                    method: str = "oe", init=None, yardstick: bool = True,
+                    model=None, model_path: str = "--model") -> Diagnosis:
     """Diagnose a :class:`rigd.data.Record` (prefilters of §4.4, then each sub-model).
 
     The base model of each sub-model is :func:`rigd.ident.pipeline.fit_base`'s, the one
@@ -101,6 +104,10 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
     (:mod:`rigd.ident.yardstick`): reported beside the base model (``yardstick`` in the
     JSON, a warning when the base is worse) and the measure of what is reachable for the
     structure left unexplained (:mod:`rigd.diagnose.unexplained`).
+
+    ``model`` (a :class:`rigd.ident.modelfile.ModelFile`, read from ``model_path``): the base
+    is that model, not fitted on this record (:mod:`rigd.diagnose.given`): what it misses
+    here, and what its own structure refitted here changes, in words (``given_model``).
     """
     from rigd.errors import InputError
     from rigd.ident.pipeline import FitSettings
@@ -122,13 +129,17 @@ def diagnose_record(record, runout=None, submodels: list[str] | None = None,
         "mechanical" in REGISTRY[nm].requires
         for nm in (effects or []) if nm in REGISTRY)
     notes: list[str] = []
+    if model is not None:
+        subs = [s for s in subs if s in model.submodels] or subs
     parts = [_diagnose_part(record, sub, settings, notes, effects=effects, refit=refit,
-                            max_steps=max_steps, yardstick=yardstick) for sub in subs]
+                            max_steps=max_steps, yardstick=yardstick,
+                            given=(model, model_path) if model is not None else None)
+             for sub in subs]
     return Diagnosis(parts, record.source, notes)
 
 
 def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, refit: bool,
-                   max_steps: int, yardstick: bool) -> SubDiagnosis:
+                   max_steps: int, yardstick: bool, given=None) -> SubDiagnosis:
     """Diagnose one sub-model of ``record``: its base model (:func:`rigd.ident.pipeline.
     fit_base` with ``settings``), the yardstick, the forward selection
     (:func:`rigd.diagnose.engine.diagnose_data`) and the sanity warnings of the base and the
@@ -136,13 +147,20 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
     from rigd.ident.pipeline import fit_base
     from rigd.ident.sanity import model_warnings
 
-    bf = fit_base(record, sub, settings)
+    drift = None
+    if given is None:
+        bf = fit_base(record, sub, settings)
+    else:   # the base is a given model, not fitted here (rigd.diagnose.given)
+        from rigd.diagnose.given import given_base
+
+        bf, drift = given_base(record, sub, settings, *given)
     for nt in bf.notes:
         if nt not in notes:
             notes.append(nt)
     offsets = (bf.prefilter.get("offsets") or {}).get("values", {})
     notes.append(f"{sub}: inputs between samples: {bf.hold.describe()}")
-    notes.append(f"{sub}: base model: {_describe_base(bf)}")
+    notes.append(f"{sub}: base model: " + (_describe_base(bf) if drift is None else
+                                           f"the given model {given[1]}, not refitted"))
     if bf.order is not None:
         notes += [f"{sub}: {n}" for n in _order_notes(bf)]
     # the yardstick: what a plain linear model reaches on the same split (also the
@@ -168,7 +186,7 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
     sd = run(bf.structure, bf.theta, ys, _carried_worth(bf))
     on = None
     mech = (mechanical_alternative(bf, record.meta)
-            if not effects and refit else None)
+            if not effects and refit and drift is None else None)
     if mech is not None:
         import copy
 
@@ -178,7 +196,7 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
                      f"well (the general LTI base has no input delay or integrator: "
                      f"docs/diagnose.md): {why}")
     rechosen = None
-    if not effects and refit and on is None:
+    if not effects and refit and on is None and drift is None:
         sd, rechosen = _rebased(bf, sd, ys, run, sub, notes)
     if bf.order is not None:
         sd.order = bf.order.to_json()
@@ -186,6 +204,7 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
             sd.order["diagnosed_on"] = on
     sd.base = bf.to_json()
     sd.base_fit = bf
+    sd.given = drift
     if on is not None:
         sd.base["diagnosed_on"] = on
     if rechosen is not None:

@@ -81,6 +81,8 @@ class SubDiagnosis:
     #: the base fit itself (rigd.ident.pipeline.BaseFit: data, window, split), for
     #: rigd.diagnose.save; not in the JSON
     base_fit: Any = field(default=None, repr=False)
+    #: with a given model (rigd.diagnose.given): it against its structure refitted here
+    given: dict[str, Any] | None = None
 
     @property
     def final(self) -> Step:

@@ -287,6 +287,10 @@ def _submodel(sm: str, bf, structure, res) -> Submodel:
                     **({"order": order_info} if order_info else {})},
                    readouts, residual_stats(data.y[vs], ysim[vs], data.output_names))
     sub.residual["iterations"] = {"nfev": res.nfev, "status": res.status}
+    # the input level it was fitted at (a model used on another record: rigd.diagnose.given)
+    u = data.u[es]
+    sub.residual["input_rms"] = {n: float(np.sqrt(np.mean(u[:, i] ** 2)))
+                                 for i, n in enumerate(data.input_names)}
     return sub
 
 
