@@ -61,7 +61,7 @@ class Yardstick:
 
     @property
     def best(self) -> Reference | None:
-        ok = [r for r in self.references if np.isfinite(r.fit_percent)]
+        ok = [r for r in self.references if np.isfinite(r.fit_percent) and r.fit_percent >= 0]
         return max(ok, key=lambda r: r.fit_percent) if ok else None
 
     @property
@@ -94,7 +94,7 @@ class Yardstick:
     def describe(self) -> str:
         """One line: what each reference reaches on the same split."""
         parts = [f"{_LABEL[r.name]} ({_detail(r)}) {r.fit_percent:.2f} %"
-                 for r in self.references]
+                 + (NO_HOLD if r.fit_percent < 0 else "") for r in self.references]
         parts += [f"{_LABEL.get(k, k)}: not fitted ({v})" for k, v in self.skipped.items()]
         return ("on the same split (validation from the estimation part's state): "
                 + "; ".join(parts) + f"; this model {self.model_fit:.2f} %")
@@ -110,6 +110,10 @@ class Yardstick:
 
 
 _LABEL = {"arx": "ARX", "subspace": "subspace model"}
+#: said of a reference below 0 % (its held-out error larger than the output's spread): it
+#: is no measure of what a linear model reaches here, and nothing is compared with it
+NO_HOLD = (" (below 0 %: it does not hold on the held-out part, e.g. unstable there; no "
+           "measure of what a linear model reaches)")
 
 
 def _detail(r: Reference) -> str:
