@@ -15,6 +15,9 @@ from rigd.data.csvio import write_csv
 from rigd.effects import resolve
 from rigd.ident.modelfile import load_model
 
+#: two candidates, so that the saved model is the selection's choice, not the only one tried
+DIAG = ["--effects", "cubic_stiffness,hysteresis", "--steps", "2"]
+
 
 @pytest.fixture(scope="module")
 def saved(tmp_path_factory):
@@ -27,7 +30,7 @@ def saved(tmp_path_factory):
 
 def test_the_saved_model_is_the_one_the_diagnosis_ended_with(saved, capsys):
     data, model, _ = saved
-    assert main(["diagnose", str(data), "--json", "--save-model", str(model)]) == 0
+    assert main(["diagnose", str(data), *DIAG, "--json", "--save-model", str(model)]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["saved_model"] == str(model)
     added = [s["added"] for s in out["steps"][1:]]
@@ -51,7 +54,7 @@ def test_the_saved_model_is_the_one_the_diagnosis_ended_with(saved, capsys):
 def test_the_saved_model_starts_identify_where_the_diagnosis_left_it(saved, capsys):
     data, model, tmp = saved
     if not model.exists():
-        assert main(["diagnose", str(data), "--json", "--save-model", str(model)]) == 0
+        assert main(["diagnose", str(data), *DIAG, "--json", "--save-model", str(model)]) == 0
         capsys.readouterr()
     added = list(load_model(model, resolve).submodels["generic"].structure.effects)
     again = tmp / "again.yaml"
