@@ -93,3 +93,17 @@ def test_a_model_of_other_channels_is_refused_in_one_line(low_level_model, capsy
     assert main(["diagnose", str(path), *opts, "--model", str(model), "--init",
                  str(model)]) == 2
     assert "use one of them" in capsys.readouterr().err
+
+
+def test_an_effect_the_base_cannot_carry_is_said_in_the_terminal(low_level_model, capsys,
+                                                                 tmp_path):
+    """Not only on the report page: the terminal says which effect was not tried and why (a
+    cubic stiffness needs a mechanical base; the given model is a modal LTI one)."""
+    tmp, opts, model = low_level_model
+    g, path = _record(tmp_path, 0.15, seed=SEED)
+    capsys.readouterr()
+    assert main(["diagnose", str(path), *opts, "--model", str(model), "--effects",
+                 "cubic_stiffness", "--no-refit"]) == 0
+    out = capsys.readouterr().out
+    line = next((ln for ln in out.splitlines() if "not tried:" in ln), "")
+    assert "cubic_stiffness not offered" in line and "mechanical" in line, out
