@@ -25,13 +25,18 @@ MAX_MANIFEST = 8 << 20
 
 
 def start_ticks(pid: int) -> int | None:
-    """Process ``pid``'s start time (clock ticks since boot), None if it does not exist."""
+    """Process ``pid``'s start time (clock ticks since boot), None if it does not exist or
+    has ended: a zombie (state ``Z``, killed but not yet reaped by its parent: the moments
+    after a crash, while its dead parent's orphans wait for init) writes nothing again."""
     try:
         stat = Path(f"/proc/{int(pid)}/stat").read_text()
     except (OSError, ValueError):
         return None
     try:
-        return int(stat.rsplit(")", 1)[1].split()[19])
+        fields = stat.rsplit(")", 1)[1].split()
+        if fields[0] in ("Z", "X"):
+            return None
+        return int(fields[19])
     except (IndexError, ValueError):
         return None
 

@@ -131,3 +131,30 @@ def test_recovery_replays_a_dead_process_run(tmp_path):
     assert runs_tab["records"] == [f["path"]]
     assert read_manifest(alive)["status"] == "running"       # a live owner's run: untouched
     assert stale_runs(root) == [] and recover_runs(root) == []
+
+
+def test_a_zombie_owner_is_gone():
+    """An owner killed but not yet reaped (a zombie: after a crash, its dead parent's
+    orphans wait for init) never writes its journal again: its run is recovered, not left
+    'running' for the daemon's whole life."""
+    import signal
+    import time
+    from pathlib import Path
+
+    from rigd.owner import alive, start_ticks
+
+    child = subprocess.Popen(["sleep", "60"])
+    owner = {"host": os.uname().nodename, "pid": child.pid,
+             "start_ticks": start_ticks(child.pid)}
+    try:
+        assert alive(owner)
+        os.kill(child.pid, signal.SIGKILL)
+        # not reaped yet: wait until the kernel shows it as a zombie
+        stat = Path(f"/proc/{child.pid}/stat")
+        deadline = time.monotonic() + 60
+        while stat.read_text().rsplit(")", 1)[1].split()[0] != "Z":
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        assert not alive(owner)
+    finally:
+        child.wait()
