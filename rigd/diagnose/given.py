@@ -38,22 +38,14 @@ def given_base(record, submodel: str, settings, model, model_path: str = "--mode
     """
     from rigd.ident.model import base_of
     from rigd.ident.pem import evaluate, fit
-    from rigd.ident.pipeline import BaseFit, analysis_window, parts, prepare
+    from rigd.ident.pipeline import BaseFit, parts, windowed
     from rigd.ident.workflow import estimate_x0
 
     if submodel not in model.submodels:
         raise InputError(f"the model has no {submodel!r} sub-model (it has: "
                          f"{', '.join(model.submodels)})", model_path)
     sm = model.submodels[submodel]
-    settings.check()
-    n = record.n
-    window = analysis_window(n, settings)
-    notes = []
-    if window != (0, n):
-        notes.append(f"long record: analysed samples {window[0]}..{window[1]} of {n} "
-                     f"(--range START:STOP chooses another window)")
-        record = record.slice(*window)
-    data, rep = prepare(record, submodel, settings.options, settings.runout)
+    record, data, rep, window, notes, n = windowed(record, submodel, settings)
     spec = base_of(sm.structure).spec()
     for what, have in (("inputs", data.input_names), ("outputs", data.output_names)):
         want = spec.get(what)
@@ -108,19 +100,13 @@ def _matched(given: list[dict[str, float]], here: list[dict[str, float]]):
 
 
 def _in_band(modes: list[dict[str, float]], bf) -> list[dict[str, float]]:
-    """The modes this record's input excites (the mode site's rule:
-    :func:`rigd.effects.mode_site.in_band_modes`): lightly damped, input PSD there at least
-    :data:`~rigd.effects.mode_site.IN_BAND` of its peak. Modes outside the band are fitted
-    from no input power: nothing is said of them."""
-    from scipy import signal as sg
+    """The modes this record's input excites, by the mode site's rule
+    (:func:`rigd.effects.mode_site.excited_by`). Modes outside the band are fitted from no
+    input power: nothing is said of them."""
+    from rigd.effects.mode_site import excited_by
 
-    from rigd.effects.mode_site import IN_BAND, MAX_ZETA
-
-    u = np.asarray(bf.data.u, float)[bf.est]
-    f, p = sg.welch(u - u.mean(0), fs=float(bf.data.fs), nperseg=min(len(u), 1024), axis=0)
-    p = p.sum(axis=1)
-    return [m for m in modes if m["zeta"] < MAX_ZETA
-            and np.interp(m["f_n_hz"], f, p) >= IN_BAND * p.max()]
+    excited = excited_by(bf.data, bf.est)
+    return [m for m in modes if excited(m["f_n_hz"], m["zeta"])]
 
 
 def drift_report(bf, sm, theta, refit_theta, model_path: str) -> dict[str, Any]:

@@ -51,17 +51,26 @@ def in_band_modes(base, theta_b, data, est: slice | None = None) -> list[int]:
     """The pairs (1-based) of ``base`` at ``theta_b`` that are modes the input of ``data``
     excites: damping ratio < :data:`MAX_ZETA`, input PSD there ≥ :data:`IN_BAND` of its
     peak."""
+    excited = excited_by(data, est)
+    out = []
+    for k in range(1, int(base.nc) + 1):
+        fk, zk = NM.mode_hz(base, theta_b, k)
+        if excited(fk, zk):
+            out.append(k)
+    return out
+
+
+def excited_by(data, est: slice | None = None):
+    """``excited(f_hz, zeta) -> bool``: is a mode at ``f_hz`` of damping ratio ``zeta`` one
+    the input of ``data`` (its ``est`` part) excites — ζ < :data:`MAX_ZETA` and the input
+    PSD there ≥ :data:`IN_BAND` of its peak (Welch, summed over the inputs)."""
     from scipy import signal as sg
 
     u = np.asarray(data.u, float)[est or slice(None)]
     f, p = sg.welch(u - u.mean(0), fs=float(data.fs), nperseg=min(len(u), 1024), axis=0)
     p = p.sum(axis=1)
-    out = []
-    for k in range(1, int(base.nc) + 1):
-        fk, zk = NM.mode_hz(base, theta_b, k)
-        if zk < MAX_ZETA and np.interp(fk, f, p) >= IN_BAND * p.max():
-            out.append(k)
-    return out
+    floor = IN_BAND * p.max()
+    return lambda f_hz, zeta: bool(zeta < MAX_ZETA and np.interp(f_hz, f, p) >= floor)
 
 
 def _base_theta(structure, theta):

@@ -213,15 +213,11 @@ def start_values(structure, init, submodel: str, data) -> np.ndarray | None:
     return th
 
 
-def fit_base(record, submodel: str, settings: FitSettings) -> BaseFit:
-    """Fit the base model of ``submodel`` on ``record`` (module docstring).
-
-    ``record`` is the whole record; the window of :func:`analysis_window` is taken here.
-    """
-    from rigd.ident.greybox.submodels import structure_for
-    from rigd.ident.hold import choose_hold
-    from rigd.ident.pem import fit
-
+def windowed(record, submodel: str, settings: FitSettings):
+    """(record, data, prefilter report, window, notes, n) of ``submodel``: the analysis
+    window of :func:`analysis_window` taken (a note says so), the prefilters applied
+    (:func:`prepare`); ``n`` the whole record's samples. Shared by :func:`fit_base` and a
+    given model's base (:func:`rigd.diagnose.given.given_base`)."""
     settings.check()
     n = record.n
     window = analysis_window(n, settings)
@@ -231,6 +227,19 @@ def fit_base(record, submodel: str, settings: FitSettings) -> BaseFit:
                      f"(--range START:STOP chooses another window)")
         record = record.slice(*window)
     data, rep = prepare(record, submodel, settings.options, settings.runout)
+    return record, data, rep, window, notes, n
+
+
+def fit_base(record, submodel: str, settings: FitSettings) -> BaseFit:
+    """Fit the base model of ``submodel`` on ``record`` (module docstring).
+
+    ``record`` is the whole record; the window of :func:`analysis_window` is taken here.
+    """
+    from rigd.ident.greybox.submodels import structure_for
+    from rigd.ident.hold import choose_hold
+    from rigd.ident.pem import fit
+
+    record, data, rep, window, notes, n = windowed(record, submodel, settings)
     es, vs = parts(data.n, settings)
     est_data = data.slice(es.start, es.stop)
     choice = choose_hold(submodel, est_data, record.meta, settings.hold, where=record.source)
