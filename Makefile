@@ -5,6 +5,12 @@ BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 export MPLBACKEND ?= Agg
+# Python writes no bytecode cache when PYTHONDONTWRITEBYTECODE is set (some shells and CI images
+# set it): then every process — each pytest worker, each `rigd` command and daemon a test starts,
+# the daemon's socket and writer processes — compiled every module of rigd again, and pytest
+# rewrote the asserts of every test module again (≈ 7 CPU-s per pytest process, 0.3-0.5 s per
+# command). The caches go to __pycache__ folders (git-ignored) beside the sources.
+unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: demo test test-long lint bench figures peers-deps venv clean
 
