@@ -148,7 +148,7 @@ class PlantModelFile(StrictModel):
 class Gates:
     """What a controller must pass beyond the file checks (the rig config's
     ``controller_gates``): its peak gain at most ``max_gain`` V/µm, and — when its file has no
-    ``design_plant`` — a stable closed loop on ``nominal`` (control.StateSpace, or None)."""
+    ``design_plant`` — a stable closed loop on ``nominal`` (:class:`PlantSS`, or None)."""
 
     max_gain: float | None = MAX_GAIN_V_PER_UM
     nominal: Any = None
@@ -175,24 +175,67 @@ def gates_from(opts: dict[str, Any] | None) -> Gates | None:
     return Gates(max_gain=opts.get("max_gain"), nominal=plant, nominal_source=str(path or ""))
 
 
-def load_plant(path: str | Path):
-    """Read a plant model file (:class:`PlantModelFile`) as a python-control StateSpace.
+@dataclass(frozen=True)
+class PlantSS:
+    """A plant model G_p as state-space matrices, all the controller checks need of it.
+
+    ``dt`` is the sample period, s (0: continuous). The checks take this or a
+    python-control ``StateSpace`` (same attribute names); they do not import python-control:
+    with scipy.signal and matplotlib it cost every process that loads a controller (the
+    daemon's socket process reads the config's nominal plant at its start) ≈ 1.5 CPU-s.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    dt: float = 0.0
+
+    @property
+    def ninputs(self) -> int:
+        return self.B.shape[1]
+
+    @property
+    def noutputs(self) -> int:
+        return self.C.shape[0]
+
+
+def plant_ss(mats, dt: float, where: str, what: str = "plant model") -> PlantSS:
+    """(A, B, C, D) as a :class:`PlantSS` with sample period ``dt`` (0: continuous).
+
+    Raises
+    ------
+    InputError
+        The shapes do not make a state space (named: which matrix, which size).
+    """
+    A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in mats)
+    n = A.shape[0] if A.size else 0
+    if A.size == 0:
+        A = np.zeros((0, 0))
+        B = B.reshape(0, D.shape[1]) if B.size == 0 else B
+        C = C.reshape(D.shape[0], 0) if C.size == 0 else C
+    if A.shape != (n, n):
+        raise InputError(f"{what}: A must be square, got {A.shape[0]}x{A.shape[1]}", where)
+    if B.shape[0] != n or C.shape[1] != n or D.shape != (C.shape[0], B.shape[1]):
+        raise InputError(f"{what}: not a valid state space: A {A.shape[0]}x{A.shape[1]}, "
+                         f"B {B.shape[0]}x{B.shape[1]}, C {C.shape[0]}x{C.shape[1]}, "
+                         f"D {D.shape[0]}x{D.shape[1]}", where)
+    return PlantSS(A, B, C, D, float(dt))
+
+
+def load_plant(path: str | Path) -> PlantSS:
+    """Read a plant model file (:class:`PlantModelFile`) as a :class:`PlantSS`.
 
     Raises
     ------
     InputError
         Naming the file and the key (never quoting the file's content).
     """
-    import control
-
     spec = validate(read_yaml(path, None, limit=MAX_CONTROLLER_BYTES, what="plant model file"),
                     PlantModelFile)
     where = str(path)
     mats = [_as_matrix(k, getattr(spec, k), where) for k in "ABCD"]
-    try:
-        G = control.ss(*mats, 0 if spec.fs_hz is None else 1.0 / spec.fs_hz)
-    except (ValueError, TypeError) as exc:
-        raise InputError(f"not a valid state space: {exc}", where) from None
+    G = plant_ss(mats, 0.0 if spec.fs_hz is None else 1.0 / spec.fs_hz, where)
     if G.ninputs != 2 or G.noutputs != 2:
         raise InputError(f"the plant model must have 2 inputs (r_x, r_y) and 2 outputs (e_x, "
                          f"e_y), got {G.ninputs} and {G.noutputs}", where)
@@ -275,22 +318,73 @@ def check_controller(A, B, C, D, *, fs_hz: float, expected_fs_hz: float | None,
 def closed_loop_check(A, B, C, D, *, fs_hz: float, where: str, plant,
                       on: str = "the given plant") -> None:
     """Raise :class:`InputError` unless the negative-feedback loop of K∞ (A, B, C, D at
-    ``fs_hz``) with ``plant`` (control.StateSpace, discrete or continuous) is stable; ``on``
-    names the plant in the message."""
-    import control
-
-    K = control.ss(A, B, C, D, 1.0 / fs_hz)
-    G = plant if plant.dt else control.c2d(plant, 1.0 / fs_hz, "zoh")
+    ``fs_hz``) with ``plant`` (:class:`PlantSS` or a python-control ``StateSpace``; discrete,
+    or continuous and then held: zero-order hold at ``fs_hz``) is stable; ``on`` names the
+    plant in the message."""
+    G = _plant_at(plant, 1.0 / fs_hz, where)
     if G.ninputs != 2 or G.noutputs != 2:
         raise InputError("plant model must be 2x2 for the closed-loop check", where)
-    if G.dt is not True and abs(float(G.dt) - 1.0 / fs_hz) > 1e-9 / fs_hz:
-        G = control.c2d(control.d2c(G, "zoh"), 1.0 / fs_hz, "zoh")
-    L = control.feedback(G * K, np.eye(2), sign=-1)
-    poles = L.poles()
-    rho = float(np.max(np.abs(poles))) if len(poles) else 0.0
+    rho = _closed_loop_radius(G, np.asarray(A, float), np.asarray(B, float),
+                              np.asarray(C, float), np.asarray(D, float), where)
     if not rho < 1.0:
         raise InputError(f"closed loop with this controller is unstable on {on} "
                          f"(largest |pole| = {rho:.6f})", where)
+
+
+def _plant_at(plant, dt: float, where: str) -> PlantSS:
+    """``plant`` discrete at ``dt``: held (zero-order hold) if continuous, re-sampled (zoh
+    both ways) if discrete at another period; a discrete plant of unspecified period
+    (python-control's ``dt=True``) is taken as at ``dt``."""
+    G = plant_ss((plant.A, plant.B, plant.C, plant.D), 0.0, where)
+    pdt = plant.dt
+    if pdt is True or (pdt and abs(float(pdt) - dt) <= 1e-9 * dt):
+        return PlantSS(G.A, G.B, G.C, G.D, dt)
+    if pdt:       # another rate (rare): back to continuous first (the zoh inverted)
+        G = _unhold(G, float(pdt), where)
+    from rigd.lti import zoh
+
+    Ad, Bd = zoh(G.A, G.B, dt) if G.A.size else (G.A, G.B)
+    return PlantSS(Ad, Bd, G.C, G.D, dt)
+
+
+def _unhold(G: PlantSS, dt: float, where: str) -> PlantSS:
+    """The continuous plant whose zero-order hold at ``dt`` is ``G``: the matrix logarithm
+    of [[A_d, B_d], [0, I]] over ``dt``. InputError if there is none (a pole at z ≤ 0)."""
+    import scipy.linalg
+
+    n, m = G.B.shape
+    E = np.block([[G.A, G.B], [np.zeros((m, n)), np.eye(m)]])
+    with np.errstate(all="ignore"):
+        L = scipy.linalg.logm(E) / dt
+    if not np.all(np.isfinite(L)) or np.max(np.abs(L.imag)) > 1e-6 * max(1.0, np.max(np.abs(L))):
+        raise InputError(f"the plant model (discrete at {1 / dt:g} Hz) has no continuous "
+                         f"equivalent to re-sample it at the loop rate (a pole at z <= 0)",
+                         where)
+    return PlantSS(L.real[:n, :n], L.real[:n, n:], G.C, G.D, 0.0)
+
+
+def _closed_loop_radius(G: PlantSS, Ak, Bk, Ck, Dk, where: str) -> float:
+    """Largest |pole| of the loop e = −y, u = K∞ e, y = G u (both discrete, same rate).
+
+    With M = (I + D_g D_k)⁻¹ (the algebraic loop through the feedthroughs) the closed-loop
+    state matrix over [x_g; x_k] is
+    [[A_g − B_g D_k M C_g,  B_g (I − D_k M D_g) C_k], [−B_k M C_g,  A_k − B_k M D_g C_k]].
+    """
+    ng, nk = G.A.shape[0], Ak.shape[0]
+    Ak, Bk, Ck = Ak.reshape(nk, nk), Bk.reshape(nk, 2), Ck.reshape(2, nk)
+    I2 = np.eye(2)
+    try:
+        M = np.linalg.solve(I2 + G.D @ Dk, I2)
+    except np.linalg.LinAlgError:
+        raise InputError("closed loop with this controller is ill-posed (I + D_g D_k is "
+                         "singular)", where) from None
+    Acl = np.block([[G.A - G.B @ Dk @ M @ G.C, G.B @ (I2 - Dk @ M @ G.D) @ Ck],
+                    [-Bk @ M @ G.C, Ak - Bk @ M @ G.D @ Ck]])
+    if ng + nk == 0:
+        return 0.0
+    if not np.all(np.isfinite(Acl)):
+        return math.inf
+    return float(np.max(np.abs(np.linalg.eigvals(Acl))))
 
 
 def load_controller(path: str | Path, *, expected_fs_hz: float | None = None,
@@ -328,15 +422,10 @@ def load_controller(path: str | Path, *, expected_fs_hz: float | None = None,
     return Controller(A, B, C, D, spec.fs_hz, where, meta, design)
 
 
-def design_statespace(mats, fs_hz: float, where: str):
-    """A file's design plant (A, B, C, D) as a discrete python-control StateSpace at
-    ``fs_hz``; InputError if it is not one."""
-    import control
-
-    try:
-        return control.ss(*mats, 1.0 / fs_hz)
-    except (ValueError, TypeError) as exc:
-        raise InputError(f"design_plant is not a valid state space: {exc}", where) from None
+def design_statespace(mats, fs_hz: float, where: str) -> PlantSS:
+    """A file's design plant (A, B, C, D) as a discrete :class:`PlantSS` at ``fs_hz``;
+    InputError if it is not one."""
+    return plant_ss(mats, 1.0 / fs_hz, where, what="design_plant")
 
 
 # --- the controller as it crosses a socket: its matrices, never its file -----------------
