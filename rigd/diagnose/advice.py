@@ -42,6 +42,8 @@ def cannot_reveal(effect: str, code: str, ev: dict[str, Any], domain: str
         return ev["why"], f"re-run with multi-level excitation ({_multilevel(ev, domain)})"
     if effect == "creep":
         return ev["why"], _creep(ev, domain)
+    if effect == "delay" and code == "no_band":
+        return _no_band(ev, domain)
     words = NEUTRAL.get((effect, code))
     if words is not None:
         return words(ev, domain)
@@ -80,14 +82,34 @@ def _creep(ev: dict[str, Any], domain: str) -> str:
             "longer than the creep's slow time constant")
 
 
-def closed_loop(ev: dict[str, Any]) -> str:
+def closed_loop(ev: dict[str, Any], domain: str = "generic") -> str:
     """What to do about an integrating plant (advice code ``identify_closed_loop``): the
-    input reacts to the output under feedback, so an open-loop fit of the plant is biased."""
+    input reacts to the output under feedback, so an open-loop fit of the plant is biased.
+
+    On a ``mechanical`` record (a structure under a shaker) an integrating path is a free
+    rigid-body motion or a suspension mode below the band, and the advice is a modal
+    tester's: a soft suspension, or the rigid-body mode in the model; a closed loop only when
+    the input is seen to react to the output."""
     seen = ("the input reacts to what the model cannot explain (closed-loop data): "
             if ev.get("feedback_suspected") else "")
+    if domain == "mechanical" and not ev.get("feedback_suspected"):
+        return ("a free (rigid-body) motion or a suspension mode below the excited band: "
+                "support the structure on a soft suspension whose modes lie well below the "
+                "first flexible mode (a fifth of its frequency or less), or measure with the "
+                "structure's own support and keep the rigid-body mode in the model")
     return (f"{seen}identify it in closed loop — the controller's reference as the input and "
             "the controller in the model — or record it in open loop around an operating "
             "point held by a slow outer loop")
+
+
+def broadband(domain: str) -> str:
+    """An excitation with power up to half the sample rate, in the words of ``domain``."""
+    if domain == "rotor":
+        return "re-run with a broadband excitation (PRBS at the loop rate)"
+    if domain == "mechanical":
+        return ("re-run with a force that has power up to half the sample rate: a random or "
+                "multisine shaker signal over the whole band, or an impact hammer")
+    return "re-run with a broadband excitation (a PRBS at the sample rate)"
 
 
 # --- the domain-neutral entries -----------------------------------------------------------
@@ -148,6 +170,11 @@ def _no_reversal(ev: dict[str, Any], domain: str) -> tuple[str, str]:
     return why, (f"re-run with an input that moves back and forth: a slow triangle or a "
                  f"low-frequency multisine with periods of {N.duration(2 * t)}–"
                  f"{N.duration(20 * t)} (two to twenty of the model's slowest time constant)")
+
+
+def _no_band(ev: dict[str, Any], domain: str) -> tuple[str, str]:
+    return ("the input has no power above 5 % of the sample rate, so a delay is "
+            "indistinguishable from a gain", broadband(domain))
 
 
 NEUTRAL = {

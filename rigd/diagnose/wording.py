@@ -20,6 +20,7 @@ from collections.abc import Callable
 from typing import Any
 
 from rigd.diagnose.advice import closed_loop
+from rigd.diagnose.domain import DOMAINS
 from rigd.effects import numbers as N
 
 Words = Callable[[dict[str, Any]], str]
@@ -166,7 +167,7 @@ def _friction(ev: dict[str, Any], domain: str) -> str:
             f"model's damping); {_explains(ev)}")
 
 
-def _integrator(ev: dict[str, Any]) -> str:
+def _integrator(ev: dict[str, Any], domain: str) -> str:
     if ev["in_base"] and not math.isfinite(ev["time_constant_s"]):  # an explicit integrator
         what = ("the model integrates: it has a pole at zero (an integrating plant), chosen "
                 f"from the {N.duration(ev['estimation_seconds'])} it was fitted on")
@@ -178,7 +179,7 @@ def _integrator(ev: dict[str, Any]) -> str:
     else:
         what = (f"the error drifts like the integral of {ev['input']} on {ev['output']}: a "
                 f"pole at zero the model lacks; {_explains(ev)}")
-    return f"{what}; {closed_loop(ev)}"
+    return f"{what}; {closed_loop(ev, domain)}"
 
 
 def _lag_path(ev: dict[str, Any]) -> str:
@@ -194,8 +195,10 @@ NEUTRAL: dict[tuple[str, str], dict[str, Words]] = {
     ("static_nonlinearity", "static_nonlinearity.state"): {"*": _static_state},
     ("friction", "friction.coulomb"): {d: (lambda ev, d=d: _friction(ev, d))
                                        for d in ("rotor", "mechanical", "process", "generic")},
-    ("integrator", "integrator.in_base"): {"*": _integrator},
-    ("integrator", "integrator.added"): {"*": _integrator},
+    ("integrator", "integrator.in_base"): {d: (lambda ev, d=d: _integrator(ev, d))
+                                           for d in DOMAINS},
+    ("integrator", "integrator.added"): {d: (lambda ev, d=d: _integrator(ev, d))
+                                         for d in DOMAINS},
     ("extra_dynamics", "extra_dynamics.real_pole"): {"*": _lag_path},
 }
 TEMPLATES.update(NEUTRAL)

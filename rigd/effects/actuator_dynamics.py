@@ -52,6 +52,13 @@ class ActuatorDynamics(Effect):
             return (f"no lag of the response behind {ctx.label(j, 'in')} found (along the "
                     f"model response to the input derivative the residual leads, not lags); "
                     f"it explains {N.share(sig.score)} of the residual", ev)
+        if tau * ctx.fs < MIN_TAU_SAMPLES:  # as implausible(): no lag this rate resolves
+            return (f"the residual follows the model response to the input derivative on "
+                    f"{ctx.label(j, 'in')} (explains {N.share(sig.score)} of it), as a lag of "
+                    f"{N.duration(tau)} would: {tau * ctx.fs:.2g} samples, shorter than the "
+                    f"{MIN_TAU_SAMPLES:g} sample a lag can be told by at this rate — the "
+                    f"model misses some high-frequency phase (the hold, a sensor's filter), "
+                    f"not a lag of its own", ev)
         return (f"the response lags the input like a low-pass of about {N.duration(tau)} "
                 f"(corner {N.freq(fc, ctx.fs)}) on {ctx.label(j, 'in')}: {what}; "
                 f"the residual follows the model response to the input derivative and "

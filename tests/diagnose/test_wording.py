@@ -125,6 +125,54 @@ def test_integrator_words_carry_the_closed_loop_advice():
         assert "identify it in closed loop" in text and "900 s" in text, text
 
 
+def test_an_integrating_structure_without_feedback_gets_a_modal_testers_advice():
+    """A structure under a shaker whose model integrates (a free rigid-body motion or a
+    suspension mode below the band) is told of its suspension, not of a controller; with the
+    input seen reacting to the output the closed-loop advice stays; the other domains keep
+    it either way."""
+    ev = dict(EVIDENCE["integrator"], share=0.0, fs=400.0, feedback_suspected=False)
+    text = W.explanation("integrator", "integrator.in_base", ev, "mechanical")
+    assert "suspension" in text and "rigid-body" in text, text
+    assert "closed loop" not in text and "controller" not in text, text
+    for dom in ("rotor", "process", "generic"):
+        assert "identify it in closed loop" in W.explanation(
+            "integrator", "integrator.in_base", ev, dom)
+    ev["feedback_suspected"] = True
+    assert "identify it in closed loop" in W.explanation(
+        "integrator", "integrator.in_base", ev, "mechanical")
+
+
+def test_a_band_limited_input_gets_the_broadband_words_of_its_domain():
+    """The delay's "no power above 5 % of the sample rate": a rotor record is told of a
+    PRBS at the loop rate, a structure of a shaker force over the band or a hammer, a process
+    of a PRBS at the sample rate."""
+    words = {d: A.cannot_reveal("delay", "no_band", {"share": 0.0, "fs": 400.0,
+                                                     "time_constants_s": []}, d)
+             for d in DOMAINS}
+    assert all("indistinguishable from a gain" in why for why, _ in words.values())
+    assert "loop rate" in words["rotor"][1]
+    assert "shaker" in words["mechanical"][1] and "PRBS" not in words["mechanical"][1]
+    for d in ("process", "generic"):
+        assert "sample rate" in words[d][1] and "loop" not in words[d][1], words[d]
+
+
+def test_a_lag_shorter_than_half_a_sample_is_not_called_a_low_pass():
+    """actuator_dynamics' screening words: a lag the record's rate cannot resolve (a
+    fraction of a sample) is named as missing high-frequency phase, not a low-pass of
+    microseconds on a record sampled every few milliseconds."""
+    from types import SimpleNamespace
+
+    from rigd.effects import REGISTRY
+
+    eff = REGISTRY["actuator_dynamics"]
+    ctx = SimpleNamespace(fs=400.0, submodel="generic", label=lambda j, kind: f"F{j}")
+    short, _ = eff.explain(ctx, SimpleNamespace(beta=np.array([-2.3e-5]), score=0.3))
+    assert "low-pass" not in short and "0.0092 samples" in short, short
+    assert "high-frequency phase" in short, short
+    long_, _ = eff.explain(ctx, SimpleNamespace(beta=np.array([-5e-3]), score=0.3))
+    assert "low-pass of about 5 ms" in long_, long_
+
+
 @pytest.mark.parametrize("key", sorted(A.NEUTRAL))
 def test_neutral_entries_cannot_tell_words_sized_by_the_record(key):
     """What the domain-neutral entries cannot tell is worded here from their numbers, the
