@@ -273,8 +273,10 @@ def test_open_waits_for_the_first_frame(realtime_host):
         for k in range(10):
             sp.encode_sensor(frames[k * sp.SENSOR_FRAME:], k, 0, 1.0, 2.0, 5.0, 5.0, 5.0, 5.0,
                              0.5, 0.0, 0.0)
+        # set before the write: open() can return as soon as the bytes are in the pty, before
+        # the timer thread runs its next statement (the order was write-then-set: a race)
         sent = threading.Event()
-        starts = threading.Timer(0.3, lambda: (os.write(master, frames.tobytes()), sent.set()))
+        starts = threading.Timer(0.3, lambda: (sent.set(), os.write(master, frames.tobytes())))
         drv = SerialFrameDriver({"port": port, "timeout_ms": 50, "first_frame_s": 600})
         starts.start()
         try:
