@@ -32,6 +32,8 @@ with the experiment (longer holds, a longer record).
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from rigd.effects import detectability as DT
@@ -120,6 +122,8 @@ class Creep(Effect):
     physics = "slow creep after steps (piezo valves)"
     linear_note = ("acts on the recorded valve drives inside the valve loops, not on the "
                    "model inputs")
+    #: the last (data, τ) terms of :meth:`_terms` (the record held weakly)
+    _memo: tuple | None = None
 
     def reveal(self, ctx: Context) -> CannotReveal | None:
         taus = tau_grid(ctx.n, ctx.fs)
@@ -244,11 +248,23 @@ class Creep(Effect):
         taus = te[4 * nu:4 * nu + 2]
         if not (np.any(c) or np.any(c_init)):
             return u
-        x = drives(data)
-        fs = float(data.fs)
+        terms, decay = self._terms(data, taus, u.shape[0])
         v = u.copy()
-        decay = initial_terms(u.shape[0], taus, fs)
         for j in range(nu):
-            for m, h in enumerate(creep_terms(x[:, j], taus, fs)):
+            for m, h in enumerate(terms[j]):
                 v[:, j] += c[j, m] * h + c_init[j, m] * decay[m]
         return v
+
+    def _terms(self, data, taus, n: int):
+        """The lag terms per axis and the decay terms for (data, τ): the block is linear in
+        the weights, so a fit's Jacobian columns for them (τ unchanged) reuse the terms of the
+        last call instead of filtering the drives again (one entry: data and τ compared)."""
+        key = (float(taus[0]), float(taus[1]), n, float(data.fs))
+        memo = self._memo
+        if memo is not None and memo[0]() is data and memo[1] == key:
+            return memo[2], memo[3]
+        x, fs = drives(data), float(data.fs)
+        terms = [creep_terms(x[:, j], taus, fs) for j in range(x.shape[1])]
+        decay = initial_terms(n, taus, fs)
+        self._memo = (weakref.ref(data), key, terms, decay)
+        return terms, decay
