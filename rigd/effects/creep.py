@@ -255,6 +255,13 @@ class Creep(Effect):
                 v[:, j] += c[j, m] * h + c_init[j, m] * decay[m]
         return v
 
+    def __getstate__(self):
+        """Pickled (a shared diagnosis, a worker process) without the transient memo: it
+        holds its record by a weak reference."""
+        state = dict(self.__dict__)
+        state.pop("_memo", None)
+        return state
+
     def _terms(self, data, taus, n: int):
         """The lag terms per axis and the decay terms for (data, τ): the block is linear in
         the weights, so a fit's Jacobian columns for them (τ unchanged) reuse the terms of the
