@@ -15,6 +15,7 @@ Each entry of :data:`TEMPLATES` is keyed by ``(effect, code)`` and maps a domain
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from typing import Any
@@ -182,6 +183,11 @@ def _integrator(ev: dict[str, Any], domain: str) -> str:
     return f"{what}; {closed_loop(ev, domain)}"
 
 
+def _per_domain(words: Callable[[dict[str, Any], str], str]) -> dict[str, Words]:
+    """One template per domain of ``words(ev, domain)``."""
+    return {d: functools.partial(words, domain=d) for d in DOMAINS}
+
+
 def _lag_path(ev: dict[str, Any]) -> str:
     return (f"the error follows a first-order lag of the input with a time constant of "
             f"about {N.duration(ev['time_constant_s'])}: a real pole (lag) the model lacks; "
@@ -193,12 +199,9 @@ NEUTRAL: dict[tuple[str, str], dict[str, Words]] = {
     ("static_nonlinearity", "static_nonlinearity.output"): {"*": _static},
     ("static_nonlinearity", "static_nonlinearity.input_output"): {"*": _static},
     ("static_nonlinearity", "static_nonlinearity.state"): {"*": _static_state},
-    ("friction", "friction.coulomb"): {d: (lambda ev, d=d: _friction(ev, d))
-                                       for d in ("rotor", "mechanical", "process", "generic")},
-    ("integrator", "integrator.in_base"): {d: (lambda ev, d=d: _integrator(ev, d))
-                                           for d in DOMAINS},
-    ("integrator", "integrator.added"): {d: (lambda ev, d=d: _integrator(ev, d))
-                                         for d in DOMAINS},
+    ("friction", "friction.coulomb"): _per_domain(_friction),
+    ("integrator", "integrator.in_base"): _per_domain(_integrator),
+    ("integrator", "integrator.added"): _per_domain(_integrator),
     ("extra_dynamics", "extra_dynamics.real_pole"): {"*": _lag_path},
 }
 TEMPLATES.update(NEUTRAL)

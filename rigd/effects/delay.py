@@ -66,10 +66,10 @@ class Delay(Effect):
         share = min(band_power_share(ctx.u[:, j], ctx.fs, 0.05 * ctx.fs, ctx.fs / 2)
                     for j in range(ctx.nu))
         if share < 1e-4:
-            # worded for the record's domain (rigd.diagnose.advice: code no_band)
-            return CannotReveal(self.name, "the input has no power above 5 % of the sample "
-                                "rate, so a delay is indistinguishable from a gain", "",
-                                ctx.submodel, code="no_band", evidence={"share": share})
+            # no power above 5 % of the sample rate: reason and experiment are worded for
+            # the record's domain by rigd.diagnose.advice (code no_band)
+            return CannotReveal(self.name, "", "", ctx.submodel, code="no_band",
+                                evidence={"share": share})
         return None
 
     def scan(self, ctx: Context, joint: bool = False) -> tuple[float, np.ndarray, list]:
