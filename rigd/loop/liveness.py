@@ -24,7 +24,8 @@ fastest envelope; ``supervisor.plant_tau_s``, or the fast driver's nominal plant
   late by microseconds add microseconds; a busy machine's jitter does not trip it, a loop that
   is absent for a tenth of the time does. (A config that sets the former
   ``overrun_storm_count`` gets the count rule instead: that many overruns within the window.)
-* Neither is measured during the loop's first :data:`GRACE_S` (its start-up transient).
+* Neither is measured during the loop's first :data:`GRACE_S` (its start-up transient), nor
+  is the count rule (:mod:`rigd.loop.realtime`).
 * **A simulated plant** (the fast driver's ``plant_clock`` is ``"cycle"``: one plant step per
   loop cycle) does not move while the loop stands — its time is the loop's — so no stall costs
   it anything, and τ says nothing about what matters. What still matters is the service: an

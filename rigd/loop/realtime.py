@@ -131,7 +131,10 @@ class RealTimeClock:
         count = sup.overrun_storm_count
         storm: collections.deque | None = (collections.deque(maxlen=count) if count else None)
         storm_ns = int(p.liveness.storm_window_s * 1e9)
-        S_W, S_FAULT = L.S_W, L.S_FAULT
+        # like the lost-time rule, the count rule measures nothing in the start-up grace
+        # (rigd.loop.liveness.GRACE_S: first calls of every code path, page faults)
+        grace_n = prm[L.P_GRACE_N]
+        S_W, S_FAULT, S_SEQ = L.S_W, L.S_FAULT, L.S_SEQ
         prev = -1
         sw[W_CYCLE_NS] = 0        # no gap measured across a start
         nxt = perf() + period
@@ -174,7 +177,7 @@ class RealTimeClock:
             nxt += period
             if done > nxt:
                 self.overruns += 1
-                if storm is not None:
+                if storm is not None and st[S_SEQ] >= grace_n:
                     storm.append(done)
                     if len(storm) == storm.maxlen and done - storm[0] <= storm_ns:
                         post(FC.OVERRUN_STORM)

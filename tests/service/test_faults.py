@@ -106,6 +106,49 @@ def test_fault_overrun_storm_realtime(tmp_path):
     assert_safe_after_fault(fr, FC.OVERRUN_STORM, armed_at=AT, faults=faults)
 
 
+def test_overrun_storm_not_measured_in_the_start_up_grace(tmp_path):
+    """The count rule, like the lost-time rule, measures nothing in the loop's first
+    ``GRACE_S`` (rigd.loop.liveness): a storm of overruns in the first cycles — the start-up
+    transient of a loaded host, here made certain by a driver that busy-waits two periods in
+    each of the first 300 cycles — latches nothing; the same rule latches on the same storm
+    after the grace (test_fault_overrun_storm_realtime)."""
+    from daemon_helpers import make_config
+    from faultkit import Injector, controller_file
+
+    from rigd.loop import liveness
+    from rigd.loop.app import build_drivers
+    from rigd.loop.loop import ControlLoop
+    from rigd.rigconfig import load_config
+
+    period_ns = 200_000
+    first = 300
+    assert first < liveness.GRACE_S * 5000
+    calls = [0]
+
+    def slow_at_start(frame):
+        calls[0] += 1
+        if calls[0] <= first:
+            end = time.perf_counter_ns() + 2 * period_ns
+            while time.perf_counter_ns() < end:
+                pass
+
+    lc = load_config(make_config(tmp_path, clock={"spin_us": 0.0},
+                                 supervisor={"overrun_storm_count": 50,
+                                             "overrun_storm_window_s": 0.1}))
+    fast, slow, hz = build_drivers(lc)
+    inj = Injector(fast, slow_at_start)
+    inj.armed = True
+    loop = ControlLoop(lc, inj, slow_drivers=slow, slow_poll_hz=hz,
+                       controller=controller_file(tmp_path), clock="realtime")
+    with loop_caller(lc.config), loop:
+        loop.start()
+        ran = loop.wait_cycles(int(liveness.GRACE_S * 5000) + 500, timeout=60.0)
+        overruns, faults = loop.overruns, loop.faults()
+    assert calls[0] > first and ran > liveness.GRACE_S * 5000
+    assert overruns >= first, "the driver made every one of its first cycles late"
+    assert not [f for f in faults if f["code"] == FC.OVERRUN_STORM], faults
+
+
 def _realtime_loop(tmp_path, drivers, clock=None, **sections):
     from daemon_helpers import make_config
     from faultkit import controller_file
