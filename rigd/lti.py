@@ -120,18 +120,30 @@ def resonator(x: np.ndarray, f_hz: float, zeta: float, fs: float) -> tuple[np.nd
     from scipy import signal
 
     w = 2 * np.pi * f_hz
-    num_d = [0, 0, w * w]
-    num_v = [0, w, 0]
-    den = [1, 2 * zeta * w, w * w]
+    den = (1.0, 2 * zeta * w, w * w)
     fw = min(f_hz, 0.45 * fs)
-    bd, ad = signal.bilinear(num_d, den, fs=fs) if fw <= 0 else _prewarped(num_d, den, fs, fw)
-    bv, av = _prewarped(num_v, den, fs, fw)
+    k = 2.0 * fs if fw <= 0 else _prewarp_k(fs, fw)
+    bd, ad = _bilinear2((0.0, 0.0, w * w), den, k)
+    bv, av = _bilinear2((0.0, w, 0.0), den, k)
     return signal.lfilter(bd, ad, x), signal.lfilter(bv, av, x)
 
 
-def _prewarped(num, den, fs: float, f_hz: float):
-    from scipy import signal
-
+def _prewarp_k(fs: float, f_hz: float) -> float:
+    """The Tustin map's k in s -> k (z-1)/(z+1), pre-warped so that f_hz maps exactly."""
     w = 2 * np.pi * f_hz
-    k = w / np.tan(w / (2 * fs))  # s -> k (z-1)/(z+1)
-    return signal.bilinear(num, den, fs=k / 2)
+    return w / np.tan(w / (2 * fs))
+
+
+def _bilinear2(num, den, k: float) -> tuple[np.ndarray, np.ndarray]:
+    """(b0 s^2 + b1 s + b2)/(a0 s^2 + a1 s + a2) with s = k (z-1)/(z+1), as z-polynomials
+    normalised to a monic denominator: scipy.signal.bilinear's result for second order, in
+    closed form (the generic one expands polynomials; a mode's fit calls this thousands of
+    times)."""
+    k2 = k * k
+
+    def z(c):
+        c0, c1, c2 = c
+        return (c0 * k2 + c1 * k + c2, 2.0 * (c2 - c0 * k2), c0 * k2 - c1 * k + c2)
+
+    b, a = z(num), z(den)
+    return np.array(b) / a[0], np.array(a) / a[0]

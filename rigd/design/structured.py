@@ -85,6 +85,13 @@ class Problem:
         Y = np.eye(2)[None, None] + self.wd ** 2 * (Gf @ Gf.conj().transpose(0, 1, 3, 2))
         self._y = tuple(np.ascontiguousarray(v) for v in
                         (Y[..., 0, 0].real, Y[..., 0, 1], Y[..., 1, 1].real))
+        # the closed loops of every model in one stack (one eigvals call per evaluation)
+        self._stack = None
+        if len({m.A.shape for m in self.models}) == 1:
+            self._stack = tuple(np.stack([getattr(m, k) for m in self.models])
+                                for k in ("A", "B", "C"))
+            n, nk = self.models[0].A.shape[0], self.structure.n
+            self._acl = np.empty((len(self.models), n + nk, n + nk))
 
     # --- pieces ---------------------------------------------------------------------
     def K_grid(self, x) -> np.ndarray:
@@ -112,11 +119,20 @@ class Problem:
         """ρ of the discrete closed loop (ZOH plant, Tustin K) of every model."""
         Ad, Bd, Cd, Dd = tustin_matrices(*self.structure.matrices(x), self.fs_hz,
                                          self.prewarp_hz, OMEGA_SCALE)
-        rho = np.empty(len(self.models))
-        for i, m in enumerate(self.models):
-            Acl = np.block([[m.A - m.B @ Dd @ m.C, m.B @ Cd], [-Bd @ m.C, Ad]])
-            rho[i] = np.max(np.abs(np.linalg.eigvals(Acl)))
-        return rho
+        if self._stack is None:      # models of different orders: one by one
+            rho = np.empty(len(self.models))
+            for i, m in enumerate(self.models):
+                Acl = np.block([[m.A - m.B @ Dd @ m.C, m.B @ Cd], [-Bd @ m.C, Ad]])
+                rho[i] = np.max(np.abs(np.linalg.eigvals(Acl)))
+            return rho
+        A, B, C = self._stack          # (n_models, n, n), (n_models, n, 2), (n_models, 2, n)
+        n = A.shape[1]
+        Acl = self._acl
+        Acl[:, :n, :n] = A - B @ Dd @ C
+        Acl[:, :n, n:] = B @ Cd
+        Acl[:, n:, :n] = -Bd @ C
+        Acl[:, n:, n:] = Ad
+        return np.max(np.abs(np.linalg.eigvals(Acl)), axis=1)
 
     # --- costs ----------------------------------------------------------------------
     def smooth_gamma(self, x, beta: float) -> float:

@@ -61,7 +61,7 @@ def bw_operator(p: np.ndarray, c: float, beta: float, gamma: float, sig: float) 
     return z
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _deriv(K, D, a, c, beta, gamma, sig, k3, k3c, p, v, z, f, out_a, out_z):
     m = p.shape[0]
     pp = 0.0

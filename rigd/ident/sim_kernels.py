@@ -74,7 +74,7 @@ def predict_kernel(Ad, Bd, Kd, C, x0, u, ymeas, yhat):  # pragma: no cover - com
             x[i] = xn[i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _accel(K, D, k3, k3x, fr, p, v, f, df, tau, a):  # pragma: no cover - compiled
     """Acceleration at force f + tau·df (df: force change over the sample, FOH).
 

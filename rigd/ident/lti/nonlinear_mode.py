@@ -48,7 +48,7 @@ LAWS = {"cubic": 0, "iwan": 1, "clearance": 2}
 MAX_WH = 0.2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _phi(q, z, law, p):  # pragma: no cover - compiled
     """The restoring force of law ``law`` at q from the committed slider positions z."""
     if law == 0:
@@ -71,7 +71,7 @@ def _phi(q, z, law, p):  # pragma: no cover - compiled
     return g
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _commit(q, z, p):  # pragma: no cover - compiled
     """Return mapping of the sliders at q (Iwan law)."""
     for e in range(z.shape[0]):
