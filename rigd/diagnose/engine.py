@@ -194,7 +194,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     ctx0, context, dom = _base_context(data, submodel, structure, base_theta, est, val,
                                        record_meta)
     notes: list[str] = [f"domain: {dom.name} ({dom.why})"]
-    names = S.offered(effects, submodel, dom, structure, est, n, notes)
+    names = S.offered(effects, submodel, dom, structure, est, n, notes, data)
     held = held_base(structure, method)
     if held and refit:
         notes.append(f"the base has {len(held)} free parameters besides its output offsets "

@@ -235,10 +235,16 @@ def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
 
 
 def offered(effects: list[str] | None, submodel: str, dom, structure, est: slice, n: int,
-             notes: list[str]) -> list[str]:
+             notes: list[str], data: Any = None) -> list[str]:
     """The effects to screen: ``effects`` as asked, else the catalogue's screened ones for
     ``submodel`` that the record's domain offers and the record's length affords; an effect
-    the base cannot carry is left out either way. Each omission is said in ``notes``."""
+    the base cannot carry is left out either way. Each omission is said in ``notes``.
+
+    ``data`` (the record): on a record that is not the rotor's, an effect locked to a
+    rotating part's angle (``requires`` ``rotation``: run-out) is not offered when the
+    record carries no angle — a structure under a shaker has nothing that turns, and
+    advice to record an angle would be a rotor's. (On the rotor's records the missing
+    encoder angle stays a "cannot tell" with the experiment that would show it.)"""
     names = list(effects or [nm for nm, e in REGISTRY.items()
                              if submodel in e.submodels and getattr(e, "screened", True)])
     if not effects:  # effects this domain cannot carry are not offered (not named either)
@@ -254,8 +260,9 @@ def offered(effects: list[str] | None, submodel: str, dom, structure, est: slice
                 names.remove(nm)
                 notes.append(f"{nm} not screened: {n_est} estimation samples > {cap} (its "
                              f"fits cost minutes there); ask for it with --effects {nm}")
+    rotor = getattr(dom, "name", dom) == "rotor"
     for nm in list(names):  # an effect the base cannot carry is not offered, and says why
-        why_not = REGISTRY[nm].not_offered(structure)
+        why_not = REGISTRY[nm].not_offered(structure, None if rotor else data)
         if why_not is not None:
             names.remove(nm)
             notes.append(f"{nm} not offered: {why_not}")

@@ -117,8 +117,8 @@ class Effect:
                     f"({getattr(structure, 'kind', type(structure).__name__)}) has no modal "
                     f"(complex-pair) blocks")
         if "rotation" in self.requires and "rotation" not in has:
-            return (f"{self.name} is locked to a shaft angle; the record carries none (no "
-                    f"'phi' column)")
+            return (f"{self.name} is locked to the angle of a rotating part, and nothing in "
+                    f"the record turns (it has no angle channel 'phi')")
         return None
 
     def carried_by_base(self, ctx: Context) -> Any:

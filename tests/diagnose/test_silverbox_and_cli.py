@@ -28,7 +28,12 @@ def test_silverbox_cubic_first_and_error_halved(capsys, tmp_path):
     assert [s["added"] for s in out["steps"]] == [None, "cubic_stiffness"]
     assert out["steps"][0]["fit_percent"] == out["fit_percent"]
     assert out["steps"][1]["fit_percent"] == top["fit_percent_with"]
-    assert {c["effect"] for c in out["cannot_reveal"]} >= {"runout", "cross_coupling"}
+    cannot = {c["effect"] for c in out["cannot_reveal"]}
+    assert "cross_coupling" in cannot
+    # nothing turns in this circuit: run-out is not offered (no rotor advice), and said so
+    assert "runout" not in cannot
+    assert any("runout not offered: " in n and "nothing in the record turns" in n
+               for n in out["notes"]), out["notes"]
     assert (tmp_path / "index.html").exists()
 
 

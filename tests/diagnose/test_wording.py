@@ -194,3 +194,30 @@ def test_neutral_entries_cannot_tell_words_sized_by_the_record(key):
     # the slowest time constant (40 s vs 40 ms) sets the holds or periods
     assert ("40 s" in slow[1] or "80 s" in slow[1]) and ("40 ms" in fast[1]
                                                           or "80 ms" in fast[1]), (slow, fast)
+
+
+def test_runout_not_offered_where_nothing_turns_and_a_cannot_tell_on_the_rotor():
+    """A structure under a shaker has no angle channel: run-out (locked to a rotating part's
+    angle) is not offered, with the reason in the notes (no advice to record an angle); a
+    record that carries an angle is offered it; on the rotor's records a missing encoder
+    angle is left to run-out's "cannot tell" with the rotor's experiment."""
+    from rigd.diagnose import selection as S
+    from rigd.ident.iddata import IdData
+    from rigd.ident.lti.statespace import StateSpaceModel
+
+    n, fs = 400, 400.0
+    t = np.arange(n) / fs
+    u, y = np.sin(2 * np.pi * 7 * t)[:, None], np.cos(2 * np.pi * 7 * t)[:, None]
+    m = StateSpaceModel(["force"], ["acc1"], fs, n_complex=1, hold="foh", feedthrough=True)
+    mech = D.Domain("mechanical", "a lightly damped mode")
+    bare = IdData(u, y, fs, ["force"], ["acc1"])
+    turning = IdData(u, y, fs, ["force"], ["acc1"], aux={"phi": 2 * np.pi * 3 * t})
+    est = slice(0, 2 * n // 3)
+    notes: list[str] = []
+    names = S.offered(None, "generic", mech, m, est, n, notes, bare)
+    assert "runout" not in names
+    (why,) = [x for x in notes if x.startswith("runout not offered: ")]
+    assert "nothing in the record turns" in why and "record" not in why.split("turns")[1]
+    assert "runout" in S.offered(None, "generic", mech, m, est, n, [], turning)
+    rotor = D.Domain("rotor", "the rig's bearing")
+    assert "runout" in S.offered(["runout"], "bearing", rotor, m, est, n, [], bare)
