@@ -441,6 +441,8 @@ class Daemon:
             last_seq = seq
             serving = self.server is None or self.server.ready.is_set()
             if not self.ready.is_set() and running and advancing and seq > 0 and serving:
+                if self.server is not None:   # a snapshot of the running loop, at once
+                    self.server.publish_now()
                 self.ready.set()
                 self.notifier.ready(f"loop running at {getattr(self.loop, 'fs', 0):g} Hz")
                 self.log.info("ready", seq=seq, socket=getattr(self.args, "socket", None))

@@ -16,6 +16,8 @@ overlays it on the snapshot (:func:`rigd.loop.safeword.live`):
   bound (``stall_bound_s``), ``stall`` the latest stall (cycle, length, words); while the loop
   stands and no fault is latched, ``fault`` is the ``loop_stall`` the watchdog latched (taken
   by the loop's next cycle);
+* ``running`` is true when the word shows fresh cycles after a snapshot that said it was
+  not (a snapshot from before the loop's first cycle, still held when READY=1 went out);
 * ``ping`` answers ``pong`` only while the loop cycles.
 """
 
@@ -41,6 +43,8 @@ def status(st: dict[str, Any], w) -> dict[str, Any]:
         code, fseq = lv["fault"]["code"], lv["fault"]["seq"]
         if code != int(f.get("code") or 0) or (code and fseq != f.get("seq")):
             out["fault"] = _fault(code, fseq, lv)
+    if st.get("running") is False and _started_since(st, lv):
+        out["running"] = True        # a snapshot from before the first cycle
     out["age_s"] = lv["age_s"]
     out["stalled"] = lv["stalled"]
     out["stall_bound_s"] = lv["stall_bound_s"]
@@ -63,6 +67,15 @@ def _fault(code: int, seq: int, lv: dict) -> dict[str, Any]:
     return {"code": code, "name": FC.fault_name(code), "text": text, "seq": seq}
 
 
+def _started_since(st: dict[str, Any], lv: dict | None) -> bool:
+    """Has the loop cycled since the snapshot ``st`` said it was not running? A snapshot
+    taken before the loop's first cycle says ``running: false``, and the socket process can
+    still hold it when READY=1 is sent (the next one comes within the publish period, later
+    under load): the word's cycles after the snapshot's ``seq``, fresh, say it runs."""
+    return (lv is not None and not lv["stalled"] and lv["age_s"] is not None
+            and not st.get("loop_error") and lv["seq"] > int(st.get("seq") or 0))
+
+
 def not_cycling(st: dict[str, Any], w) -> str | None:
     """Why ``ping`` must not answer alive (the loop stands or stopped), or None."""
     lv = live(w) if w is not None else None
@@ -70,7 +83,7 @@ def not_cycling(st: dict[str, Any], w) -> str | None:
         return (f"the daemon answers but its loop is not cycling: no cycle for "
                 f"{lv['age_s']:.3f} s after cycle {lv['seq']} (stall bound "
                 f"{lv['stall_bound_s'] * 1e3:g} ms); loop_stall latched")
-    if st and st.get("running") is False:
+    if st and st.get("running") is False and not _started_since(st, lv):
         why = st.get("loop_error") or "stopped"
         return f"the daemon answers but its loop is not running ({why})"
     return None
