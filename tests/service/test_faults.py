@@ -145,7 +145,11 @@ def test_overrun_storm_not_measured_in_the_start_up_grace(tmp_path):
         ran = loop.wait_cycles(int(liveness.GRACE_S * 5000) + 500, timeout=60.0)
         overruns, faults = loop.overruns, loop.faults()
     assert calls[0] > first and ran > liveness.GRACE_S * 5000
-    assert overruns >= first, "the driver made every one of its first cycles late"
+    # each slow cycle takes >= 3 periods (0.6 ms): >= 160 overruns per 0.1 s while they last,
+    # where 50 would latch the rule if it measured them (ControlLoop.open's first read, before
+    # the clock starts, is one of the slow calls but no cycle; the host's scheduling decides
+    # the rest: no exact count)
+    assert overruns >= 2 * 50, f"the slow cycles were overruns: {overruns}"
     assert not [f for f in faults if f["code"] == FC.OVERRUN_STORM], faults
 
 
