@@ -80,6 +80,9 @@ class Effect:
     #: where the effect acts in a composed model (rigd.effects.compose: ``input`` block before
     #: the base, ``output`` block after it, ``state`` feedback into it)
     sites: tuple[str, ...] = ()
+    #: an output block that adds a path parallel to the base (y + g(u, θ)): the base's exact
+    #: output sensitivities hold through it (rigd.effects.compose.Composed.output_sensitivities)
+    additive_output: bool = False
     requires: tuple[str, ...] = ()
     #: effects that cannot be simulated beside this one in one composed model
     excludes: tuple[str, ...] = ()

@@ -219,6 +219,38 @@ class Composed:
                 sim = _wrapped(e, t, sim)
         return np.asarray(sim(data), dtype=float)
 
+    def output_sensitivities(self, theta: np.ndarray, data: Any):
+        """The base's exact output sensitivities (:func:`rigd.ident.jacobian`) when the
+        effects leave the output linear in the base's linear parameters: each acts on the
+        inputs (the base then sees the effects' inputs, in the order :meth:`simulate` applies
+        them) or adds a path of its own parallel to the base (``additive_output``: y + g(u));
+        None otherwise, or when the base has none.
+
+        Returns
+        -------
+        (indices, dY) or None
+            As the base's: ``indices`` of the base's parameters (the first of ``theta``),
+            ``dY[:, :, k]`` = ∂ŷ/∂θ[indices[k]] (n, ny, k).
+        """
+        method = getattr(type(self.base), "output_sensitivities", None)
+        if not callable(method):
+            return None
+        for e in self.effect_list:
+            sites = set(e.sites)
+            if not sites <= {"input", "output"} or ("output" in sites
+                                                     and not e.additive_output):
+                return None
+        tb, te = self.parts(theta)
+        d = data
+        # simulate()'s nesting: the last effect added is the outermost, its input block first
+        for e, t in reversed(list(zip(self.effect_list, te))):
+            if "input" in e.sites:
+                u = np.asarray(d.inputs, float)
+                v = e.input_block(u, t, d)
+                if v is not u:
+                    d = replace_inputs(d, v)
+        return method(self.base, tb, d)
+
     # --- linear part and read-outs -------------------------------------------------------
     def linear_ss(self, theta: np.ndarray, fs: float, G0: Any = None):
         """(G, included, left_out): the base's linear part (continuous python-control

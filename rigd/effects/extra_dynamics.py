@@ -38,6 +38,8 @@ class ExtraDynamics(Effect):
     name = "extra_dynamics"
     site = "output"
     sites = ("output",)
+    #: its output block is y + g(u, θ): the base's output sensitivities hold through it
+    additive_output = True
     submodels = ("generic",)
     physics = "an unmodelled real pole or lag (thermal, sensor or actuator lag)"
 

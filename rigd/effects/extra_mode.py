@@ -94,6 +94,8 @@ def find_peak(f, E, coh, exclude_hz, fmin_hz: float):
 class ExtraMode(Effect):
     name = "extra_mode"
     sites = ("output",)
+    #: its output block is y + g(u, θ): the base's output sensitivities hold through it
+    additive_output = True
     submodels = ("bearing", "generic")
     physics = "an unmodelled structural mode"
 

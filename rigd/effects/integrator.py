@@ -82,6 +82,8 @@ class Integrator(Effect):
     name = "integrator"
     site = "output"
     sites = ("output",)
+    #: its output block is y + g(u, θ): the base's output sensitivities hold through it
+    additive_output = True
     submodels = ("generic",)
     physics = "a pole at zero (an integrating plant) the model lacks"
     linear_note = ("an integrating path (a pole at zero) is left out of the design model")

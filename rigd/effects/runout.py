@@ -36,6 +36,8 @@ def harmonics(phi: np.ndarray) -> list[np.ndarray]:
 class Runout(Effect):
     name = "runout"
     sites = ("output",)
+    #: its output block is y + g(u, θ): the base's output sensitivities hold through it
+    additive_output = True
     requires = ("rotation",)
     domains = STRUCTURAL  # a shaft that may turn: not a process plant
     submodels = ("bearing", "generic")

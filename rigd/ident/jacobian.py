@@ -2,10 +2,11 @@
 the structure's output is linear in the parameter, forward differences elsewhere.
 
 A structure that offers ``output_sensitivities(theta, data) -> (indices, dY)`` (the general
-LTI model: :mod:`rigd.ident.lti.sensitivity`) has those columns computed from a few small
-simulations; one whose output offsets are added at its end (:func:`additive_offsets`: the
-mechanical models, with or without state-level effects) has theirs (ones); the other free
-parameters get the forward difference
+LTI model: :mod:`rigd.ident.lti.sensitivity`; that model with input-site and additive
+output-site effects around it: :meth:`rigd.effects.compose.Composed.output_sensitivities`)
+has those columns computed from a few small simulations; one whose output offsets are added
+at its end (:func:`additive_offsets`: the mechanical models, with or without state-level
+effects) has theirs (ones); the other free parameters get the forward difference
 ``scipy.optimize.least_squares`` would take itself (``approx_derivative``, the same relative
 step and bounds), so the optimiser sees the all-difference Jacobian up to rounding and takes
 the same steps, with one simulation per non-linear parameter instead of one per parameter.
@@ -60,19 +61,21 @@ def linear_jacobian(structure, data, fun, free: np.ndarray, scale: np.ndarray,
     """
     # looked up on the class: a wrapper that delegates to its base (rigd.effects.compose)
     # simulates more than the base and has no such columns
+    # (a composed model offers them when its effects leave the base's linearity intact:
+    # rigd.effects.compose.Composed.output_sensitivities; None otherwise)
     method = getattr(type(structure), "output_sensitivities", None)
-    if callable(method):
-        def sens(th, d):
-            return method(structure, th, d)
-    else:
-        off = additive_offsets(structure)
-        if not off:
-            return None
+    method = method if callable(method) else None
+    off = additive_offsets(structure)
+    if method is None and not off:
+        return None
 
-        def sens(th, d):     # ŷ = (…) + y_off: ∂ŷ_i/∂y_off_i = 1
+    def sens(th, d):
+        out = method(structure, th, d) if method is not None else None
+        if out is None and off:     # ŷ = (…) + y_off: ∂ŷ_i/∂y_off_i = 1
             dY = np.zeros((d.n, len(off), len(off)))
             dY[:, np.arange(len(off)), np.arange(len(off))] = 1.0
-            return np.asarray(off, int), dY
+            out = np.asarray(off, int), dY
+        return out
 
     free_idx = np.flatnonzero(free)
     pos = {int(p): k for k, p in enumerate(free_idx)}

@@ -104,3 +104,48 @@ def test_offsets_column_of_a_mechanical_base_with_a_state_effect_but_not_an_outp
     assert exact.cost == pytest.approx(diff.cost, rel=1e-8)
     # the initial positions are barely determined (the rounding of a column moves them)
     np.testing.assert_allclose(exact.theta, diff.theta, rtol=1e-3, atol=1e-5)
+
+
+@pytest.mark.parametrize("effects", [["creep"], ["extra_mode"], ["delay", "extra_dynamics"],
+                                     ["integrator", "hysteresis"]])
+def test_an_lti_base_with_input_and_parallel_effects_keeps_its_exact_columns(effects):
+    """The base's linear parameters stay exact through effects on its inputs and effects that
+    add a parallel path (rigd.effects.compose.Composed.output_sensitivities): each column is
+    the composed model's own forward difference; the effects' parameters are not among them."""
+    from rigd.effects import REGISTRY
+    from rigd.effects.compose import compose
+
+    rng = np.random.default_rng(5)
+    n, fs = 1500, 100.0
+    m = StateSpaceModel(["a"], ["y"], fs, 1, 1, 0, hold="foh", feedthrough=True)
+    m.set_record(n)
+    d = IdData(rng.standard_normal((n, 1)), rng.standard_normal((n, 1)), fs, ["a"], ["y"])
+    c = compose(m, [REGISTRY[e] for e in effects])
+    th = c.theta0(d)
+    th[:len(m.names)] = _theta(m, rng)
+    th[len(m.names):] += 0.05 * rng.standard_normal(len(th) - len(m.names))
+    idx, dY = c.output_sensitivities(th, d)
+    assert len(idx) and max(idx) < len(m.names)
+    y0 = c.simulate(th, d)
+    for k, p in enumerate(idx):
+        h = 1e-6 * max(1.0, abs(th[p]))
+        t2 = th.copy()
+        t2[p] += h
+        fd = (c.simulate(t2, d) - y0) / h
+        assert np.max(np.abs(fd - dY[:, :, k])) <= 1e-6 * max(np.max(np.abs(fd)), 1.0), \
+            c.names[p]
+
+
+def test_an_effect_that_shapes_the_output_has_no_exact_base_columns():
+    """A static curve after the base (y = g(ŷ)) or a state-level effect changes how the
+    output depends on the base's parameters: no exact columns are claimed for them."""
+    from rigd.effects import REGISTRY
+    from rigd.effects.compose import compose
+
+    m = StateSpaceModel(["a"], ["y"], 100.0, 1, 0, 0, hold="zoh")
+    m.set_record(500)
+    rng = np.random.default_rng(6)
+    d = IdData(rng.standard_normal((500, 1)), rng.standard_normal((500, 1)), 100.0, ["a"],
+               ["y"])
+    c = compose(m, [REGISTRY["static_nonlinearity"]])
+    assert c.output_sensitivities(c.theta0(d), d) is None
