@@ -60,7 +60,10 @@ lint: $(STAMP)
 # Before both parts, tests/warm_kernels.py compiles the big numba kernels (the loop's cycle, both
 # simulated plants) once into numba's cache, a few processes in parallel: on a clean clone the
 # cache is empty and otherwise every worker and every daemon the tests start compiled the same
-# kernels at the same time (minutes of CPU each on 2 cores); after it they load them.
+# kernels at the same time (minutes of CPU each on 2 cores); after it they load them. Part 2
+# starts once the loop's, the paper plant's, the models' and the serial kernels are in (its
+# daemons run the paper plant); the physics-grade plant's long compilation (the quick demo's
+# plant, part 1) goes on beside it and part 1 starts when it is done.
 # tests/experiments/test_operator_impact.py runs a real-time loop (SCHED_FIFO, above every
 # niced worker): in part 1 it took the CPU from part 2's real-time tests. tests/faults: the
 # fault-injection tests on real daemons (listed once the folder exists).
@@ -84,15 +87,17 @@ SIGINT_BACK := $(BIN)/python -c "import os, signal, sys; signal.signal(signal.SI
                signal.SIG_DFL); os.execv(sys.argv[1], sys.argv[1:])"
 
 test: lint
-	@rc=0; rt=; RIGD_TEST_SHARED=$$(mktemp -d); export RIGD_TEST_SHARED; \
-	trap 'test -z "$$rt" || kill -INT $$rt 2>/dev/null; rm -rf "$$RIGD_TEST_SHARED"' EXIT; \
+	@rc=0; rt=; wr=; RIGD_TEST_SHARED=$$(mktemp -d); export RIGD_TEST_SHARED; \
+	trap 'test -z "$$rt" || kill -INT $$rt 2>/dev/null; test -z "$$wr" || kill $$wr 2>/dev/null; rm -rf "$$RIGD_TEST_SHARED"' EXIT; \
 	trap 'exit 130' INT TERM; \
 	echo "make test [0/2]: numba's kernels compiled once into its cache (tests/warm_kernels.py)"; \
-	$(ONE_BLAS_THREAD) $(BIN)/python tests/warm_kernels.py || rc=1; \
+	$(ONE_BLAS_THREAD) $(BIN)/python tests/warm_kernels.py reynolds & wr=$$!; \
+	$(ONE_BLAS_THREAD) $(BIN)/python tests/warm_kernels.py --parallel sim models serial || rc=1; \
 	echo "make test [2/2]: timing-sensitive tests, $(REALTIME_WORKERS) workers, beside part 1 (output when part 1 ends): $(REALTIME_TESTS)"; \
 	$(ONE_BLAS_THREAD) $(SIGINT_BACK) $(BIN)/python -m pytest -q -n $(REALTIME_WORKERS) \
 	    --dist loadfile $(NOT_LONG) $(REALTIME_TESTS) \
 	    >"$$RIGD_TEST_SHARED/realtime.log" 2>&1 & rt=$$!; \
+	wait $$wr || rc=1; wr=; \
 	echo "make test [1/2]: compute tests, $(PYTEST_WORKERS) workers at nice $(TEST_NICE)"; \
 	$(ONE_BLAS_THREAD) nice -n $(TEST_NICE) $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) \
 	    --dist worksteal $(NOT_LONG) $(addprefix --ignore=,$(REALTIME_TESTS)) tests || rc=1; \

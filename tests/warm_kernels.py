@@ -10,9 +10,10 @@ paths that call them: the drivers, :class:`rigd.loop.loop.ControlLoop`, the simu
 and every later process loads them from the cache. Nothing here is a test: a kernel this
 does not reach is still compiled where it is first called, only later.
 
-Run: ``python tests/warm_kernels.py`` (all groups, one process each) or
-``python tests/warm_kernels.py GROUP`` (one group in this process). Prints one line per
-group with its wall time on stderr.
+Run: ``python tests/warm_kernels.py`` (all groups, one process each),
+``python tests/warm_kernels.py GROUP ...`` (those groups in this process, one after the other)
+or ``python tests/warm_kernels.py --parallel GROUP ...`` (those groups, one process each).
+Prints one line per group with its wall time on stderr.
 """
 
 from __future__ import annotations
@@ -147,14 +148,20 @@ GROUPS = {"sim": group_sim, "reynolds": group_reynolds, "models": group_models,
 
 
 def main(argv: list[str]) -> int:
-    if argv:
-        for name in argv:
+    names = [a for a in argv if not a.startswith("--")]
+    unknown = sorted(set(names) - set(GROUPS))
+    if unknown:
+        print(f"warm_kernels: no group {', '.join(unknown)} (groups: {', '.join(GROUPS)})",
+              file=sys.stderr)
+        return 2
+    if names and "--parallel" not in argv:
+        for name in names:
             t0 = time.perf_counter()
             GROUPS[name]()
             print(f"warm_kernels {name}: {time.perf_counter() - t0:.1f} s", file=sys.stderr)
         return 0
     t0 = time.perf_counter()
-    procs = [subprocess.Popen([sys.executable, __file__, name]) for name in GROUPS]
+    procs = [subprocess.Popen([sys.executable, __file__, name]) for name in names or GROUPS]
     rcs = [p.wait() for p in procs]
     print(f"warm_kernels: all groups {time.perf_counter() - t0:.1f} s "
           f"(NUMBA_CACHE_DIR={os.environ.get('NUMBA_CACHE_DIR')})", file=sys.stderr)
