@@ -260,7 +260,7 @@ def offered(effects: list[str] | None, submodel: str, dom, structure, est: slice
                 names.remove(nm)
                 notes.append(f"{nm} not screened: {n_est} estimation samples > {cap} (its "
                              f"fits cost minutes there); ask for it with --effects {nm}")
-    rotor = getattr(dom, "name", dom) == "rotor"
+    rotor = dom.rotor
     for nm in list(names):  # an effect the base cannot carry is not offered, and says why
         why_not = REGISTRY[nm].not_offered(structure, None if rotor else data)
         if why_not is not None:

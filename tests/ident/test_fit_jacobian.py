@@ -28,6 +28,19 @@ def _theta(m, rng):
     return th
 
 
+def _assert_columns_are_differences(model, th, d, idx, dY):
+    """Each sensitivity column dY[:, :, k] is the forward difference of ``model.simulate`` in
+    parameter ``idx[k]``."""
+    y0 = model.simulate(th, d)
+    for k, p in enumerate(idx):
+        h = 1e-6 * max(1.0, abs(th[p]))
+        t2 = th.copy()
+        t2[p] += h
+        fd = (model.simulate(t2, d) - y0) / h
+        assert np.max(np.abs(fd - dY[:, :, k])) <= 1e-6 * max(np.max(np.abs(fd)), 1.0), \
+            model.names[p]
+
+
 @pytest.mark.parametrize("hold", ["zoh", "foh"])
 @pytest.mark.parametrize("nc,nr,ni,feedthrough,delays",
                          [(2, 1, 1, True, [0, 2]), (1, 0, 0, False, [1, 0])])
@@ -42,14 +55,7 @@ def test_each_sensitivity_is_the_forward_difference_of_the_simulation(hold, nc, 
     lin = {m.names[i][0] for i in idx}
     assert lin <= {"b", "c", "d", "x", "y"} and "p" not in lin and "r" not in lin
     assert ("d" in lin) == feedthrough
-    y0 = m.simulate(th, d)
-    for k, p in enumerate(idx):
-        h = 1e-6 * max(1.0, abs(th[p]))
-        t2 = th.copy()
-        t2[p] += h
-        fd = (m.simulate(t2, d) - y0) / h
-        assert np.max(np.abs(fd - dY[:, :, k])) <= 1e-6 * max(np.max(np.abs(fd)), 1.0), \
-            m.names[p]
+    _assert_columns_are_differences(m, th, d, idx, dY)
 
 
 def test_a_fit_with_the_exact_columns_takes_the_difference_fits_steps(monkeypatch):
@@ -126,14 +132,7 @@ def test_an_lti_base_with_input_and_parallel_effects_keeps_its_exact_columns(eff
     th[len(m.names):] += 0.05 * rng.standard_normal(len(th) - len(m.names))
     idx, dY = c.output_sensitivities(th, d)
     assert len(idx) and max(idx) < len(m.names)
-    y0 = c.simulate(th, d)
-    for k, p in enumerate(idx):
-        h = 1e-6 * max(1.0, abs(th[p]))
-        t2 = th.copy()
-        t2[p] += h
-        fd = (c.simulate(t2, d) - y0) / h
-        assert np.max(np.abs(fd - dY[:, :, k])) <= 1e-6 * max(np.max(np.abs(fd)), 1.0), \
-            c.names[p]
+    _assert_columns_are_differences(c, th, d, idx, dY)
 
 
 def test_an_effect_that_shapes_the_output_has_no_exact_base_columns():
