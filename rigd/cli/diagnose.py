@@ -56,7 +56,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="write the model the diagnosis ends with (base + the effects it "
                         "added, as fitted) as a model file for compare, design and --init")
     p.add_argument("--no-refit", action="store_true",
-                   help="signature tests only (fit_percent_with = base fit)")
+                   help="signature tests only, no effect is refitted (fit_percent_with = "
+                        "base fit); with --model the given model's structure is still "
+                        "refitted once, to say what moved")
     p.add_argument("--fs", help="sample rate of a plain CSV without metadata, Hz (number or "
                    "ratio, e.g. 10000000/16384)")
     p.add_argument("--inputs", help="input columns of a plain CSV (comma separated)")

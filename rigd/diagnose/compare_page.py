@@ -42,7 +42,7 @@ def part_data(c) -> dict[str, Any]:
     t = np.arange(d.n) / d.fs
     sl = slice(0, d.n)
     view = model_view(t, y, yhat, d.fs, sl, get_phi(d))
-    view.update(label="model", effects=list(getattr(c.structure, "effects", [])))
+    view.update(label="model", effects=list(c.structure.effects))
     return {
         "name": c.name,
         "fs": float(d.fs),

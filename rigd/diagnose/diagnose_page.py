@@ -30,7 +30,7 @@ from rigd.htmlpage import write_page
 
 def effects_of(structure) -> list[str]:
     """Catalogue names of the effects a (possibly extended) structure contains, in order."""
-    return list(getattr(structure, "effects", []) or [])
+    return list(structure.effects)
 
 
 def _variant(t, ctx, yhat, sl, label: str, effects: list[str], kind: str) -> dict[str, Any]:

@@ -248,7 +248,7 @@ def _rebased(bf, sd: SubDiagnosis, ys, run, sub: str, notes: list[str]):
     if kept is sd:
         return sd, None
     return kept, {"family": cand.family, "states": int(cand.states),
-                  "delays": [int(d) for d in getattr(cand.structure, "delays", [])],
+                  "delays": [int(d) for d in cand.structure.delays],
                   "fit_percent": round(float(kept.fit_percent), 3),
                   "identify_base_fit_percent": round(float(sd.fit_percent), 3),
                   "identify_base_final_fit_percent": round(float(sd.final.fit_percent), 3)}
@@ -293,8 +293,7 @@ def mechanical_alternative(bf, meta: dict | None = None):
             and np.isfinite(c.fit_val)]
     if not mech:
         return None
-    if (any(int(d) != 0 for d in ch.delays) or getattr(bf.structure, "ni", 0)
-            or getattr(bf.structure, "integrator", False)
+    if (any(int(d) != 0 for d in ch.delays) or bf.structure.n_integrators
             or ch.modes < 1):
         return None
     if D.decide(bf.submodel, meta or {}, bf.structure, bf.theta).name != "mechanical":
@@ -346,7 +345,7 @@ def _order_notes(bf) -> list[str]:
 
     chosen, structure = bf.order, bf.structure
     out = [f"base model order: {chosen.describe()}"]
-    if getattr(structure, "m", 0):   # the mechanical base + parallel modes
+    if structure.n_parallel_modes:   # the mechanical base + parallel modes
         missed = ", ".join(f"{f:.4g} Hz" for f, _, _ in structure.modes_of(bf.theta))
         out.append(f"one mode per output misses mode(s) at {missed}: the base model has "
                    f"{chosen.modes} modes (fit {chosen.fits[structure.n]:.2f} % with "

@@ -51,25 +51,12 @@ class Domain:
 
 
 def _poles(structure: Any, theta: np.ndarray) -> np.ndarray | None:
-    """Continuous-time poles of the base's linear part (None: none readable): the Model
-    protocol's ``linear_part`` (:func:`rigd.ident.model.linear_part_of`), else the older
-    structures' ``full_abcd`` / ``continuous``."""
-    from rigd.ident.model import base_of, linear_part_of
+    """Continuous-time poles of the base's linear part (None: none readable,
+    :func:`rigd.ident.model.linear_part_of`)."""
+    from rigd.ident.model import linear_part_of
 
     lp = linear_part_of(structure, theta)
-    if lp is not None:
-        return np.linalg.eigvals(np.asarray(lp.A, float))
-    base = base_of(structure)
-    th = np.asarray(theta, float)[:len(getattr(base, "names", theta))]
-    for get in ("full_abcd", "continuous"):
-        fn = getattr(base, get, None)
-        if not callable(fn):
-            continue
-        try:
-            return np.linalg.eigvals(np.asarray(fn(th)[0], float))
-        except Exception:  # noqa: BLE001 - a structure whose linear part cannot be read
-            continue
-    return None
+    return None if lp is None else np.linalg.eigvals(np.asarray(lp.A, float))
 
 
 def decide(submodel: str, meta: dict[str, Any], structure: Any = None,
@@ -98,7 +85,7 @@ def offered(effect: Any, domain: Domain) -> bool:
     """True when ``effect`` (an :class:`rigd.effects.base.Effect`) applies to the domain:
     ``effect.domains`` (None: every domain) names it. What the base must carry
     (``effect.requires``) is the base's question (``Effect.not_offered``), not the domain's."""
-    doms = getattr(effect, "domains", None)
+    doms = effect.domains
     return doms is None or domain.name in doms
 
 

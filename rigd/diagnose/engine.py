@@ -135,7 +135,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
         Prefiltered data of the whole (analysed) record.
     submodel : str
         ``actuator``, ``bearing`` or ``generic``.
-    structure : Structure, optional
+    structure : Model, optional
         Base structure (default: ``structure_for(submodel, hold=DEFAULT_HOLD[submodel])``,
         what ``rigd identify`` fits).
     est, val : slice, optional

@@ -62,7 +62,7 @@ def given_base(record, submodel: str, settings, model, model_path: str = "--mode
     res = evaluate(structure, est_data, theta, status="the given model, not refitted")
     from rigd.ident.hold import HoldChoice
 
-    choice = HoldChoice(getattr(base_of(structure), "hold", "zoh"), "the model's")
+    choice = HoldChoice(base_of(structure).hold, "the model's")
     bf = BaseFit(submodel, data, es, vs, window, structure, res, choice, rep, settings, None,
                  n, notes)
     refit = fit(structure, est_data, method=settings.method, theta0=theta)
@@ -79,8 +79,6 @@ def _val_fit(structure, theta, bf) -> float:
 
 
 def _modes(structure, theta) -> list[dict[str, float]]:
-    if not hasattr(structure, "readouts"):
-        return []
     return [m for m in structure.readouts(theta).get("modes", []) if "f_n_hz" in m]
 
 

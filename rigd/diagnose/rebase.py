@@ -101,7 +101,7 @@ def best_final(sd, alts: list[tuple[Any, Any]]):
     a, b = sd.final.fit_percent, alt.final.fit_percent
     path = " -> ".join(f"{s.added or 'base'} {s.fit_percent:.2f} %" for s in alt.steps)
     what = (f"{cand.family}, {cand.states} state(s), input delays "
-            f"{list(getattr(cand.structure, 'delays', []))}")
+            f"{list(cand.structure.delays)}")
     if b >= a + MIN_FIT_GAIN:
         return alt, (f"with the static curve in, the linear part chosen again: from {what} "
                      f"{path}, against {a:.2f} % from the first base — kept (rigd identify "

@@ -24,6 +24,7 @@ from rigd.diagnose import wording as W
 from rigd.effects import REGISTRY
 from rigd.effects.context import CannotReveal, Context, Finding
 from rigd.ident.figures import fit_percent, refit_flag
+from rigd.ident.model import base_of
 from rigd.ident.thresholds import MIN_FIT_GAIN, MIN_REFIT_GAIN, P_LEVEL, STRONG_REFIT_GAIN
 
 
@@ -83,7 +84,7 @@ def refit_effect(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe",
     t0 = time.perf_counter()
     best = _refit_one(eff, ctx, sig, data_est, max_nfev, method, kept)
     fp0 = float(np.mean(fit_percent(ctx.y[ctx.val], ctx.yhat[ctx.val])))
-    for alt in getattr(eff, "refit_alternatives", lambda c, s: [])(ctx, sig):
+    for alt in eff.refit_alternatives(ctx, sig):
         if alt.extra.get("refines") and best.fit_percent < fp0 + MIN_FIT_GAIN:
             continue  # a refinement of a form that did not matter: not worth its refit
         other = _refit_one(eff, ctx, alt, data_est, max_nfev, method, kept)
@@ -100,11 +101,9 @@ def _refit_one(eff, ctx: Context, sig, data_est, max_nfev, method: str,
     structure, theta, data = ctx.structure, ctx.theta, ctx.data
     # an effect may offer several starts (loop shapes): the fit with the lowest estimation
     # cost is kept (never chosen on the validation part)
-    starts = (eff.refit_starts(ctx, sig) if hasattr(eff, "refit_starts")
-              else [eff.warm_start(ctx, sig)])
+    starts = eff.refit_starts(ctx, sig)
     # parameters an effect keeps at their start in the refit (a redundant scale)
-    fixed = list(kept) + list(getattr(eff, "refit_fixed", lambda e, s=None: [])(
-        eff.extend(structure), sig))
+    fixed = list(kept) + list(eff.refit_fixed(eff.extend(structure), sig))
     fixed = fixed or None
     ext, best, th0, fixed = refit_with(structure, theta, [eff], data_est, method,
                                        starts=starts, fixed=fixed, max_nfev=max_nfev)
@@ -129,9 +128,10 @@ def _words(eff, ctx: Context, sig) -> tuple[str, dict[str, Any]]:
     """The explanation and evidence of ``eff``'s signature: an effect that emits an
     evidence code (``evidence(ctx, sig) -> (code, numbers)``) is worded by
     :mod:`rigd.diagnose.wording` for the record's domain; the others still word their own."""
-    if not hasattr(eff, "evidence"):
+    coded = eff.evidence(ctx, sig)
+    if coded is None:
         return eff.explain(ctx, sig)
-    code, ev = eff.evidence(ctx, sig)
+    code, ev = coded
     text = W.explanation(eff.name, code, dict(ev, share=sig.score, fs=ctx.fs), ctx.domain)
     return text, dict(ev, code=code)
 
@@ -141,9 +141,11 @@ def _refitted_words(eff, ctx: Context, f: Finding, theta_e: np.ndarray) -> None:
     signature (``refitted_evidence(ctx, theta_e) -> numbers``, e.g. a delay) is reported
     and worded with the refit's numbers and share (the signature's kept as
     ``signature_*``)."""
-    if not hasattr(eff, "refitted_evidence") or not np.all(np.isfinite(theta_e)):
+    if not np.all(np.isfinite(theta_e)):
         return
     new = eff.refitted_evidence(ctx, theta_e)
+    if not new:   # the signature's numbers stand
+        return
     for k, v in new.items():
         if k in f.evidence:
             f.evidence[f"signature_{k}"] = f.evidence[k]
@@ -192,7 +194,7 @@ def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
         # (a first-order signature underestimates a large effect: it is not asked for all)
         worth_refit = ((sig.f_p < P_LEVEL and (100.0 - fp) * (
             1.0 - np.sqrt(1.0 - min(max(sig.score_est, 0.0), 1.0))) >= MIN_FIT_GAIN / 2)
-            if getattr(eff, "costly_refit", False)
+            if eff.costly_refit
             else sig.score > 0.005 or sig.f_p < P_LEVEL)
         if refit and worth_refit:
             ref = (refit_effect(eff, ctx, sig, data_est, max_nfev, method, kept)
@@ -246,7 +248,7 @@ def offered(effects: list[str] | None, submodel: str, dom, structure, est: slice
     advice to record an angle would be a rotor's. (On the rotor's records the missing
     encoder angle stays a "cannot tell" with the experiment that would show it.)"""
     names = list(effects or [nm for nm, e in REGISTRY.items()
-                             if submodel in e.submodels and getattr(e, "screened", True)])
+                             if submodel in e.submodels and e.screened])
     if not effects:  # effects this domain cannot carry are not offered (not named either)
         kept = [nm for nm in names if D.offered(REGISTRY[nm], dom)]
         if len(kept) < len(names):
@@ -255,7 +257,7 @@ def offered(effects: list[str] | None, submodel: str, dom, structure, est: slice
         names = kept
         n_est = (est.stop or n) - (est.start or 0)
         for nm in list(names):  # costly effects are screened on records they can afford
-            cap = getattr(REGISTRY[nm], "max_screened_samples", None)
+            cap = REGISTRY[nm].max_screened_samples
             if cap is not None and n_est > cap:
                 names.remove(nm)
                 notes.append(f"{nm} not screened: {n_est} estimation samples > {cap} (its "
@@ -383,11 +385,7 @@ def try_hold(step: Step, ctx0: Context, hold: str, data_est,
     in), so once an effect is in the model the question is asked again.
     """
     st = copy.deepcopy(step.structure)
-    obj, seen = st, 0
-    while obj is not None and seen < 20:  # the hold lives on the base and its wrappers
-        if isinstance(vars(obj).get("hold"), str):
-            obj.hold = hold
-        obj, seen = vars(obj).get("base"), seen + 1
+    base_of(st).hold = hold  # the hold lives on the base (a composed model reads it)
     fixed = list(step.fixed) or None  # what the step's own refit kept (a curve's sites)
     try:
         th = fit_model(st, data_est, theta0=step.theta, fixed=fixed, method=method).theta

@@ -90,6 +90,17 @@ class Effect:
     submodels: tuple[str, ...] = ("actuator", "bearing", "generic")
     physics: str = ""
     min_score: float = 0.05
+    #: screened by default by ``rigd diagnose`` (the catalogue's entries are; an effect
+    #: offered only on request sets False)
+    screened: bool = True
+    #: the refit is expensive (a state model of its own): refitted only on a decisive
+    #: signature (rigd.diagnose.selection)
+    costly_refit: bool = False
+    #: screened by default on at most this many estimation samples (None: any length)
+    max_screened_samples: int | None = None
+    #: ``state_simulate(base, theta_b, theta_e, feedback, data) -> y``: the effect simulates
+    #: the model with a state model of its own (sites ``state``/``mode``); None: it has none
+    state_simulate = None
 
     def clashes_with(self, other: Effect) -> bool:
         """True when this effect and ``other`` cannot be simulated in one composed model
@@ -103,7 +114,7 @@ class Effect:
         by one there (:attr:`excludes`, either way), or a requirement (:attr:`requires`)
         the base, or the record ``data``, lacks (:func:`rigd.effects.compose.carries`;
         ``rotation`` is checked only with ``data``)."""
-        inside = list(getattr(structure, "effect_list", ()))
+        inside = list(structure.effect_list)
         if self.name in (e.name for e in inside):
             return f"{self.name} is already in the model"
         for e in inside:
@@ -113,11 +124,11 @@ class Effect:
         if "mechanical" in self.requires and "mechanical" not in has:
             return (f"{self.name} acts on the positions and velocities of a mechanical "
                     f"model (p̈ + D ṗ + K p = B u); the base model "
-                    f"({getattr(structure, 'kind', type(structure).__name__)}) is not one")
+                    f"({structure.kind}) is not one")
         if "mode" in self.requires and "mode" not in has:
             return (f"{self.name} acts on one mode's coordinate of a modal model (q̈ + 2ζω q̇ "
                     f"+ ω² q + φ = b·u); the base model "
-                    f"({getattr(structure, 'kind', type(structure).__name__)}) has no modal "
+                    f"({structure.kind}) has no modal "
                     f"(complex-pair) blocks")
         if "rotation" in self.requires and "rotation" not in has:
             return (f"{self.name} is locked to the angle of a rotating part, and nothing in "
@@ -255,26 +266,44 @@ class Effect:
         """Effect parameters to start the refit from (default: theta0_effect)."""
         return None
 
+    def refit_starts(self, ctx: Context, sig: SignatureFit) -> list[np.ndarray | None]:
+        """Starts of the diagnosis refit; the lowest estimation cost is kept (default: the
+        one :meth:`warm_start`)."""
+        return [self.warm_start(ctx, sig)]
+
+    def start_on(self, structure: Any, theta: np.ndarray, data: Any) -> np.ndarray | None:
+        """Effect parameters to start ``rigd identify --add`` from, on the fitted base
+        ``structure`` at ``theta`` (None: :meth:`theta0_effect`)."""
+        return None
+
+    def refit_alternatives(self, ctx: Context, sig: SignatureFit) -> list[SignatureFit]:
+        """Other forms of the effect the diagnosis refits beside the first (default: none)."""
+        return []
+
+    def refit_fixed(self, ext: Any, sig: SignatureFit | None = None) -> list[str]:
+        """Parameters of the extended model ``ext`` the diagnosis refit keeps at their start
+        (a redundant scale; default: none)."""
+        return []
+
+    def evidence(self, ctx: Context, sig: SignatureFit) -> tuple[str, dict] | None:
+        """(evidence code, numbers) worded by rigd.diagnose.wording for the record's domain;
+        None: the effect words its own explanation (:meth:`explain`)."""
+        return None
+
+    def refitted_evidence(self, ctx: Context, theta_e: np.ndarray) -> dict:
+        """Numbers read better from the refit than from the signature (a delay's size;
+        default: none)."""
+        return {}
+
 
 def is_mechanical(structure: Any) -> bool:
-    """True for a mechanical base (``continuous`` gives x = [p, ṗ], the structure says
-    ``mechanical = True``) whose simulator takes the state feedback
-    (rigd.ident.greybox.mechanical and the modal structures built on it), with effects
-    composed around it or not. A general LTI model has ``continuous`` too, in modal states:
-    not mechanical."""
+    """True for a mechanical base (x = [p, ṗ]) whose simulator takes the state feedback
+    (rigd.ident.greybox.mechanical and the modal structures built on it; ``Model.carries``),
+    with effects composed around it or not. A general LTI model's states are modal: not
+    mechanical."""
     return "mechanical" in carries(structure)
 
 
 def dims(base: Any) -> tuple[int, int]:
-    """(ny, nu) of a structure: its ``ny``/``nu`` attributes or the lengths of its
-    ``outputs``/``inputs`` name lists."""
-    ny = getattr(base, "ny", None)
-    nu = getattr(base, "nu", None)
-    if ny is None:
-        ny = len(getattr(base, "outputs", None) or getattr(base, "output_names", []))
-    if nu is None:
-        nu = len(getattr(base, "inputs", None) or getattr(base, "input_names", []))
-    if not ny or not nu:
-        raise TypeError(f"structure {type(base).__name__} does not tell its numbers of "
-                        "inputs and outputs (ny/nu)")
-    return int(ny), int(nu)
+    """(ny, nu) of a model (``Model.ny`` / ``Model.nu``)."""
+    return int(base.ny), int(base.nu)

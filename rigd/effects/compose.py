@@ -28,7 +28,6 @@ is refused with the sentence of ``Effect.not_offered``.
 from __future__ import annotations
 
 import copy
-import inspect
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -37,7 +36,7 @@ import numpy as np
 from rigd.effects.scales import RecordScale
 from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.iddata import get_phi, replace_inputs
-from rigd.ident.model import base_of
+from rigd.ident.model import Model, base_of
 
 __all__ = ["Composed", "compose", "carries", "SITES", "REQUIREMENTS"]
 
@@ -55,30 +54,19 @@ Sim = Callable[[Any], np.ndarray]
 def carries(structure: Any, data: Any = None) -> set[str]:
     """What the base of ``structure`` can carry (:data:`REQUIREMENTS`).
 
-    ``mechanical``: its states are [p, ṗ] (``mechanical = True``), it has a continuous
-    state-space form and its simulator takes the feedback of state-level effects.
-    ``rotation``: the record ``data`` has a shaft angle (``phi``); without ``data`` it is
-    not known and assumed carried. ``mode``: a general LTI model in modal form with at
-    least one complex pair (:class:`rigd.ident.lti.statespace.StateSpaceModel`).
+    The model states two (``Model.carries``): ``mechanical`` — its states are [p, ṗ] and its
+    simulator takes the feedback of state-level effects; ``mode`` — a general LTI model in
+    modal form with at least one complex pair (:class:`rigd.ident.lti.statespace.
+    StateSpaceModel`). ``rotation``: the record ``data`` has a shaft angle (``phi``); without
+    ``data`` it is not known and assumed carried.
     """
-    base = base_of(structure)
-    out = set()
-    try:
-        takes = "feedback" in inspect.signature(base.simulate).parameters
-    except (TypeError, ValueError, AttributeError):
-        takes = False
-    if bool(getattr(base, "mechanical", False)) and takes and callable(
-            getattr(base, "continuous", None)):
-        out.add("mechanical")
+    out = set(base_of(structure).carries)
     if data is None or get_phi(data) is not None:
         out.add("rotation")
-    if getattr(base, "kind", None) == "lti" and int(getattr(base, "nc", 0) or 0) > 0 and \
-            callable(getattr(base, "block_states", None)):
-        out.add("mode")
     return out
 
 
-class Composed:
+class Composed(Model):
     """A base model with effects composed around it (module docstring).
 
     Parameters
@@ -122,10 +110,69 @@ class Composed:
             self._slices.append(slice(len(names), len(names) + len(en)))
             names += en
         self.names = names
-        self.effects = list(getattr(base, "effects", []) or []) + [e.name for e in
-                                                                  self.effect_list]
+        self.effects = list(base.effects) + [e.name for e in self.effect_list]
         #: scales of the data the structure is fitted on (bounds relative to the record)
         self.record: RecordScale | None = None
+
+    # --- what the base states, seen through the effects ---------------------------------
+    @property
+    def kind(self) -> str:
+        return self.base.kind
+
+    @property
+    def x0_index(self) -> list[int]:
+        return self.base.x0_index
+
+    @property
+    def offset_index(self) -> list[int]:
+        return self.base.offset_index
+
+    @property
+    def noise_index(self) -> list[int]:
+        return self.base.noise_index
+
+    @property
+    def carries(self) -> frozenset[str]:
+        return self.base.carries
+
+    @property
+    def n_integrators(self) -> int:
+        return self.base.n_integrators
+
+    @property
+    def n_parallel_modes(self) -> int:
+        return self.base.n_parallel_modes
+
+    @property
+    def delays(self) -> tuple[int, ...]:
+        return self.base.delays
+
+    @property
+    def hold(self) -> str:
+        return self.base.hold
+
+    @property
+    def velocity_index(self) -> list[int]:
+        return self.base.velocity_index
+
+    @property
+    def _n_est(self) -> int | None:
+        return self.base._n_est
+
+    def scale(self, theta: np.ndarray) -> np.ndarray:
+        return self.base.scale(theta)
+
+    def predict(self, theta: np.ndarray, data: Any) -> np.ndarray | None:
+        return self.base.predict(theta, data)
+
+    def linear_part(self, theta: np.ndarray):
+        return self.base.linear_part(np.asarray(theta, float)[:self.nb])
+
+    def output_offset(self, theta: np.ndarray) -> np.ndarray | None:
+        return self.base.output_offset(np.asarray(theta, float)[:self.nb])
+
+    def describe(self) -> str:
+        return self.base.describe()
 
     @property
     def fixed_names(self) -> list[str]:
@@ -158,10 +205,7 @@ class Composed:
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower/upper bounds (the base's if it has them, else unbounded; the effects'
         relative to the bound record, else record-free)."""
-        if hasattr(self.base, "bounds"):
-            lb, ub = self.base.bounds()
-        else:
-            lb, ub = np.full(self.nb, -np.inf), np.full(self.nb, np.inf)
+        lb, ub = self.base.bounds()
         los, his = [np.asarray(lb, float)], [np.asarray(ub, float)]
         for e in self.effect_list:
             lo, hi = (e.record_bounds(self.base, self.record) if self.record is not None
@@ -197,7 +241,7 @@ class Composed:
         """The base's simulation with the feedback blocks in it."""
         own = [(e, t) for e, t in zip(self.effect_list, te)
                if ("state" in e.sites or "mode" in e.sites)
-               and callable(getattr(e, "state_simulate", None)) and e.owns_state(self.base)]
+               and e.state_simulate is not None and e.owns_state(self.base)]
         fb = self.feedback(np.concatenate([tb] + te), data)
         if own:
             if len(own) > 1:
@@ -232,8 +276,8 @@ class Composed:
             As the base's: ``indices`` of the base's parameters (the first of ``theta``),
             ``dY[:, :, k]`` = ∂ŷ/∂θ[indices[k]] (n, ny, k).
         """
-        method = getattr(type(self.base), "output_sensitivities", None)
-        if not callable(method):
+        method = type(self.base).output_sensitivities
+        if method is None:
             return None
         for e in self.effect_list:
             sites = set(e.sites)
@@ -279,13 +323,12 @@ class Composed:
 
     def readouts(self, theta: np.ndarray) -> dict[str, Any]:
         theta = np.asarray(theta, float)
-        out = (dict(self.base.readouts(theta[:self.nb])) if hasattr(self.base, "readouts")
-               else {})
+        out = dict(self.base.readouts(theta[:self.nb]))
         out.update({n: float(v) for n, v in zip(self.names[self.nb:], theta[self.nb:])})
         return out
 
     def spec(self) -> dict[str, Any]:
-        d = dict(self.base.spec()) if hasattr(self.base, "spec") else {}
+        d = dict(self.base.spec())
         d["effects"] = list(self.effects)
         return d
 

@@ -251,8 +251,7 @@ class Context:
         """
         base = base_of(self.structure)
         # no [p, ṗ] states (a general LTI model has modal ones: rigd.effects.base.is_mechanical)
-        if not (getattr(base, "mechanical", False) and
-                callable(getattr(self.structure, "continuous", None))):
+        if "mechanical" not in base.carries:
             return self.through_model(v, min(axis, self.nu - 1))
         A, B, C, _, _ = self.structure.continuous(self.theta)
         nx = A.shape[0]

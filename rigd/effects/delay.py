@@ -51,14 +51,14 @@ class Delay(Effect):
         process families take a per-input delay in whole samples, chosen before their order:
         rigd.ident.lti.order): the delay is named from the base, not added."""
         base = base_of(ctx.structure)
-        delays = [int(d) for d in getattr(base, "delays", ()) or ()]
+        delays = [int(d) for d in base.delays]
         if not delays or max(delays) <= 0:
             return None
         fp = float(np.mean(fit_percent(ctx.y[ctx.val], ctx.yhat[ctx.val])))
         j = int(np.argmax(delays))
         ev = {"code": "delay.in_base", "delay_samples": float(delays[j]),
               "delay_ms": float(1000 * delays[j] / ctx.fs), "input": ctx.label(j, "in"),
-              "delays_samples": delays, "hold": getattr(base, "hold", "")}
+              "delays_samples": delays, "hold": base.hold}
         # the words are the diagnosis' (rigd.diagnose.wording, from the code)
         return Finding(self.name, 0.0, True, "", ctx.submodel, 0.0, fp, ev)
 

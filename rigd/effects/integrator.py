@@ -64,11 +64,10 @@ def feedback_evidence(u: np.ndarray, r: np.ndarray, lags: int = 10) -> float:
 def slowest_real_pole(structure, theta) -> float | None:
     """Time constant (s) of the base model's slowest real pole, from its continuous state
     matrix (None without one; inf for a pole at zero)."""
-    cont = getattr(structure, "continuous", None)
-    if not callable(cont):
-        return None
     try:
-        lam = np.linalg.eigvals(np.asarray(cont(theta)[0], float))
+        lam = np.linalg.eigvals(np.asarray(structure.continuous(theta)[0], float))
+    except NotImplementedError:
+        return None
     except (np.linalg.LinAlgError, ValueError):
         return None
     real = [abs(lm.real) for lm in lam if abs(lm.imag) <= 1e-9 * max(abs(lm), 1e-300)]

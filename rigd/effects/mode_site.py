@@ -222,18 +222,18 @@ class ModeEffect(Effect):
     def param_names(self, base):
         """The mode, the law's parameters, the force's direct share of each output
         (``<name>_d<i>``: a sensor of the mode's acceleration sees it at once)."""
-        ny = len(getattr(base_of(base), "output_names", []) or []) or 1
+        ny = self._ny(base)
         return ([f"{self.name}_mode"] + [f"{self.name}_{n}" for n in self.law_names()]
                 + [f"{self.name}_d{i + 1}" for i in range(ny)])
 
     def _ny(self, base) -> int:
-        return len(getattr(base_of(base), "output_names", []) or []) or 1
+        return int(base_of(base).ny)
 
     def direct_start(self, base, info) -> np.ndarray:
         """The direct share of each output at the start: with a feedthrough in the base
         (sensors of acceleration) the output row on [q, q̇] is c·(−ω² q − 2ζω q̇) and the
         share c = −(row on q)/ω²; without one, 0."""
-        if not getattr(base_of(base), "feedthrough", False):
+        if not base_of(base).feedthrough:
             return np.zeros(self._ny(base))
         return -np.asarray(info["Cq"][:, 0], float) / info["w2"]
 
@@ -248,14 +248,14 @@ class ModeEffect(Effect):
     def param_bounds(self, base):
         """The mode's index within [0.5, pairs + 0.5] (an index, held: never at a bound),
         the law's own bounds."""
-        nc = max(int(getattr(base_of(base), "nc", 1) or 1), 1)
+        nc = max(int(base_of(base).nc), 1)
         lo, hi = self.law_bounds(None)
         ny = self._ny(base)
         return (np.array([0.5] + lo + [-np.inf] * ny),
                 np.array([nc + 0.5] + hi + [np.inf] * ny))
 
     def record_bounds(self, base, rec):
-        nc = max(int(getattr(base_of(base), "nc", 1) or 1), 1)
+        nc = max(int(base_of(base).nc), 1)
         lo, hi = self.law_bounds(float(np.max(rec.u_spread)))
         ny = self._ny(base)
         return (np.array([0.5] + lo + [-np.inf] * ny),

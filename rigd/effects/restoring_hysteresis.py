@@ -180,8 +180,7 @@ class RestoringHysteresis(Effect):
         restoring force and the other state-level effects' ``feedback``
         (rigd.ident.feedback.MechanicalFeedback or None): :func:`bw_kernel`, the base's
         parallel modes and output offsets added."""
-        if not (getattr(base, "mechanical", False) and callable(getattr(base, "continuous",
-                                                                        None))):
+        if "mechanical" not in base.carries:
             raise ValueError("the restoring-force hysteresis needs a mechanical base model "
                              "(states [p, ṗ])")
         te = np.asarray(theta_e, float)
@@ -208,13 +207,12 @@ class RestoringHysteresis(Effect):
                       a, np.abs(c), be, ga, np.ones(m), np.ascontiguousarray(k3),
                       np.ascontiguousarray(k3c),
                       np.ascontiguousarray(x0, dtype=float), u, 1.0 / float(data.fs),
-                      _nsub(K, float(data.fs)), getattr(base, "hold", "zoh") == "foh")
-        off = base.output_offset(theta_b) if hasattr(base, "output_offset") else None
+                      _nsub(K, float(data.fs)), base.hold == "foh")
+        off = base.output_offset(theta_b)
         if off is not None:   # the outputs' zero (generic): y = p + y_off
             y = y + off
-        if hasattr(base, "parallel_output"):  # parallel modes and their free response
-            add = base.parallel_output(theta_b, data)
-            y = y if add is None else y + add
+        add = base.parallel_output(theta_b, data)  # parallel modes and their free response
+        y = y if add is None else y + add
         return y
 
     def refit_fixed(self, ext, sig=None) -> list[str]:

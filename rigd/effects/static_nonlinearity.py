@@ -88,7 +88,7 @@ class StaticNonlinearity(Effect):
         """True when ``base`` carries the state site: a general LTI base (its ``matrices``
         and ``linear_part``) whose block has at most :data:`MAX_STATE_PARAMS` parameters."""
         b = base_of(base)
-        if getattr(b, "kind", None) != "lti" or not callable(getattr(b, "matrices", None)):
+        if b.kind != "lti":   # a general LTI base (its ``matrices``)
             return False
         ny, nu = dims(b)
         return int(b.nx) * (nu + ny) * (self.degree - 1) <= MAX_STATE_PARAMS

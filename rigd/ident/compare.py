@@ -102,8 +102,7 @@ def compare_model(model: ModelFile, record: Record, runout: Record | None = None
                          f"{model.fs:g} Hz", record.source)
     out = {}
     for name, sm in model.submodels.items():
-        ins = list(getattr(sm.structure, "input_names", []))
-        outs = list(getattr(sm.structure, "output_names", []))
+        ins, outs = list(sm.structure.input_names), list(sm.structure.output_names)
         if name == "generic":
             if not record.has(*ins, *outs):
                 continue
@@ -181,8 +180,7 @@ def yardsticks(model: ModelFile, record: Record, runout: Record | None,
     out: dict[str, Any] = {}
     for name, fp in fits.items():
         sm = model.submodels[name]
-        ins = list(getattr(sm.structure, "input_names", []))
-        outs = list(getattr(sm.structure, "output_names", []))
+        ins, outs = list(sm.structure.input_names), list(sm.structure.output_names)
         rec = record if (name != "generic" or record.is_generic) else dataclasses.replace(
             record, meta={**record.meta, "inputs": ins, "outputs": outs})
         data, _ = prepare(rec, name, _options_from(model, name), runout,

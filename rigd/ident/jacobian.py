@@ -24,18 +24,16 @@ def additive_offsets(structure) -> list[int]:
     with effects around it (rigd.effects.compose) that act on its inputs or states only and
     leave the simulation to it (an output-site curve acts after the offset; an effect that
     simulates the states with a model of its own may not add it); else []."""
-    base, effects = vars(structure).get("base"), vars(structure).get("effect_list")
-    if base is None or effects is None:
-        base, effects = structure, []
-    if not getattr(type(base), "additive_offsets", False):
+    base = structure if structure.base is None else structure.base
+    effects = structure.effect_list
+    if not base.additive_offsets:
         return []
     for e in effects:
-        sites = set(getattr(e, "sites", ()) or ())
-        if not sites <= {"state", "input"}:
+        if not set(e.sites) <= {"state", "input"}:
             return []
-        if callable(getattr(e, "state_simulate", None)) and e.owns_state(base):
+        if e.state_simulate is not None and e.owns_state(base):
             return []
-    return [int(i) for i in (getattr(base, "offset_index", None) or [])]
+    return [int(i) for i in base.offset_index]
 
 
 def linear_jacobian(structure, data, fun, free: np.ndarray, scale: np.ndarray,
@@ -63,8 +61,7 @@ def linear_jacobian(structure, data, fun, free: np.ndarray, scale: np.ndarray,
     # simulates more than the base and has no such columns
     # (a composed model offers them when its effects leave the base's linearity intact:
     # rigd.effects.compose.Composed.output_sensitivities; None otherwise)
-    method = getattr(type(structure), "output_sensitivities", None)
-    method = method if callable(method) else None
+    method = type(structure).output_sensitivities
     off = additive_offsets(structure)
     if method is None and not off:
         return None

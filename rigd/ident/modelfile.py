@@ -134,9 +134,7 @@ class Submodel:
         approximant, an extra mode, lags; ``Effect.linear``), ``included`` their names and
         ``left_out`` {name: why} of the others (hysteresis, run-out, …). ``fs``: the rate
         of the fit, Hz (effect parameters in samples)."""
-        if hasattr(self.structure, "linear_ss"):
-            return self.structure.linear_ss(np.asarray(self.theta, float), fs, G0)
-        return (self.ss() if G0 is None else G0), [], {}
+        return self.structure.linear_ss(np.asarray(self.theta, float), fs, G0)
 
 
 @dataclass
@@ -180,7 +178,7 @@ class ModelFile:
         subs = {}
         for name, sm in self.submodels.items():
             spec = dict(base_of(sm.structure).spec())  # parallel modes are the base's own
-            spec["effects"] = list(getattr(sm.structure, "effects", []))
+            spec["effects"] = list(sm.structure.effects)
             subs[name] = {
                 "structure": spec,
                 "method": sm.method,

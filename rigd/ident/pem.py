@@ -26,7 +26,7 @@ from scipy.optimize import least_squares
 from rigd.errors import InputError
 from rigd.ident.figures import fit_percent
 from rigd.ident.iddata import IdData
-from rigd.ident.structure import Structure
+from rigd.ident.model import Model
 
 METHODS = ("pem", "oe")
 _PENALTY = 1e3
@@ -38,7 +38,7 @@ class FitResult:
 
     Attributes
     ----------
-    structure : Structure
+    structure : Model
     theta, std : ndarray
         Estimates and their standard deviations (same order as ``structure.names``).
     method : str
@@ -55,7 +55,7 @@ class FitResult:
         the bound was active when the optimiser stopped).
     """
 
-    structure: Structure
+    structure: Model
     theta: np.ndarray
     std: np.ndarray
     method: str
@@ -75,39 +75,36 @@ class FitResult:
         return self.structure.readouts(self.theta)
 
 
-def _scale(structure, theta: np.ndarray) -> np.ndarray:
-    """Typical parameter sizes; works for a base with effects composed around it
-    (rigd.effects.compose.Composed)."""
-    if has_predictor(structure):
+def _scale(structure: Model, theta: np.ndarray) -> np.ndarray:
+    """Typical parameter sizes; for a base with effects composed around it
+    (rigd.effects.compose.Composed) the base's, then the effects' own."""
+    if structure.base is None:
         s = np.asarray(structure.scale(theta), float)
-        if s.shape == theta.shape:
-            return s
-    base = getattr(structure, "base", None)
-    if base is not None:
-        nb = len(base.names)
-        # an effect's parameters: their size, at least their typical size on this record
-        # (rigd.effects: seconds relative to the rate, amplitudes to the signals), else 1
-        typ = structure.typical() if callable(getattr(structure, "typical", None)) else None
-        typ = 1.0 if typ is None or typ.shape != theta[nb:].shape else typ
-        return np.concatenate([_scale(base, theta[:nb]), np.maximum(np.abs(theta[nb:]), typ)])
-    return np.maximum(np.abs(theta), 1e-6)
+        return s if s.shape == theta.shape else np.maximum(np.abs(theta), 1e-6)
+    nb = len(structure.base.names)
+    # an effect's parameters: their size, at least their typical size on this record
+    # (rigd.effects: seconds relative to the rate, amplitudes to the signals), else 1
+    typ = structure.typical()
+    typ = 1.0 if typ is None or typ.shape != theta[nb:].shape else typ
+    return np.concatenate([_scale(structure.base, theta[:nb]),
+                           np.maximum(np.abs(theta[nb:]), typ)])
 
 
-def has_predictor(structure) -> bool:
-    """True if ``structure`` itself (not a delegate of a wrapper) has a one-step predictor."""
-    return isinstance(structure, Structure)
+def has_predictor(structure: Model) -> bool:
+    """True if ``structure`` is a base model (whose family may have a one-step predictor),
+    not a base with effects composed around it (fitted by output error)."""
+    return isinstance(structure, Model) and structure.base is None
 
 
-def _bounds(structure, npar: int):
-    if hasattr(structure, "bounds"):
-        lo, hi = structure.bounds()
-        lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-        if lo.shape == (npar,) and hi.shape == (npar,):
-            return lo, hi
+def _bounds(structure: Model, npar: int):
+    lo, hi = structure.bounds()
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    if lo.shape == (npar,) and hi.shape == (npar,):
+        return lo, hi
     return np.full(npar, -np.inf), np.full(npar, np.inf)
 
 
-def _residual_fn(structure: Structure, data: IdData, method: str, scale: np.ndarray,
+def _residual_fn(structure: Model, data: IdData, method: str, scale: np.ndarray,
                  free: np.ndarray, theta_full: np.ndarray, wy: np.ndarray, skip: int):
     y = data.y
 
@@ -125,26 +122,26 @@ def _residual_fn(structure: Structure, data: IdData, method: str, scale: np.ndar
     return res
 
 
-def free_mask(structure: Structure, fixed: list[str] | None, method: str) -> np.ndarray:
+def free_mask(structure: Model, fixed: list[str] | None, method: str) -> np.ndarray:
     """Mask of the parameters the fit moves: not ``fixed``, and for output error neither
     the disturbance (``bd_*``) nor the noise parameters, which play no role in a simulation."""
     fixed_set = set(fixed or [])
     unknown = fixed_set - set(structure.names)
     if unknown:
         raise InputError(f"cannot fix unknown parameter(s) {sorted(unknown)}")
-    fixed_set |= set(getattr(structure, "fixed_names", ()) or ())
+    fixed_set |= set(structure.fixed_names)
     free = np.array([n not in fixed_set for n in structure.names])
     if method == "oe":
         free &= np.array([not n.startswith("bd_") for n in structure.names])
-        free[list(getattr(structure, "noise_index", []))] = False
+        free[list(structure.noise_index)] = False
     return free
 
 
-def _fit_scale(structure: Structure, th0: np.ndarray, data: IdData) -> np.ndarray:
+def _fit_scale(structure: Model, th0: np.ndarray, data: IdData) -> np.ndarray:
     """Scale of each parameter (:func:`_scale`), output offsets (generic structures) at the
     outputs' own scale, whatever their start value."""
     scale = _scale(structure, th0)
-    off = list(getattr(structure, "offset_index", []))
+    off = list(structure.offset_index)
     if off:
         ys = np.maximum(data.y.std(axis=0), np.abs(data.y.mean(axis=0)))
         for k, i in enumerate(off):
@@ -168,7 +165,7 @@ def _std(sol, free: np.ndarray, scale: np.ndarray) -> np.ndarray:
     return std
 
 
-def _problem(structure: Structure, data: IdData, method: str, theta: np.ndarray,
+def _problem(structure: Model, data: IdData, method: str, theta: np.ndarray,
              fixed: list[str] | None, skip: int):
     """(free mask, scale, residual function of the scaled free parameters) of the weighted
     least-squares problem at ``theta``: what :func:`fit` solves and :func:`evaluate`
@@ -179,20 +176,20 @@ def _problem(structure: Structure, data: IdData, method: str, theta: np.ndarray,
     return free, scale, _residual_fn(structure, data, method, scale, free, theta, wy, skip)
 
 
-def _fit_at(structure: Structure, theta: np.ndarray, data: IdData, skip: int) -> np.ndarray:
+def _fit_at(structure: Model, theta: np.ndarray, data: IdData, skip: int) -> np.ndarray:
     """Fit % per output of the simulation at ``theta`` (the first ``skip`` samples left out)."""
     ysim = structure.simulate(theta, data)
     return fit_percent(data.y[skip:], ysim[skip:])
 
 
-def fit(structure: Structure, data: IdData, *, method: str = "pem",
+def fit(structure: Model, data: IdData, *, method: str = "pem",
         theta0: np.ndarray | None = None, ftol: float = 1e-4, max_nfev: int | None = None,
         fixed: list[str] | None = None, skip: int = 0) -> FitResult:
     """Fit ``structure`` to ``data``.
 
     Parameters
     ----------
-    structure : Structure
+    structure : Model
     data : IdData
         Estimation data (prefiltered).
     method : {"pem", "oe"}
@@ -210,9 +207,8 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
     """
     if method not in METHODS:
         raise InputError(f"unknown fit method {method!r} (known: {', '.join(METHODS)})")
-    if callable(getattr(structure, "bind_record", None)):
-        # effects' bounds relative to this record (rate, length, spreads): rigd.effects.scales
-        structure.bind_record(data)
+    # effects' bounds relative to this record (rate, length, spreads): rigd.effects.scales
+    structure.bind_record(data)
     th0 = np.asarray(structure.theta0(data) if theta0 is None else theta0, float).copy()
     npar = len(structure.names)
     if method == "pem":
@@ -264,7 +260,7 @@ def fit(structure: Structure, data: IdData, *, method: str = "pem",
                                         "at_bound": at_bound})
 
 
-def evaluate(structure: Structure, data: IdData, theta: np.ndarray, *, skip: int = 0,
+def evaluate(structure: Model, data: IdData, theta: np.ndarray, *, skip: int = 0,
              status: str = "kept") -> FitResult:
     """The output-error :class:`FitResult` of ``structure`` at ``theta``, without iterating.
 
@@ -288,8 +284,7 @@ def evaluate(structure: Structure, data: IdData, theta: np.ndarray, *, skip: int
     """
     from types import SimpleNamespace
 
-    if callable(getattr(structure, "bind_record", None)):
-        structure.bind_record(data)
+    structure.bind_record(data)
     th = np.asarray(theta, float).copy()
     free, scale, fun = _problem(structure, data, "oe", th, None, skip)
     z = th[free] / scale[free]

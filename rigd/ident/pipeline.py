@@ -294,7 +294,7 @@ def _generic_base(mech, res, data, es: slice, vs: slice, hold: str, settings: Fi
         raise InputError(str(exc), "--order") from None
     if chosen.structure is mech:   # fitted by the asked method already
         return mech, res, chosen
-    skip = settle(getattr(chosen.structure, "delays", [0]))
+    skip = settle(chosen.structure.delays)
     if settings.method == "oe":
         # choose_base's parameters are output-error fits already, or a reference of more
         # states than it refines that its held-out check kept as it is: refitted to
@@ -342,7 +342,7 @@ def held_base(structure, method: str, fixed: Sequence[str] | None = None) -> lis
     free = free_mask(structure, [n for n in (fixed or ()) if n in set(names)], method)
     if int(free.sum()) <= MAX_REFIT_FREE:
         return []
-    off = set(getattr(structure, "offset_index", []) or [])
+    off = set(structure.offset_index)
     return [n for i, n in enumerate(names) if free[i] and i not in off]
 
 
@@ -382,12 +382,11 @@ def refit_with(structure, theta: np.ndarray, effects: Sequence[Any], data_est, m
     ext = structure
     for e in effects:
         ext = e.extend(ext)
-    if hasattr(ext, "bind_record"):  # bounds relative to the record (rigd.effects.scales)
-        ext.bind_record(data_est)
+    ext.bind_record(data_est)  # bounds relative to the record (rigd.effects.scales)
     lo, hi = ext.bounds()
     theta = np.asarray(theta, float)
     nb = theta.size
-    if len(effects) == 1 and hasattr(effects[0], "theta0_effect"):  # no base guess needed
+    if len(effects) == 1:  # the effect's own start: no base guess needed
         auto = np.asarray(effects[0].theta0_effect(structure, data_est), float)
     else:
         auto = np.asarray(ext.theta0(data_est), float)[nb:]
@@ -407,10 +406,5 @@ def refit_with(structure, theta: np.ndarray, effects: Sequence[Any], data_est, m
 
 
 def effects_for(effects: Sequence[Any], submodel: str) -> list[Any]:
-    """Those of ``effects`` that concern ``submodel`` (all of them if they do not say)."""
-    out = []
-    for eff in effects:
-        subs = getattr(eff, "submodels", None)
-        if subs is None or submodel in subs:
-            out.append(eff)
-    return out
+    """Those of ``effects`` that concern ``submodel`` (``Effect.submodels``)."""
+    return [eff for eff in effects if submodel in eff.submodels]

@@ -49,8 +49,6 @@ def at_bounds(structure, theta, at_bound=None, std=None) -> list[str]:
     absolute tolerance: a small parameter of a record in metres is not "at" a bound of 0
     for being small.
     """
-    if not hasattr(structure, "bounds"):
-        return []
     lo, hi = (np.asarray(b, float) for b in structure.bounds())
     th = np.asarray(theta, float)
     if lo.shape != th.shape or hi.shape != th.shape:

@@ -69,7 +69,7 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData,
     validation part's state from the estimation part alone.
     """
     base = base_of(structure)  # the effects' parameters come after the base's
-    idx = list(getattr(base, "x0_index", [])) + list(getattr(base, "offset_index", []))
+    idx = list(base.x0_index) + list(base.offset_index)
     if not idx:
         return np.asarray(theta, float)
     th = np.array(theta, float)
@@ -82,7 +82,7 @@ def estimate_x0(structure, theta: np.ndarray, data: IdData,
     vs = float(np.max(np.std(np.diff(data.y, axis=0), axis=0))) * float(data.fs) or ys
     # velocity states [p, ṗ] of a mechanical model (its parallel modes' initial values are
     # output amplitudes); other families: every state at y's scale
-    vel = set(getattr(base, "velocity_index", []) or [])
+    vel = set(base.velocity_index)
     steps = np.array([vs if i in vel else ys for i in idx]) * 1e-2
     cols = []
     for i, d in zip(idx, steps):
@@ -106,7 +106,7 @@ def samples_needed(structure) -> int:
     """Fewest samples a fitted model needs to be compared on a record: its initial states
     are estimated by least squares (one more sample than states), and at least 3."""
     base = base_of(structure)  # the effects' parameters come after the base's
-    return max(3, len(list(getattr(base, "x0_index", []))) + 1)
+    return max(3, len(list(base.x0_index)) + 1)
 
 
 def residual_stats(y: np.ndarray, yhat: np.ndarray, names: list[str]) -> dict[str, Any]:
@@ -179,7 +179,7 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     effects = list(effects or [])
     # an asked effect that acts on a mechanical state (a stiffness, a restoring force)
     # needs the mechanical base (rigd.ident.pipeline.FitSettings.mechanical)
-    settings.mechanical = any("mechanical" in (getattr(e, "requires", None) or ())
+    settings.mechanical = any("mechanical" in e.requires
                               for e in effects_for(effects, "generic"))
     fitted = []
     for sm in submodels:
@@ -243,7 +243,7 @@ def _with_effects(bf, applied: list[Any], sm: str, init: ModelFile | None, metho
                          f"{', '.join(e.name for e in applied)}: {exc}", "--add") from None
     th_init = start_values(composed, init, sm, bf.est_data)
     starts = [None if th_init is None else th_init[nb:]]
-    if th_init is None and len(applied) == 1 and callable(getattr(applied[0], "start_on", None)):
+    if th_init is None and len(applied) == 1:
         # an effect that starts from the fitted base (a mode effect: which mode, its scale)
         s0 = applied[0].start_on(structure, res.theta, bf.est_data)
         starts = starts if s0 is None else [s0]
@@ -265,7 +265,7 @@ def _submodel(sm: str, bf, structure, res) -> Submodel:
     ysim = np.asarray(structure.simulate(theta, data))
     fe = fit_percent(data.y[es], ysim[es])
     fv = fit_percent(data.y[vs], ysim[vs])
-    readouts = structure.readouts(theta) if hasattr(structure, "readouts") else {}
+    readouts = structure.readouts(theta)
     warn = model_warnings(structure, theta, res.info.get("at_bound"), std)
     if not np.all(np.isfinite(ysim)):
         warn.append("the model's simulated response is not finite on this record (the "

@@ -9,6 +9,7 @@ import pytest
 
 from rigd.cli import main
 from rigd.ident.greybox.mechanical import generic_structure
+from rigd.ident.model import Model
 from rigd.ident.sanity import model_warnings
 
 
@@ -22,7 +23,7 @@ def test_unstable_mode_and_parameter_at_bound_are_named():
     assert len(msg) == 1 and "unstable mode" in msg[0] and "10 Hz" in msg[0]
     assert "-0.0175" in msg[0]
 
-    class Bounded:
+    class Bounded(Model):
         names = ["a", "b"]
 
         def bounds(self):

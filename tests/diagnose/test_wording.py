@@ -12,6 +12,7 @@ import pytest
 from rigd.diagnose import advice as A
 from rigd.diagnose import domain as D
 from rigd.diagnose import wording as W
+from rigd.ident.model import LinearPart, Model
 
 DOMAINS = D.DOMAINS
 MECH = re.compile("stiffness|resonan|rotor|bearing|film|valve|gyroscop|yaml", re.I)
@@ -87,14 +88,16 @@ def test_a_two_input_record_is_never_a_single_axis():
                            "rotor")[0] == "the record has a single axis"
 
 
-class _Lin:
+class _Lin(Model):
+    """A model that is only its continuous state matrix A."""
     names = ["a"]
 
     def __init__(self, A):
         self.A = np.asarray(A, float)
 
-    def continuous(self, theta):
-        return self.A, None, None, None, None
+    def linear_part(self, theta):
+        n = self.A.shape[0]
+        return LinearPart(self.A, np.zeros((n, 1)), np.zeros((1, n)), np.zeros((1, 1)))
 
 
 def test_domain_from_the_poles_and_the_record():

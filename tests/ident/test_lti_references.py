@@ -153,10 +153,11 @@ def test_a_carried_reference_beyond_max_states_is_never_refined(monkeypatch):
 
     import rigd.ident.lti.order as order
     from rigd.ident.lti.candidates import Candidate
+    from rigd.ident.lti.statespace import StateSpaceModel
 
     def cand(states, bic, fit_val, delays=(0,)):
-        return Candidate("lti", states, SimpleNamespace(delays=list(delays)), np.zeros(1),
-                         bic, fit_val, fit_val, 10 * states)
+        m = StateSpaceModel(["u"], ["y"], 100.0, n_real=1, delays=list(delays))
+        return Candidate("lti", states, m, np.zeros(1), bic, fit_val, fit_val, 10 * states)
 
     big = cand(order.MAX_STATES + 30, -900.0, 61.0)
     small_ref = cand(8, -800.0, 60.5, (1,))

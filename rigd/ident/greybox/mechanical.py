@@ -29,13 +29,12 @@ from rigd.ident.feedback import MechanicalFeedback
 from rigd.ident.greybox.parallel import ParallelModes
 from rigd.ident.iddata import IdData
 from rigd.ident.initial import mechanical_initial
-from rigd.ident.model import LinearPart
+from rigd.ident.model import LinearPart, Model
 from rigd.ident.readouts import linear_readouts
 from rigd.ident.simulate import mechanical_abc, predict_mechanical, simulate_mechanical
-from rigd.ident.structure import Structure
 
 
-class MechanicalStructure(Structure):
+class MechanicalStructure(Model):
     """p̈ + D ṗ + K p = B u with free entries given by boolean masks.
 
     Parameters
@@ -51,8 +50,9 @@ class MechanicalStructure(Structure):
     input_names, output_names : list of str
         Channel names (for the StateSpace and reports).
     """
-    #: states [p, ṗ] (p̈ + D ṗ + K p = B u): what state-level effects act on
-    mechanical = True
+    #: states [p, ṗ] (p̈ + D ṗ + K p = B u) and a simulator that takes the state feedback
+    #: of effects: what state-level effects act on
+    carries = frozenset({"mechanical"})
     #: y = p (+ parallel modes) + y_off: the offsets' Jacobian columns are ones
     #: (rigd.ident.jacobian.additive_offsets)
     additive_offsets = True
@@ -108,6 +108,10 @@ class MechanicalStructure(Structure):
     def m(self) -> int:
         """Number of parallel modes (beyond one per output)."""
         return 0 if self.parallel is None else self.parallel.m
+
+    @property
+    def n_parallel_modes(self) -> int:
+        return self.m
 
     def with_modes(self, m: int) -> MechanicalStructure:
         """The same structure with ``m`` parallel modes (rigd.ident.greybox.parallel)."""
@@ -175,7 +179,7 @@ class MechanicalStructure(Structure):
             return None
         return np.asarray(theta, float)[self._off:self._off + self.n].copy()
 
-    # --- Structure API ---------------------------------------------------------------
+    # --- Model API ---------------------------------------------------------------
     def theta0(self, data: IdData) -> np.ndarray:
         K, D, B = mechanical_initial(data.u, data.y, data.fs, self.mask_K, self.mask_D,
                                      self.mask_B, self.hold)

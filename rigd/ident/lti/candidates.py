@@ -54,7 +54,7 @@ def score(structure, theta, data, est: slice, val: slice, skip: int = 0
     ye, yhe = y[est][skip:], yh[est][skip:]
     e = ye - yhe
     n, ny = e.shape
-    p = len(structure.names) - len(getattr(structure, "noise_index", []))
+    p = len(structure.names) - len(structure.noise_index)
     s2 = np.maximum(np.mean(e ** 2, axis=0), 1e-300 * np.maximum(np.var(ye, 0), 1e-300))
     bic = float(n * np.sum(np.log(s2)) + p * np.log(n * ny))
     return (bic, float(np.mean(_pct(ye, yhe))),

@@ -22,7 +22,7 @@ def _without_delays(structure):
     spec = dict(structure.spec())
     spec["delays"] = [0] * len(spec["inputs"])
     m = type(structure).from_spec(spec)
-    if getattr(structure, "_n_est", None) is not None:
+    if structure._n_est is not None:
         m.set_record(structure._n_est)
     return m
 
@@ -43,7 +43,7 @@ def delay_worth(structure, theta, data, est: slice, val: slice,
     from rigd.ident.lti.process import ProcessModel
     from rigd.ident.lti.statespace import StateSpaceModel
 
-    delays = [int(d) for d in getattr(structure, "delays", ()) or ()]
+    delays = [int(d) for d in structure.delays]
     if not delays or max(delays) <= 0 or not isinstance(structure,
                                                         (StateSpaceModel, ProcessModel)):
         return None

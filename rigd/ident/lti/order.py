@@ -94,7 +94,7 @@ class BaseChoice:
         out: dict[str, float] = {}
         for c in self.candidates:
             m = (c.structure.ny if c.family == "mechanical"
-                 else getattr(c.structure, "nc", None))
+                 else c.structure.nc if c.family == "lti" else None)
             if m is None or not np.isfinite(c.fit_val):
                 continue
             out[str(m)] = max(out.get(str(m), -np.inf), round(float(c.fit_val), 3))
@@ -103,8 +103,7 @@ class BaseChoice:
     def describe(self) -> str:
         fam = {"lti": "general LTI", "mechanical": "mechanical n-DOF",
                "process": "process"}.get(self.family, self.family)
-        what = (self.structure.describe() if callable(getattr(self.structure, "describe", None))
-                else f"{self.states} states")
+        what = self.structure.describe() or f"{self.states} states"
         return (f"{fam} model, {what}, input delays {self.delays} samples "
                 f"({'order asked: ' + str(self.asked) if self.asked != 'auto' else self.reason})")
 
@@ -328,7 +327,7 @@ def _pick(cands, data, d_est, est, val, max_nfev, always=()) -> BaseChoice:
             pick = min(simpler, key=lambda c: c.bic)
             why = ("a model with fewer parameters fits the held-out part as well as the "
                    "lowest-BIC one")
-    delays = list(getattr(pick.structure, "delays", [0] * len(d_est.input_names)))
+    delays = list(pick.structure.delays) or [0] * len(d_est.input_names)
     return BaseChoice(pick.structure, pick.theta, pick.family, pick.states, delays,
                       cands + [c for c in final if all(c is not x for x in cands)], why)
 
@@ -347,7 +346,7 @@ def _without_integrator(cand: Candidate, data, d_est, est: slice, val: slice
     not pay for. The same model without that state then fits as well with fewer parameters
     and wins by the criterion (or by the validation check) in :func:`_pick`."""
     m = cand.structure
-    if cand.family != "lti" or getattr(m, "ni", 0) < 1 or m.nx < 2:
+    if cand.family != "lti" or m.ni < 1 or m.nx < 2:
         return None
     p = StateSpaceModel(m.input_names, m.output_names, m.fs, m.nc, m.nr, m.ni - 1,
                         list(m.delays), m.hold, m.feedthrough, m.output_offsets,

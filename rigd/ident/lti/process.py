@@ -24,15 +24,14 @@ from typing import Any
 import numpy as np
 
 from rigd.ident.lti.candidates import Candidate, score
-from rigd.ident.model import LinearPart
+from rigd.ident.model import LinearPart, Model
 from rigd.ident.readouts import linear_readouts
 from rigd.ident.simulate import simulate_linear
-from rigd.ident.structure import Structure
 
 KINDS = {"P1D": (1, False), "P2D": (2, False), "P1DI": (1, True)}
 
 
-class ProcessModel(Structure):
+class ProcessModel(Model):
     """Per-pair low-order process model (module docstring).
 
     Parameters
@@ -162,6 +161,10 @@ class ProcessModel(Structure):
     def from_spec(cls, spec: dict[str, Any]) -> ProcessModel:
         return cls(spec["inputs"], spec["outputs"], float(spec["fs_hz"]),
                    spec.get("process", "P1D"), spec.get("delays"), spec.get("hold", "foh"))
+
+    @property
+    def n_integrators(self) -> int:
+        return int(self.integrator)
 
     def describe(self) -> str:
         return f"{self.kind_name} per input-output pair ({self.nx} states)"

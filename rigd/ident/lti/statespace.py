@@ -35,10 +35,9 @@ from typing import Any
 import numpy as np
 
 from rigd.ident.iddata import IdData
-from rigd.ident.model import LinearPart
+from rigd.ident.model import LinearPart, Model
 from rigd.ident.readouts import linear_readouts
 from rigd.ident.simulate import predict_linear, simulate_linear
-from rigd.ident.structure import Structure
 
 #: damping ratio bounds of a complex pair
 ZETA_MIN, ZETA_MAX = 1e-4, 0.99
@@ -46,7 +45,7 @@ ZETA_MIN, ZETA_MAX = 1e-4, 0.99
 F_MAX_PAIR, F_MAX_REAL = 0.95 * 0.5, 2.0
 
 
-class StateSpaceModel(Structure):
+class StateSpaceModel(Model):
     """General LTI model in real-block modal form (module docstring).
 
     Parameters
@@ -70,8 +69,6 @@ class StateSpaceModel(Structure):
     """
 
     kind = "lti"
-    #: the states are modal, not [p, ṗ]: state-level effects need a mechanical base
-    mechanical = False
 
     def __init__(self, inputs, outputs, fs: float, n_complex: int = 0, n_real: int = 0,
                  n_int: int = 0, delays=None, hold: str = "foh", feedthrough: bool = False,
@@ -99,6 +96,15 @@ class StateSpaceModel(Structure):
         self.effects = []
         self._n_est: int | None = None
         self._build_names()
+
+    @property
+    def n_integrators(self) -> int:
+        return self.ni
+
+    @property
+    def carries(self) -> frozenset[str]:
+        """``mode`` when the model has a complex pair (a mode's coordinate for an effect)."""
+        return frozenset({"mode"}) if self.nc > 0 else frozenset()
 
     # --- layout ------------------------------------------------------------------------
     def block_states(self) -> list[tuple[str, int]]:
