@@ -5,4 +5,4 @@ Each section is a module in this package with a ``run() -> dict`` function, list
 """
 
 SECTIONS = ["loop", "identify", "diagnose", "export_memory", "socket_load", "design", "reynolds",
-            "web", "hostile"]
+            "structure", "web", "hostile"]

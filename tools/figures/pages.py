@@ -41,6 +41,15 @@ WHAT: dict[str, str] = {
     "diagnose_generic_order_auto_fit": "its base model's fit, %",
     "diagnose_mimo_s": "`diagnose --order auto` on an 8,000-sample record with 2 inputs of a "
                        "3-mode structure, s (target ≤ 30 s)",
+    "structure_diagnose_s": "`diagnose` of a 3-accelerometer × 70,000-sample record of a "
+                            "5-mode structure with a bolted joint, s (target ≤ 120 s)",
+    "structure_diagnose_analysed_n": "samples it analyses (its window)",
+    "structure_diagnose_top": "the effect it names first",
+    "structure_diagnose_top_hz": "the mode it names it at, Hz",
+    "structure_joint_hz": "the joint mode's apparent frequency in the record, Hz",
+    "structure_diagnose_fit": "the diagnosed model's held-out fit, %",
+    "structure_identify_s": "`identify` of the same record, s (target ≤ 60 s)",
+    "structure_identify_fit": "its held-out fit, %",
     "design_chain_s": "full-order H∞ design → reduction → Tustin, s",
     "robustness_30_s": "S_o over 30 operating points, s",
     "design_structured_s": "full-order synthesis + fixed-order tuning of the order-4 K∞, s "
