@@ -30,10 +30,12 @@ $(STAMP): pyproject.toml constraints.txt
 
 # the demo, then its figures saved as docs/figures/demo.json (host, load, commit, date,
 # packages) and docs/figures.md + the README's figures table rendered from the JSON files
+# (the load averages before it starts: the host's own load, without the demo's)
 demo: $(STAMP)
 	rm -rf demo-out   # the demo's own output is replaced on every run (run dirs never are)
-	$(ONE_BLAS_THREAD) $(BIN)/rigd demo --out demo-out   # one BLAS thread, as make test
-	$(BIN)/python -m tools.figures save-demo demo-out/summary.json
+	@lb="$$(cut -d' ' -f1-3 /proc/loadavg)"; set -x; \
+	$(ONE_BLAS_THREAD) $(BIN)/rigd demo --out demo-out && \
+	$(BIN)/python -m tools.figures save-demo demo-out/summary.json --load-before "$$lb"
 
 # render docs/figures.md and the README's figures table from the committed docs/figures/*.json
 figures: $(STAMP)

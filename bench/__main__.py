@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -32,13 +33,15 @@ def main(argv: list[str]) -> int:
                 continue
             raise
         print(f"bench: running {name} ...", file=sys.stderr, flush=True)
+        load_before = list(os.getloadavg())   # the host's load, without this section's
         t0 = time.monotonic()
         figures = mod.run()
         result.update(figures)
         if save:
             from tools.figures import artefact
 
-            path = artefact.save_bench_section(ROOT, name, figures, time.monotonic() - t0)
+            path = artefact.save_bench_section(ROOT, name, figures, time.monotonic() - t0,
+                                               load_before)
             print(f"bench: saved {path.relative_to(ROOT)}", file=sys.stderr, flush=True)
     if save:
         from tools.figures.__main__ import main as render

@@ -45,12 +45,21 @@ def main(argv: list[str] | None = None) -> int:
                     help="render in memory; exit 1 when a committed page differs")
     ap.add_argument("action", nargs="?", choices=["render", "save-demo"], default="render")
     ap.add_argument("summary", nargs="?", type=Path, help="save-demo: demo-out/summary.json")
+    ap.add_argument("--load-before", metavar="L1,L5,L15",
+                    help="save-demo: the load averages when the demo began (/proc/loadavg)")
     a = ap.parse_args(argv)
     try:
         if a.action == "save-demo":
             if a.summary is None:
                 ap.error("save-demo needs the demo's summary.json")
-            print(f"figures: wrote {artefact.save_demo(a.root, a.summary)}", file=sys.stderr)
+            lb = None
+            if a.load_before:
+                try:
+                    lb = [float(v) for v in a.load_before.replace(",", " ").split()[:3]]
+                except ValueError:
+                    ap.error(f"--load-before {a.load_before!r}: expected three numbers")
+            print(f"figures: wrote {artefact.save_demo(a.root, a.summary, lb)}",
+                  file=sys.stderr)
         if a.check:
             bad = stale(a.root)
             for p in bad:

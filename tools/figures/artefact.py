@@ -2,7 +2,9 @@
 
 Provenance is taken when the figures are saved, right after they were measured: the host
 (CPU model, cores, the load average — the 1-minute figure covers the measurement of a section
-or the demo's last minute, the 5-minute one the whole demo), the commit and whether the code,
+or the demo's last minute, the 5-minute one the whole demo — and the load average just before
+the measurement began, ``load_before``: what else the host was doing, without the
+measurement's own load; the host is called ``quiet`` or ``busy`` from it), the commit and whether the code,
 the configs or the pins had uncommitted changes (``tree_changed``), the UTC date, the Python
 and package versions. ``RIGD_HOST_NOTE`` adds words about the host (``"shared machine, other
 jobs running"``).
@@ -57,15 +59,21 @@ def _git(root: Path, *args: str) -> str | None:
     return out.stdout.strip()
 
 
-def provenance(root: Path) -> dict[str, Any]:
-    """Where and with what the figures were measured, now (see the module docstring)."""
+def provenance(root: Path, load_before: list[float] | None = None) -> dict[str, Any]:
+    """Where and with what the figures were measured, now (see the module docstring).
+    ``load_before``: the load averages when the measurement began (the host's own load; a
+    CPU-bound measurement on 2 cores raises the 1-minute figure above 1 by itself)."""
     load = [round(v, 2) for v in os.getloadavg()]
     cores = os.cpu_count() or 1
-    state = "busy" if load[0] > 0.5 * cores else "quiet"
+    judged = load if load_before is None else [round(float(v), 2) for v in load_before]
+    state = "busy" if judged[0] > 0.5 * cores else "quiet"
+    when = "before the measurement" if load_before is not None else "after it"
     note = os.environ.get("RIGD_HOST_NOTE", "").strip()
     host = {"cpu": _cpu_model(), "cores": cores, "load": load,
-            "state": f"{state}: load average {load[0]:g} on {cores} cores"
+            "state": f"{state}: load average {judged[0]:g} on {cores} cores {when}"
                      + (f"; {note}" if note else "")}
+    if load_before is not None:
+        host["load_before"] = judged
     commit = _git(root, "rev-parse", "HEAD")
     # changes to what is measured (the code, configs, pins), not to docs or tests
     dirty = _git(root, "status", "--porcelain", "--untracked-files=no", "--", *CODE_PATHS)
@@ -82,9 +90,9 @@ def provenance(root: Path) -> dict[str, Any]:
 
 
 def write(root: Path, name: str, command: str, figures: dict[str, Any],
-          extra: dict[str, Any] | None = None) -> Path:
+          extra: dict[str, Any] | None = None, load_before: list[float] | None = None) -> Path:
     """Write ``docs/figures/<name>.json`` (atomically: a temporary file renamed over it)."""
-    measured = provenance(root)
+    measured = provenance(root, load_before)
     measured.update(extra or {})
     doc = {"artefact": name, "command": command, "measured": measured, "figures": figures}
     path = root / FIGURES_DIR / f"{name}.json"
@@ -96,19 +104,20 @@ def write(root: Path, name: str, command: str, figures: dict[str, Any],
 
 
 def save_bench_section(root: Path, section: str, figures: dict[str, Any],
-                       seconds: float) -> Path:
+                       seconds: float, load_before: list[float] | None = None) -> Path:
     """A ``python -m bench`` section's figures as ``bench-<section>.json``."""
     return write(root, f"bench-{section}", f"python -m bench {section}", figures,
-                 {"seconds": round(seconds, 1)})
+                 {"seconds": round(seconds, 1)}, load_before)
 
 
-def save_demo(root: Path, summary_path: Path) -> Path:
+def save_demo(root: Path, summary_path: Path, load_before: list[float] | None = None) -> Path:
     """The figures of a ``rigd demo`` run (its ``summary.json``) as ``demo.json``."""
     summary = json.loads(Path(summary_path).read_text())
     figures = {k: summary[k] for k in DEMO_KEYS if k in summary}
     return write(root, "demo", "make demo", figures,
                  {"threads": {k: os.environ.get(k) for k in ("OMP_NUM_THREADS",
-                                                              "OPENBLAS_NUM_THREADS")}})
+                                                              "OPENBLAS_NUM_THREADS")}},
+                 load_before)
 
 
 def load_all(root: Path) -> dict[str, dict[str, Any]]:
