@@ -4,10 +4,10 @@ Provenance is taken when the figures are saved, right after they were measured: 
 (CPU model, cores, the load average — the 1-minute figure covers the measurement of a section
 or the demo's last minute, the 5-minute one the whole demo — and the load average just before
 the measurement began, ``load_before``: what else the host was doing, without the
-measurement's own load; the host is called ``quiet`` or ``busy`` from it), the commit and whether the code,
-the configs or the pins had uncommitted changes (``tree_changed``), the UTC date, the Python
-and package versions. ``RIGD_HOST_NOTE`` adds words about the host (``"shared machine, other
-jobs running"``).
+measurement's own load; the host is called ``quiet`` or ``busy`` from it), the commit and
+whether the code, the configs or the pins had uncommitted changes (``tree_changed``), the UTC
+date, the Python and package versions. ``RIGD_HOST_NOTE`` adds words about the host
+(``"shared machine, other jobs running"``).
 """
 
 from __future__ import annotations
