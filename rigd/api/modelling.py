@@ -199,6 +199,7 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
         ``.model`` (model file), ``.ss(name)`` / ``.plant()`` (python-control StateSpace),
         ``.fit_percent`` (%), ``.parameters``, ``.summary()`` (the ``--json`` object).
     """
+    from rigd.diagnose.added import refit_as_diagnosed
     from rigd.effects import resolve
     from rigd.ident.prefilter import PrefilterOptions
     from rigd.ident.workflow import identify_record
@@ -217,7 +218,7 @@ def identify(data: Record | str | Path, submodels: str | list[str] = "auto", *,
                             effects=resolve(effects),
                             split=DEFAULT_SPLIT if split is None else split,
                             est=est_s, val=val_s, data_hash=_data_hash(data),
-                            hold=hold, order=order)
+                            hold=hold, order=order, refit=refit_as_diagnosed)
     if out:
         model.save(out)
     ys = {}

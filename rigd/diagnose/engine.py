@@ -191,7 +191,7 @@ def diagnose_data(data, submodel: str, structure=None, est: slice | None = None,
     if base_theta is None:
         base_theta = S.fit_model(structure, data_est, theta0=theta0, max_nfev=max_nfev,
                                  method=method).theta
-    ctx0, context, dom = _base_context(data, submodel, structure, base_theta, est, val,
+    ctx0, context, dom = base_context(data, submodel, structure, base_theta, est, val,
                                        record_meta)
     notes: list[str] = [f"domain: {dom.name} ({dom.why})"]
     names = S.offered(effects, submodel, dom, structure, est, n, notes, data)
@@ -232,7 +232,7 @@ def _stepwise(sel, ctx0: Context, dom, names: list[str],
                         domain=dom)
 
 
-def _base_context(data, submodel: str, structure, theta, est: slice, val: slice,
+def base_context(data, submodel: str, structure, theta, est: slice, val: slice,
                   record_meta: dict | None):
     """(context of the base model, the factory ``context(structure, theta, yhat)`` of the
     later steps' contexts, the record's domain): the base at ``theta`` simulated on the whole

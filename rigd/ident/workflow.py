@@ -130,7 +130,7 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
                     effects: Sequence[Any] = (), split: float = DEFAULT_SPLIT,
                     data_hash: str | None = None, hold: str | None = None,
                     order: str | int = "auto", est: slice | None = None,
-                    val: slice | None = None) -> ModelFile:
+                    val: slice | None = None, refit: Any = None) -> ModelFile:
     """Identify the asked sub-models of ``record``; returns a :class:`ModelFile`.
 
     Parameters
@@ -164,6 +164,11 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
         Generic records: number of states, or ``auto`` to choose the family, order and
         delays from the data (:func:`rigd.ident.lti.order.choose_base`, as ``rigd
         diagnose``); with an effect on a mechanical state, modes of the mechanical base.
+    refit : callable, optional
+        ``refit(base_fit, effects, submodel, method, meta) -> (structure, FitResult)``: how
+        the base is refitted with ``effects`` when no ``init`` is given (``rigd identify
+        --add``: :func:`rigd.diagnose.added.refit_as_diagnosed`, as the diagnosis refits
+        them); default: every effect parameter free, from the effects' own start values.
     """
     import dataclasses
 
@@ -185,7 +190,16 @@ def identify_record(record: Record, submodels: list[str] | str = "auto", *,
     for sm in submodels:
         used = method_for(method, sm)
         bf = fit_base(record, sm, dataclasses.replace(settings, method=used))
-        structure, res = _with_effects(bf, effects_for(effects, sm), sm, init, used)
+        applied = effects_for(effects, sm)
+        if refit is not None and applied and init is None:
+            _composable(bf.structure, applied, sm)
+            try:
+                structure, res = refit(bf, applied, sm, used, record.meta)
+            except ValueError as exc:
+                raise InputError(f"the {sm} model with {', '.join(e.name for e in applied)} "
+                                 f"cannot be fitted on this record: {exc}", "--add") from None
+        else:
+            structure, res = _with_effects(bf, applied, sm, init, used)
         fitted.append((bf, structure, res))
     return model_file(record, fitted, data_hash, split if est is None else None)
 
@@ -227,6 +241,16 @@ def model_file(record: Record, fitted: Sequence[tuple[Any, Any, Any]],
                                          "n_samples": record.n}, split_info)
 
 
+def _composable(structure, applied: list[Any], sm: str):
+    """``structure`` with the effects ``applied``; InputError (``--add``) when the base
+    cannot carry one, or two cannot be simulated together."""
+    try:
+        return apply_effects(structure, applied)
+    except ValueError as exc:
+        raise InputError(f"the {sm} model cannot take "
+                         f"{', '.join(e.name for e in applied)}: {exc}", "--add") from None
+
+
 def _with_effects(bf, applied: list[Any], sm: str, init: ModelFile | None, method: str):
     """(structure, fit result): the base of ``bf`` (rigd.ident.pipeline.BaseFit), refitted
     with the effects ``applied`` (start values from ``init`` where it has them)."""
@@ -236,11 +260,7 @@ def _with_effects(bf, applied: list[Any], sm: str, init: ModelFile | None, metho
     if not applied:
         return structure, res
     nb = len(structure.names)
-    try:   # an effect the base cannot carry, or two that cannot be simulated together
-        composed = apply_effects(structure, applied)
-    except ValueError as exc:
-        raise InputError(f"the {sm} model cannot take "
-                         f"{', '.join(e.name for e in applied)}: {exc}", "--add") from None
+    composed = _composable(structure, applied, sm)
     th_init = start_values(composed, init, sm, bf.est_data)
     starts = [None if th_init is None else th_init[nb:]]
     if th_init is None and len(applied) == 1:

@@ -3,17 +3,17 @@ refits. On records the project generates from equations it does not model (a Duf
 oscillator, a Wiener and a Hammerstein process, a structure under a shaker with a clearance
 in one mode's load path, each of another seed and size than the diagnosis tests use), the
 first effect the forward selection adds is refitted by
-``identify`` with that effect and the defaults of both commands: the held-out fit is the
-diagnosis's to 0.05 point."""
+``identify --add`` with that effect and the defaults of both commands
+(:func:`rigd.diagnose.added.refit_as_diagnosed`): the held-out fit is the diagnosis's to 0.05
+point."""
 
 from __future__ import annotations
 
 import benchmarks as B  # tests/diagnose/benchmarks.py
 import pytest
 
+from rigd import api
 from rigd.diagnose.diagnosis import diagnose_record
-from rigd.effects import resolve
-from rigd.ident.workflow import identify_record
 from tests.gen import joint, nonlinear
 
 RECORDS = {
@@ -33,7 +33,7 @@ def test_identify_add_refits_what_diagnose_fitted(name):
     assert len(part.steps) >= 2, [(f.effect, f.significant) for f in part.findings[:3]]
     step = part.steps[1]
     assert step.fit_percent > part.steps[0].fit_percent + 1.0   # a real gain, not noise
-    model = identify_record(rec, effects=resolve([step.added]))
+    model = api.identify(rec, add=[step.added], yardstick=False).model   # identify --add
     sub = model.submodels[part.submodel]
     assert list(sub.structure.effects) == [step.added]
     assert sub.fit_percent["validation_mean"] == pytest.approx(step.fit_percent, abs=0.05)
