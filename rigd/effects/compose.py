@@ -66,6 +66,12 @@ def carries(structure: Any, data: Any = None) -> set[str]:
     return out
 
 
+def _of_base(name: str) -> property:
+    """A read-only attribute of a composed model that is its base's ``name``."""
+    return property(lambda self: getattr(self.base, name),
+                    doc=f"The base model's ``{name}`` (rigd.ident.model.Model).")
+
+
 class Composed(Model):
     """A base model with effects composed around it (module docstring).
 
@@ -114,50 +120,19 @@ class Composed(Model):
         #: scales of the data the structure is fitted on (bounds relative to the record)
         self.record: RecordScale | None = None
 
-    # --- what the base states, seen through the effects ---------------------------------
-    @property
-    def kind(self) -> str:
-        return self.base.kind
-
-    @property
-    def x0_index(self) -> list[int]:
-        return self.base.x0_index
-
-    @property
-    def offset_index(self) -> list[int]:
-        return self.base.offset_index
-
-    @property
-    def noise_index(self) -> list[int]:
-        return self.base.noise_index
-
-    @property
-    def carries(self) -> frozenset[str]:
-        return self.base.carries
-
-    @property
-    def n_integrators(self) -> int:
-        return self.base.n_integrators
-
-    @property
-    def n_parallel_modes(self) -> int:
-        return self.base.n_parallel_modes
-
-    @property
-    def delays(self) -> tuple[int, ...]:
-        return self.base.delays
-
-    @property
-    def hold(self) -> str:
-        return self.base.hold
-
-    @property
-    def velocity_index(self) -> list[int]:
-        return self.base.velocity_index
-
-    @property
-    def _n_est(self) -> int | None:
-        return self.base._n_est
+    # --- what the base states, seen through the effects (Model's attributes of the base:
+    # its indices into θ, which come first, and what it carries, delays, hold) --------------
+    kind = _of_base("kind")
+    x0_index = _of_base("x0_index")
+    offset_index = _of_base("offset_index")
+    noise_index = _of_base("noise_index")
+    velocity_index = _of_base("velocity_index")
+    carries = _of_base("carries")
+    n_integrators = _of_base("n_integrators")
+    n_parallel_modes = _of_base("n_parallel_modes")
+    delays = _of_base("delays")
+    hold = _of_base("hold")
+    _n_est = _of_base("_n_est")
 
     def scale(self, theta: np.ndarray) -> np.ndarray:
         return self.base.scale(theta)
