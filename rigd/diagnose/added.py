@@ -17,8 +17,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
 from rigd.diagnose import selection as S
 from rigd.diagnose.engine import base_context
 from rigd.ident.pem import evaluate
@@ -35,14 +33,11 @@ def refit_as_diagnosed(bf, applied: list[Any], sm: str, method: str,
     ctx0, context, _ = base_context(bf.data, sm, bf.structure, bf.theta, bf.est, bf.val,
                                     meta)
     data_est = bf.data.slice(bf.est.start, bf.est.stop)
-    other_hold = ({"zoh": "foh", "foh": "zoh"}[bf.hold.hold]
-                  if bf.hold.source == "fit" else None)
+    other_hold = S.other_hold(bf)
     ctx, kept = ctx0, ()
     step = None
     for eff in applied:
         ref = S.refit_effect(eff, ctx, eff.signature(ctx), data_est, None, method, kept)
-        if not np.all(np.isfinite(ref.yhat)):
-            raise ValueError(f"{eff.name} cannot be fitted on this record")
         step = S.Step(eff.name, ref.fit_percent, ref.structure, ref.theta, ref.yhat,
                       ref.fixed)
         if other_hold is not None:   # as the diagnosis: asked once, with the first effect

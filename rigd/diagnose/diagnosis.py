@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from rigd.diagnose import selection as S
 from rigd.diagnose.engine import MAX_STEPS, SubDiagnosis, diagnose_data
 from rigd.ident.pipeline import MAX_SAMPLES
 from rigd.ident.yardstick import measure
@@ -180,8 +181,7 @@ def _diagnose_part(record, sub: str, settings, notes: list[str], *, effects, ref
                              record_meta=record.meta, memo=memo,
                              # a hold chosen by the linear base is asked again with the
                              # effects
-                             other_hold=({"zoh": "foh", "foh": "zoh"}[bf.hold.hold]
-                                         if bf.hold.source == "fit" else None))
+                             other_hold=S.other_hold(bf))
 
     sd = run(bf.structure, bf.theta, ys, _carried_worth(bf))
     on = None

@@ -374,6 +374,13 @@ class Selection:
         return step
 
 
+def other_hold(bf) -> str | None:
+    """The hold the forward selection asks again once an effect is in (:func:`try_hold`):
+    the other of zoh/foh when the linear base chose ``bf``'s hold from the data
+    (rigd.ident.pipeline.BaseFit), else None (declared by the record or asked)."""
+    return {"zoh": "foh", "foh": "zoh"}[bf.hold.hold] if bf.hold.source == "fit" else None
+
+
 def try_hold(step: Step, ctx0: Context, hold: str, data_est,
               method: str = "oe") -> Step | None:
     """``step``'s model refitted with the input hold ``hold``, if that fits the validation
