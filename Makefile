@@ -108,7 +108,8 @@ test: lint
 	cat "$$RIGD_TEST_SHARED/realtime.log"; \
 	exit $$rc
 
-# `make test-long`: the soak/endurance tests (marker `long`), one process, after the kernels are
+# `make test-long`: the soak/endurance tests and the further cases of the costly behaviour tests
+# (marker `long`: another seed or rescaling of one make test runs), one process, after the kernels are
 # warm; pytest's "no test selected" (exit 5) is a pass while there are none
 test-long: $(STAMP)
 	@$(ONE_BLAS_THREAD) $(BIN)/python tests/warm_kernels.py

@@ -186,6 +186,7 @@ def test_truncation_failure_says_why_order_by_order(result):
     assert re.search(r"order \d+: .*band error", msg) and "{" not in msg
 
 
+@pytest.mark.long  # make test-long (CI): a whole structured design of its own
 def test_failed_comparison_is_reported_not_dropped(tmp_path, capsys, monkeypatch):
     """A structured design whose truncated side-by-side fails says so (summary, report)."""
     real = pipeline.design_controller

@@ -42,7 +42,7 @@ def _shares_checked(out):
         assert "text" in u and "where" in u, u
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.long)])  # 1: test-long
 def test_tank_overflow_square_root_outflows_named_at_the_input_overflow_left_unexplained(seed):
     """Cascaded tanks with overflow: the square-root outflows make the steady level
     quadratic in the pump voltage (x₂ = (k₂k₄/k₁k₃)² u²) — a static curve at the input, the
@@ -63,7 +63,8 @@ def test_tank_overflow_square_root_outflows_named_at_the_input_overflow_left_une
     assert un and un[0]["where"]["residual"] == "structured", un
 
 
-@pytest.mark.parametrize("seed,fs", [(4, 200.0), (4, 1.0), (5, 200.0)])
+@pytest.mark.parametrize("seed,fs", [(4, 200.0), (4, 1.0),
+                                     pytest.param(5, 200.0, marks=pytest.mark.long)])
 def test_missing_modes_unexplained_at_the_mode_frequency(seed, fs):
     """The 3-mass chain fitted with one mode and no extra_mode in the catalogue: nothing is
     forced; the residual is localised at the missing mode (12.55 Hz at 200 Hz sampling; the
@@ -118,7 +119,7 @@ def test_three_mode_structure_with_one_mode_names_extra_mode():
     assert top["fit_percent_with"] - out["fit_percent"] >= 10.0
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.long)])  # 1: test-long
 def test_bouc_wen_benchmark_hysteresis_in_the_restoring_force(seed, request):
     """Noël & Schoukens' hysteretic benchmark (Bouc–Wen restoring force; the seed picks the
     random-phase multisine and a parameter variant of β, γ, δ) diagnosed with the default

@@ -39,7 +39,8 @@ def cannot(rec, effect):
 
 @pytest.mark.parametrize("seed,fractions,taus", [
     (1, (0.12, 0.18), (0.08, 0.6)),      # the record: 30 %, 80 ms and 0.6 s
-    (4, (0.18, 0.12), (0.06, 0.5)),      # another seed, fractions and time constants
+    pytest.param(4, (0.18, 0.12), (0.06, 0.5),  # another seed, fractions and time constants
+                 marks=pytest.mark.long),       # (make test-long)
 ])
 def test_creep_under_fast_binary_prbs_named_and_error_falls(seed, fractions, taus):
     rec = F.actuator_record(fast_prbs(seed), fractions, taus, seed=seed)

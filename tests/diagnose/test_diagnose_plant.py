@@ -106,8 +106,11 @@ def test_plant_two_hidden_effects_both_found_error_falls_each_step(pair, omega):
     assert sd.findings[1].fit_percent_with == pytest.approx(fits[2])
 
 
-@pytest.mark.parametrize("effect,seed", [("hysteresis", 1), ("hysteresis", 5),
-                                         ("creep", 1), ("creep", 5)])
+@pytest.mark.parametrize("effect,seed", [
+    ("hysteresis", 1), ("creep", 1),
+    # the second record of each: make test-long (CI)
+    pytest.param("hysteresis", 5, marks=pytest.mark.long),
+    pytest.param("creep", 5, marks=pytest.mark.long)])
 def test_plant_valve_effect_ranked_first_and_error_falls(effect, seed):
     """The plant's Bouc-Wen hysteresis / two-lag creep on each valve's drive, inside the PD
     loops, at their default strength: found first and alone, error cut >= 3x (two records
@@ -123,7 +126,9 @@ def test_plant_valve_effect_ranked_first_and_error_falls(effect, seed):
     assert not any(c.effect == other for c in sd.cannot_reveal)  # both were tested
 
 
-@pytest.mark.parametrize("omega,p_inj,seed", POINTS)
+# the first point in make test, the other two in make test-long (CI)
+@pytest.mark.parametrize("omega,p_inj,seed", POINTS[:1] + [
+    pytest.param(*p, marks=pytest.mark.long) for p in POINTS[1:]])
 def test_plant_slow_excitation_no_hidden_effect_nothing_significant(omega, p_inj, seed):
     """No valve effect hidden: on the slow multi-level records (where hysteresis and creep
     are both revealable and refitted) nothing is significant, at each operating point with

@@ -135,6 +135,7 @@ def silverbox():
 
 
 # one variant (the measured record's fit is the costly one; each unit both ways: the others)
+@pytest.mark.long  # make test-long (CI): the Duffing, rotor and effect variants run in make test
 @pytest.mark.parametrize("su,sy,sr", [OPPOSITE[1]])
 def test_silverbox_rescaled_same_diagnosis(silverbox, su, sy, sr):
     rec, ref = silverbox
