@@ -95,7 +95,10 @@ def _fits(comp) -> dict[str, float]:
 
 
 def _with_effects(record, runout, base, named: dict[str, list[str]], extra: list[str]):
-    """``base`` with each sub-model refitted with its named effects (and ``extra``)."""
+    """``base`` with each sub-model refitted with its named effects (and ``extra``), each
+    refitted as the diagnosis refits it (``rigd identify --add``'s refit,
+    :func:`rigd.diagnose.added.refit_as_diagnosed`)."""
+    from rigd.diagnose.added import refit_as_diagnosed
     from rigd.effects import resolve
     from rigd.ident.workflow import identify_record
 
@@ -105,7 +108,8 @@ def _with_effects(record, runout, base, named: dict[str, list[str]], extra: list
         effects = [e for e in resolve(names, "--add") if s in e.submodels]
         if not effects:
             continue
-        m = identify_record(record, [s], runout=runout, method=METHOD, effects=effects)
+        m = identify_record(record, [s], runout=runout, method=METHOD, effects=effects,
+                            refit=refit_as_diagnosed)
         subs[s] = m.submodels[s]
         pre.update(m.prefilters)
     return replace(base, submodels=subs, prefilters=pre)
