@@ -19,17 +19,25 @@ def hankel_singular_values(K) -> np.ndarray:
 
     Computed by SLICOT AB09AD (square-root method, Cholesky factors of the Gramians), which
     stays accurate where ``control.hsvd`` (eigenvalues of Wc·Wo) returns NaN for the
-    ill-conditioned Gramians of weighted H∞ controllers.
+    ill-conditioned Gramians of weighted H∞ controllers. All n values are asked for
+    (``nr=n``): on a non-minimal K SLICOT says that it set the order of its (unused)
+    truncation to the minimal one, a remark on the call, not on the values (the trailing
+    ones are then ≈ 0); it is not passed on to the user.
     """
+    import warnings
+
     from slycot import ab09ad
+    from slycot.exceptions import SlycotResultWarning
 
     w = OMEGA_SCALE
     A, B, C = np.asarray(K.A) / w, np.asarray(K.B) / w, np.asarray(K.C)
     n = A.shape[0]
     if n == 0 or not np.all(np.linalg.eigvals(A).real < 0):
         return np.array([])
-    *_, hsv = ab09ad("C", "B", "N", n, B.shape[1], C.shape[0], A.copy(), B.copy(), C.copy(),
-                     nr=n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SlycotResultWarning)
+        *_, hsv = ab09ad("C", "B", "N", n, B.shape[1], C.shape[0], A.copy(), B.copy(),
+                         C.copy(), nr=n)
     return np.sort(np.asarray(hsv, dtype=float))[::-1]
 
 
