@@ -122,10 +122,10 @@ def summary(out: dict) -> str:
             lines.append(f"     {f['explanation']}")
     for c in out["cannot_reveal"]:
         lines.append(f"   cannot tell {c['effect']}: {c['why']} -> {c['experiment']}")
-    # effects the base could not carry or the record was too long for: said here too, not
-    # only on the report page (rigd.diagnose.selection's notes)
-    lines += [f"   not tried: {n}" for n in out.get("notes", [])
-              if " not offered: " in n or " not screened: " in n]
+    # effects the base could not carry, and those fitted on a window of a long record: said
+    # here too, not only on the report page (rigd.diagnose.selection's notes)
+    lines += [f"   not tried: {n}" for n in out.get("notes", []) if " not offered: " in n]
+    lines += [f"   note: {n}" for n in out.get("notes", []) if " fitted on the first " in n]
     for u in out["unexplained"]:
         lines.append(f"   unexplained: {u['text']}")
     if not any(f["significant"] for f in out["findings"]):

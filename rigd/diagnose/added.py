@@ -35,9 +35,11 @@ def refit_as_diagnosed(bf, applied: list[Any], sm: str, method: str,
     data_est = bf.data.slice(bf.est.start, bf.est.stop)
     other_hold = S.other_hold(bf)
     ctx, kept = ctx0, ()
-    step = None
+    step, notes = None, []
     for eff in applied:
         ref = S.refit_effect(eff, ctx, eff.signature(ctx), data_est, None, method, kept)
+        if ref.window is not None:
+            notes.append(S.window_note(eff.name, *ref.window))
         step = S.Step(eff.name, ref.fit_percent, ref.structure, ref.theta, ref.yhat,
                       ref.fixed)
         if other_hold is not None:   # as the diagnosis: asked once, with the first effect
@@ -48,5 +50,6 @@ def refit_as_diagnosed(bf, applied: list[Any], sm: str, method: str,
     res = evaluate(step.structure, data_est, step.theta,
                    status="refitted as rigd diagnose refits it")
     res.info["fixed"] = list(kept)
+    res.info["notes"] = notes
     res.info["held_base"] = len(held_base(bf.structure, method))
     return step.structure, res

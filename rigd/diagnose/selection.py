@@ -39,6 +39,9 @@ class Refit:
     fixed: tuple[str, ...] = ()
     #: the signature the refit was started from (an effect's alternative form, or None)
     sig: Any = None
+    #: (samples fitted, estimation samples) when the refit used a window of the estimation
+    #: part (``Effect.max_fit_samples``), else None
+    window: tuple[int, int] | None = None
 
 
 @dataclass
@@ -80,8 +83,11 @@ def refit_effect(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe",
     kept instead when it fits the held-out part better by ``MIN_FIT_GAIN`` points (its
     signature then in ``Refit.sig``). A form marked ``extra["refines"]`` (a second curve
     beside the first) is refitted only when the form kept so far gained ``MIN_FIT_GAIN``
-    points on the model: on a large base each refit costs minutes."""
+    points on the model: on a large base each refit costs minutes. An effect with
+    ``max_fit_samples`` below the estimation part's length is fitted on its first
+    ``max_fit_samples`` samples (``Refit.window``)."""
     t0 = time.perf_counter()
+    data_est, window = fit_window(eff, data_est)
     best = _refit_one(eff, ctx, sig, data_est, max_nfev, method, kept)
     fp0 = float(np.mean(fit_percent(ctx.y[ctx.val], ctx.yhat[ctx.val])))
     for alt in eff.refit_alternatives(ctx, sig):
@@ -91,7 +97,23 @@ def refit_effect(eff, ctx: Context, sig, data_est, max_nfev, method: str = "oe",
         if other.fit_percent >= best.fit_percent + MIN_FIT_GAIN:
             best = other
     best.seconds = time.perf_counter() - t0
+    best.window = window
     return best
+
+
+def fit_window(eff, data_est):
+    """(data, window): ``data_est`` cut to the first ``eff.max_fit_samples`` samples when it
+    is longer (window: (samples kept, samples given)), else ``(data_est, None)``."""
+    cap, n = eff.max_fit_samples, data_est.n
+    if cap is None or n <= cap:
+        return data_est, None
+    return data_est.slice(0, cap), (int(cap), int(n))
+
+
+def window_note(name: str, cap: int, n_est: int) -> str:
+    """The note said wherever an effect is fitted on a window of the estimation part."""
+    return (f"{name} fitted on the first {cap} of the {n_est} estimation samples (its fits "
+            f"cost minutes on all of them; --est chooses the samples)")
 
 
 def _refit_one(eff, ctx: Context, sig, data_est, max_nfev, method: str,
@@ -217,6 +239,8 @@ def screen(ctx: Context, names: list[str], refit: bool, data_est, max_nfev,
             big = ref.fit_percent - fp >= MIN_FIT_GAIN
             f.significant = bool(((sig_ok and gain >= MIN_REFIT_GAIN) or strong) and big)
             f.evidence["refit_seconds"] = ref.seconds
+            if ref.window is not None:
+                f.evidence["fitted_on_samples"] = list(ref.window)
             flag = refit_flag(ref.fit_percent, fp)
             if flag is not None:  # a refit that lost fit or is below 0 %: never ranked
                 f.evidence["refit_flag"] = flag
@@ -255,19 +279,17 @@ def offered(effects: list[str] | None, submodel: str, dom, structure, est: slice
             notes.append(f"effects of mechanical structures or rotating parts are not tested "
                          f"on a {dom.name} record")
         names = kept
-        n_est = (est.stop or n) - (est.start or 0)
-        for nm in list(names):  # costly effects are screened on records they can afford
-            cap = REGISTRY[nm].max_screened_samples
-            if cap is not None and n_est > cap:
-                names.remove(nm)
-                notes.append(f"{nm} not screened: {n_est} estimation samples > {cap} (its "
-                             f"fits cost minutes there); ask for it with --effects {nm}")
     rotor = dom.rotor
     for nm in list(names):  # an effect the base cannot carry is not offered, and says why
         why_not = REGISTRY[nm].not_offered(structure, None if rotor else data)
         if why_not is not None:
             names.remove(nm)
             notes.append(f"{nm} not offered: {why_not}")
+    n_est = (est.stop or n) - (est.start or 0)
+    for nm in names:  # a costly effect is fitted on a window of a long record: said so
+        cap = REGISTRY[nm].max_fit_samples
+        if cap is not None and n_est > cap:
+            notes.append(window_note(nm, cap, n_est))
     return names
 
 

@@ -96,8 +96,10 @@ class Effect:
     #: the refit is expensive (a state model of its own): refitted only on a decisive
     #: signature (rigd.diagnose.selection)
     costly_refit: bool = False
-    #: screened by default on at most this many estimation samples (None: any length)
-    max_screened_samples: int | None = None
+    #: refitted on at most this many estimation samples, the first ones of the estimation
+    #: part (a window; the held-out fit is still on the whole validation part), by
+    #: ``rigd diagnose`` and ``rigd identify --add`` alike, and said so (None: all of them)
+    max_fit_samples: int | None = None
     #: ``state_simulate(base, theta_b, theta_e, feedback, data) -> y``: the effect simulates
     #: the model with a state model of its own (sites ``state``/``mode``); None: it has none
     state_simulate = None

@@ -166,9 +166,9 @@ class RestoringHysteresis(Effect):
     screened = True
     #: RK4 fits from several starts: refitted only when the signature is decisive
     costly_refit = True
-    #: screened by default up to this many estimation samples (Silverbox's 39,400: its
-    #: refits ran past 10 minutes under load); longer records: ``--effects``
-    max_screened_samples = 10_000
+    #: refitted on the first 10,000 estimation samples of a longer record (a window: on
+    #: Silverbox's 39,400 its RK4 refits ran past 10 minutes under load)
+    max_fit_samples = 10_000
     physics = "hysteresis in the restoring force (joints, dampers, mounts): Bouc–Wen stiffness"
 
     def state_block(self, theta_e, data):

@@ -291,6 +291,7 @@ def _submodel(sm: str, bf, structure, res) -> Submodel:
         warn.append("the model's simulated response is not finite on this record (the "
                     "fit diverged; its fit is not a number): do not use this model")
     warn += _refit_warnings(bf, structure, fv)
+    warn += list(res.info.get("notes", ()))   # e.g. an effect fitted on a window (--add)
     if res.info.get("held_base"):
         from rigd.ident.pipeline import MAX_REFIT_FREE
 
