@@ -82,7 +82,8 @@ def test_plant_hidden_effect_ranked_first_and_error_falls(effect):
 POINTS = [(0.0, 3.0, 0), (1500.0, 5.0, 1), (3000.0, 7.0, 2)]
 
 
-@pytest.mark.parametrize("omega,p_inj,seed", POINTS)
+@pytest.mark.parametrize("omega,p_inj,seed", POINTS[:1] + [   # the others: make test-long
+    pytest.param(*p, marks=pytest.mark.long) for p in POINTS[1:]])
 def test_plant_no_hidden_effect_nothing_significant(omega, p_inj, seed):
     rec = record(None, seed=10 + seed, omega=omega, p_inj=p_inj, seconds=1.6)
     d = diagnose_record(rec)

@@ -144,8 +144,9 @@ def test_no_integrator_named_on_plants_without_one(runs):
 
 
 # one record per site and entry (input and output curve, integrator): another record of the
-# same site adds no other relation
-@pytest.mark.parametrize("name", ["hammerstein", "wiener", "integrator_loop"])
+# same site adds no other relation (the output curve and the integrator: make test-long, CI)
+@pytest.mark.parametrize("name", ["hammerstein"] + [pytest.param(n, marks=pytest.mark.long)
+                                                    for n in ("wiener", "integrator_loop")])
 @pytest.mark.timeout(1800)  # up to two default diagnoses (one in the fixture) on a busy host
 def test_new_entries_rescaled_same_diagnosis(runs, name):
     rec, d = runs(name)

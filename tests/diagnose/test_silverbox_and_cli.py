@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import pytest
 from testpaths import ROOT
 
 from rigd.cli import main
@@ -58,6 +59,9 @@ def test_whiteness_and_cross_correlation_bounds():
     assert np.abs(c.rho).max() > 10 * c.bound and c.lags[np.argmax(np.abs(c.rho))] in (3, -3)
 
 
+# make test-long (CI): in make test the README's Silverbox commands (tests/test_readme_commands.py)
+# print identify's and diagnose's base fits, each compared with the README's figure
+@pytest.mark.long
 def test_identify_and_diagnose_give_the_same_base_fit(capsys):
     """One hold convention and one split: `rigd identify --method oe` and `rigd diagnose`
     report the same validation fit of the base model on the same samples."""
