@@ -26,10 +26,12 @@ RECORDS = {
 }
 
 
-# the Duffing oscillator in make test-long (CI): cubic stiffness is refitted by identify --add
-# in make test on the Silverbox (the README's commands, tests/test_readme_commands.py)
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.long) if n == "duffing"
-                                  else n for n in sorted(RECORDS)])
+# make test runs the Wiener and the Hammerstein process (the curve's sites); the Duffing
+# oscillator (cubic stiffness, which the README's Silverbox commands refit with identify --add
+# in make test) and the clearance joint run in make test-long (CI)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.long)
+                                  if n in ("duffing", "clearance") else n
+                                  for n in sorted(RECORDS)])
 def test_identify_add_refits_what_diagnose_fitted(name):
     rec = RECORDS[name]()
     part = diagnose_record(rec).parts[0]

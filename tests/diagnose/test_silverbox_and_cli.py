@@ -10,6 +10,9 @@ from rigd.cli import main
 from rigd.diagnose import residual as R
 
 
+# make test-long (CI): in make test the README's Silverbox commands (tests/test_readme_commands.py)
+# show the default diagnosis adding cubic stiffness alone and the arrow's error falling
+@pytest.mark.long
 def test_silverbox_cubic_first_and_error_halved(capsys, tmp_path):
     """Estimated on 12,000 samples of the multisine part (20 s; the whole part, 91,000
     samples, names the same at several times the cost), validated on the arrow (the first
