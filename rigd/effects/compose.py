@@ -133,6 +133,11 @@ class Composed(Model):
     delays = _of_base("delays")
     hold = _of_base("hold")
     _n_est = _of_base("_n_est")
+    # the channels: the effects change no count or name of them
+    nu = _of_base("nu")
+    ny = _of_base("ny")
+    input_names = _of_base("input_names")
+    output_names = _of_base("output_names")
 
     def scale(self, theta: np.ndarray) -> np.ndarray:
         return self.base.scale(theta)
@@ -306,11 +311,6 @@ class Composed(Model):
         d = dict(self.base.spec())
         d["effects"] = list(self.effects)
         return d
-
-    def __getattr__(self, item: str) -> Any:  # resonances, ny, hold, ... of the base
-        if item in ("base", "effect_list", "_slices") or item.startswith("__"):
-            raise AttributeError(item)
-        return getattr(self.base, item)
 
     def __deepcopy__(self, memo: dict) -> Composed:
         new = Composed.__new__(Composed)
