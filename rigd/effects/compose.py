@@ -254,7 +254,7 @@ class Composed(Model):
         -------
         (indices, dY) or None
             As the base's: ``indices`` of the base's parameters (the first of ``theta``),
-            ``dY[:, :, k]`` = ∂ŷ/∂θ[indices[k]] (n, ny, k).
+            ``dY[k]`` = ∂ŷ/∂θ[indices[k]] (k, n, ny).
         """
         method = type(self.base).output_sensitivities
         if method is None:

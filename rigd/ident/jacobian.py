@@ -1,15 +1,17 @@
-"""The Jacobian of :func:`rigd.ident.pem.fit`'s output-error residual: exact columns where
-the structure's output is linear in the parameter, forward differences elsewhere.
+"""The Jacobian of :func:`rigd.ident.pem.fit`'s output-error residual: the structure's own
+output sensitivities where it has them, forward differences elsewhere.
 
 A structure that offers ``output_sensitivities(theta, data) -> (indices, dY)`` (the general
-LTI model: :mod:`rigd.ident.lti.sensitivity`; that model with input-site and additive
-output-site effects around it: :meth:`rigd.effects.compose.Composed.output_sensitivities`)
-has those columns computed from a few small simulations; one whose output offsets are added
-at its end (:func:`additive_offsets`: the mechanical models, with or without state-level
-effects) has theirs (ones); the other free parameters get the forward difference
+LTI model: :mod:`rigd.ident.lti.sensitivity`, every parameter of its simulation; that model
+with input-site and additive output-site effects around it:
+:meth:`rigd.effects.compose.Composed.output_sensitivities`, the base's parameters) has those
+columns computed from small block simulations; one whose output offsets are added at its
+end (:func:`additive_offsets`: the mechanical models, with or without state-level effects)
+has theirs (ones); the other free parameters get the forward difference
 ``scipy.optimize.least_squares`` would take itself (``approx_derivative``, the same relative
-step and bounds), so the optimiser sees the all-difference Jacobian up to rounding and takes
-the same steps, with one simulation per non-linear parameter instead of one per parameter.
+step and bounds). Columns of parameters the output is linear in equal those differences up
+to rounding; a pole's column is the exact derivative, where the difference is off by its
+step.
 """
 
 from __future__ import annotations
@@ -69,8 +71,8 @@ def linear_jacobian(structure, data, fun, free: np.ndarray, scale: np.ndarray,
     def sens(th, d):
         out = method(structure, th, d) if method is not None else None
         if out is None and off:     # ŷ = (…) + y_off: ∂ŷ_i/∂y_off_i = 1
-            dY = np.zeros((d.n, len(off), len(off)))
-            dY[:, np.arange(len(off)), np.arange(len(off))] = 1.0
+            dY = np.zeros((len(off), d.n, len(off)))
+            dY[np.arange(len(off)), :, np.arange(len(off))] = 1.0
             out = np.asarray(off, int), dY
         return out
 
@@ -99,19 +101,14 @@ def linear_jacobian(structure, data, fun, free: np.ndarray, scale: np.ndarray,
         out = None if penalty else sens(th, data)
         lin = [] if out is None else [(pos[int(p)], k) for k, p in enumerate(out[0])
                                       if int(p) in pos]
-        J = np.empty((r0.size, z.size))
-        if lin:
-            cols = np.array([k for _, k in lin], int)
-            where = np.array([c for c, _ in lin], int)
-            dY = out[1][skip:]
-            if cols.size < dY.shape[2] or not np.array_equal(cols, np.arange(cols.size)):
-                dY = dY[:, :, cols]
-            dY *= wy[None, :, None]
-            dY *= -scale[free_idx[where]][None, None, :]
-            J[:, where] = dY.reshape(r0.size, cols.size)
+        # built as its transpose (p × m): each column a contiguous row, written once
+        Jt = np.empty((z.size, r0.size))
+        ny = wy.size
+        for c, k in lin:
+            np.multiply(out[1][k, skip:], wy * -scale[free_idx[c]], out=Jt[c].reshape(-1, ny))
         done = np.zeros(z.size, bool)
         done[[c for c, _ in lin]] = True
-        if not np.all(np.isfinite(J[:, done])):
+        if not np.all(np.isfinite(Jt[done])):
             done[:] = False
         rest = np.flatnonzero(~done)
         if rest.size:
@@ -121,9 +118,9 @@ def linear_jacobian(structure, data, fun, free: np.ndarray, scale: np.ndarray,
                 return fun(zz)
 
             lo, hi = (np.broadcast_to(np.asarray(b, float), z.shape)[rest] for b in bounds)
-            J[:, rest] = np.atleast_2d(approx_derivative(
+            Jt[rest] = np.atleast_2d(approx_derivative(
                 sub, z[rest], method="2-point", rel_step=diff_step, f0=r0,
-                bounds=(lo, hi))).reshape(r0.size, rest.size)
-        return J
+                bounds=(lo, hi))).reshape(r0.size, rest.size).T
+        return Jt.T
 
     return res, jac

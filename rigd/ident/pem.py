@@ -27,6 +27,7 @@ from rigd.errors import InputError
 from rigd.ident.figures import fit_percent
 from rigd.ident.iddata import IdData
 from rigd.ident.model import Model
+from rigd.ident.trf import least_squares_trf
 
 METHODS = ("pem", "oe")
 _PENALTY = 1e3
@@ -154,7 +155,7 @@ def _std(sol, free: np.ndarray, scale: np.ndarray) -> np.ndarray:
     units -> parameter units); 0 for the fixed ones, NaN when the covariance cannot be had."""
     J = sol.jac
     nfree = int(free.sum())
-    dof = max(J.shape[0] - nfree, 1)
+    dof = max(int(sol.fun.size) - nfree, 1)
     s2 = 2.0 * sol.cost / dof
     std = np.zeros(len(free))
     try:
@@ -245,9 +246,12 @@ def fit(structure: Model, data: IdData, *, method: str = "pem",
     # warnings would only reach the operator's terminal as library noise (the fit's own
     # figures say when a model diverges)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        sol = least_squares(fun, z0, jac=jac, bounds=zb, method="trf" if bounded else "lm",
-                            ftol=ftol, xtol=1e-10, gtol=1e-10, x_scale="jac", diff_step=1e-6,
-                            max_nfev=max_nfev or 100 * nfree)
+        opts = dict(ftol=ftol, xtol=1e-10, gtol=1e-10, x_scale="jac", diff_step=1e-6,
+                    max_nfev=max_nfev or 100 * nfree)
+        if bounded:
+            sol = least_squares_trf(fun, z0, jac=jac, bounds=zb, **opts)
+        else:
+            sol = least_squares(fun, z0, jac=jac, method="lm", **opts)
         theta = th0.copy()
         theta[free] = sol.x * scale[free]
         std = _std(sol, free, scale)
@@ -305,7 +309,7 @@ def evaluate(structure: Model, data: IdData, theta: np.ndarray, *, skip: int = 0
             zk[k] += h
             jac[:, k] = (fun(zk) - r0) / h
     cost = 0.5 * float(r0 @ r0)
-    std = _std(SimpleNamespace(jac=jac, cost=cost), free, scale)
+    std = _std(SimpleNamespace(jac=jac, cost=cost, fun=r0), free, scale)
     fp = _fit_at(structure, th, data, skip)
     return FitResult(structure, th, std, "oe", fp, cost, int(z.size + 1), status,
                      {"njev": 1, "success": True, "n_samples": data.n, "skip": skip,

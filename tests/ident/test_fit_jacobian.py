@@ -29,15 +29,16 @@ def _theta(m, rng):
 
 
 def _assert_columns_are_differences(model, th, d, idx, dY):
-    """Each sensitivity column dY[:, :, k] is the forward difference of ``model.simulate`` in
-    parameter ``idx[k]``."""
-    y0 = model.simulate(th, d)
+    """Each sensitivity column dY[k] is the central difference of ``model.simulate`` in
+    parameter ``idx[k]`` (exact for the parameters the output is linear in; to the
+    difference's own error, ~h², for the poles)."""
     for k, p in enumerate(idx):
-        h = 1e-6 * max(1.0, abs(th[p]))
-        t2 = th.copy()
-        t2[p] += h
-        fd = (model.simulate(t2, d) - y0) / h
-        assert np.max(np.abs(fd - dY[:, :, k])) <= 1e-6 * max(np.max(np.abs(fd)), 1.0), \
+        h = 1e-5 * max(1.0, abs(th[p]))
+        t1, t2 = th.copy(), th.copy()
+        t1[p] += h
+        t2[p] -= h
+        fd = (model.simulate(t1, d) - model.simulate(t2, d)) / (2 * h)
+        assert np.max(np.abs(fd - dY[k])) <= 1e-6 * max(np.max(np.abs(fd)), 1.0), \
             model.names[p]
 
 
@@ -52,13 +53,15 @@ def test_each_sensitivity_is_the_forward_difference_of_the_simulation(hold, nc, 
     d = IdData(rng.standard_normal((1000, 2)), np.zeros((1000, 2)), 100.0, ["a", "b"],
                ["y1", "y2"])
     idx, dY = m.output_sensitivities(th, d)
+    # every parameter of the simulated output has its column (K, the noise model's, is the
+    # predictor's only): the poles by the sensitivity equations, the others exactly
+    assert {m.names[i] for i in idx} == {v for v in m.names if v[0] != "k"}
     lin = {m.names[i][0] for i in idx}
-    assert lin <= {"b", "c", "d", "x", "y"} and "p" not in lin and "r" not in lin
-    assert ("d" in lin) == feedthrough
+    assert ("d" in lin) == feedthrough and ("r" in lin) == (nr > 0)
     _assert_columns_are_differences(m, th, d, idx, dY)
 
 
-def test_a_fit_with_the_exact_columns_takes_the_difference_fits_steps(monkeypatch):
+def test_a_fit_with_the_exact_columns_reaches_the_difference_fits_optimum(monkeypatch):
     rng = np.random.default_rng(0)
     n = 1500
     u = rng.standard_normal((n, 2))
@@ -71,10 +74,12 @@ def test_a_fit_with_the_exact_columns_takes_the_difference_fits_steps(monkeypatc
     exact = fit(m, d, method="oe", theta0=th0)
     monkeypatch.delattr(StateSpaceModel, "output_sensitivities")
     diff = fit(m, d, method="oe", theta0=th0)
-    assert exact.nfev == diff.nfev and exact.info["njev"] == diff.info["njev"]
-    assert exact.cost == pytest.approx(diff.cost, rel=1e-8)
-    np.testing.assert_allclose(exact.theta, diff.theta, rtol=1e-5, atol=1e-8)
-    np.testing.assert_allclose(exact.std, diff.std, rtol=1e-4)
+    # the pole columns differ from forward differences by the differences' error (~1e-6):
+    # the steps may differ that little, the optimum and its spread not
+    assert exact.info["success"] and diff.info["success"]
+    assert exact.cost == pytest.approx(diff.cost, rel=1e-6)
+    np.testing.assert_allclose(exact.theta, diff.theta, rtol=1e-3, atol=1e-5)
+    np.testing.assert_allclose(exact.std, diff.std, rtol=1e-3)
 
 
 def test_offsets_column_of_a_mechanical_base_with_a_state_effect_but_not_an_output_one():

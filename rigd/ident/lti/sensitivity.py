@@ -1,4 +1,4 @@
-"""Exact output sensitivities of the general LTI model to the parameters it is linear in.
+"""Output sensitivities of the general LTI model to all of its simulation's parameters.
 
 The simulated output of :class:`rigd.ident.lti.statespace.StateSpaceModel`,
 
@@ -6,13 +6,18 @@ The simulated output of :class:`rigd.ident.lti.statespace.StateSpaceModel`,
 
 is linear in each of B (through B_d = Γ B, Γ the hold's discretisation of A alone), x0, C, D
 and y_off; only the poles enter non-linearly. Because A is block-diagonal (real-block modal
-form), the sensitivity to an entry of B or x0 of state s is a simulation of s's block alone
-(one or two states), and the sensitivity to C[i, s] is state s of the model's own simulation.
+form), every column is a simulation of one block (one or two states):
+
+* B or x0 of state s: the block driven by Γ e_s, or its free response from e_s;
+* C[i, s]: state s of the model's own simulation; D and y_off: the input, ones;
+* a pole's parameter θ (log-frequency, damping ratio): the sensitivity equation
+  z[k+1] = A_d z[k] + (∂A_d/∂θ) x[k] + (∂B_d/∂θ) u_e[k], ∂y/∂θ = C z, driven by the block's
+  own states x; ∂A_d and ∂B_d are a central difference of the block's exact (ZOH/FOH)
+  discretisation, a 2 × 2 matrix function, so the column is exact to about 1e-9.
+
 :func:`output_sensitivities` returns these columns; :func:`rigd.ident.jacobian` puts them in
-the fit's Jacobian beside finite differences of the poles. A forward difference of a function
-linear in the parameter is the same column up to rounding, so the fit's steps are those of
-the all-difference Jacobian, at a fraction of its simulations (one per pole instead of one
-per parameter).
+the fit's Jacobian in place of forward differences of the whole simulation (one small
+block simulation per parameter instead of one simulation of the model).
 """
 
 from __future__ import annotations
@@ -41,9 +46,42 @@ def _input_gains(A: np.ndarray, hold: str, dt: float, uu: np.ndarray):
     return np.asarray(Ad, float), G, None, ue
 
 
+def _pole_parameters(model) -> dict[int, list[int]]:
+    """first state of a block -> indices of the parameters of its pole(s) in theta."""
+    out, kc, kr = {}, 0, 0
+    for t, s0 in model.block_states():
+        if t == "pair":
+            out[s0] = [2 * kc, 2 * kc + 1]
+            kc += 1
+        elif t == "real":
+            out[s0] = [2 * model.nc + kr]
+            kr += 1
+    return out
+
+
+#: step of the central difference of a block's discretisation in its pole parameters (a
+#: log-frequency and a damping ratio): the truncation error ~ STEP² and the rounding error
+#: ~ 1e-16 / STEP are both below 1e-9 of the derivative
+STEP = 1e-5
+
+
+def _block_derivative(model, theta, p, sl, Bb, dt, uu):
+    """(∂A_d, ∂B_d) of one block's discretisation (the model's hold) in parameter ``p``
+    (a pole's), by a central difference of the 1×1 or 2×2 block's exact discretisation."""
+    out = []
+    for sgn in (1.0, -1.0):
+        th = np.array(theta, float, copy=True)
+        th[p] += sgn * STEP
+        Ab = model.matrices(th)["A"][sl, sl]
+        Adb, G0, G1, _ = _input_gains(Ab, model.hold, dt, uu)
+        out.append((Adb, G0 @ Bb if G1 is None else np.hstack([G0 @ Bb, G1 @ Bb])))
+    (a1, b1), (a2, b2) = out
+    return (a1 - a2) / (2 * STEP), (b1 - b2) / (2 * STEP)
+
+
 def output_sensitivities(model, theta: np.ndarray, data) -> tuple[np.ndarray, np.ndarray] | None:
-    """(indices, dY) with dY[:, :, k] = ∂ŷ/∂θ[indices[k]] (n, ny, k) of ``model.simulate``
-    at ``theta`` on ``data``, for every parameter the output is linear in (B, C, D, x0,
+    """(indices, dY) with dY[k] = ∂ŷ/∂θ[indices[k]] (k, n, ny) of ``model.simulate``
+    at ``theta`` on ``data``, for every parameter of the simulation (the poles, B, C, D, x0,
     y_off; module docstring); None when the model cannot be discretised at ``theta``.
 
     Parameters
@@ -70,10 +108,13 @@ def output_sensitivities(model, theta: np.ndarray, data) -> tuple[np.ndarray, np
     g = model.group_slices()
     c_index = {(i, s): g["c"][0] + k for k, (i, s) in enumerate(model._c_free)}
     x0_index = {s: g["x0"][0] + k for k, s in enumerate(model._x0_states)}
+    pole_of = _pole_parameters(model)
     idx = sorted(list(range(*g["b"])) + list(c_index.values()) + list(x0_index.values())
-                 + list(range(*g["d"])) + list(range(*g["yoff"])))
+                 + list(range(*g["d"])) + list(range(*g["yoff"]))
+                 + [p for ps in pole_of.values() for p in ps])
     col = {p: k for k, p in enumerate(idx)}
-    dY = np.zeros((n, ny, len(idx)))
+    dY = np.zeros((len(idx), n, ny))
+    dt = 1.0 / float(data.fs)
     for t, s0 in model.block_states():
         b = 2 if t == "pair" else 1
         sl = slice(s0, s0 + b)
@@ -81,11 +122,22 @@ def output_sensitivities(model, theta: np.ndarray, data) -> tuple[np.ndarray, np
         Cb = np.ascontiguousarray(C[:, sl])
         eye = np.eye(b)
         X = np.empty((n, b))    # the block's states in the model's own simulation
-        lsim_kernel(Adb, np.ascontiguousarray(Bd[sl]), eye, np.ascontiguousarray(x0[sl]),
-                    ue, X)
+        Bdb = np.ascontiguousarray(Bd[sl])
+        lsim_kernel(Adb, Bdb, eye, np.ascontiguousarray(x0[sl]), ue, X)
+        if pole_of.get(s0):
+            W = np.ascontiguousarray(np.hstack([X, ue]))
+            Yp = np.empty((n, ny))
+            for p in pole_of[s0]:
+                dAd, dBd = _block_derivative(model, theta, p, sl, B[sl], dt, uu[:2])
+                if not (np.all(np.isfinite(dAd)) and np.all(np.isfinite(dBd))):
+                    return None
+                # the sensitivity equation: z[k+1] = A_d z[k] + ∂A_d x[k] + ∂B_d u_e[k]
+                lsim_kernel(Adb, np.ascontiguousarray(np.hstack([dAd, dBd])), Cb,
+                            np.zeros(b), W, Yp)
+                dY[col[p]] = Yp
         for (i, s), p in c_index.items():
             if s0 <= s < s0 + b:
-                dY[:, i, col[p]] = X[:, s - s0]
+                dY[col[p], :, i] = X[:, s - s0]
         Z = np.empty((n, b))
         for s in range(s0, s0 + b):
             for j in range(nu):        # B[s, j]: the block driven by input j along Γ e_s
@@ -94,18 +146,18 @@ def output_sensitivities(model, theta: np.ndarray, data) -> tuple[np.ndarray, np
                 if G1 is not None:
                     Bs[:, nu + j] = G1[sl, s]
                 lsim_kernel(Adb, Bs, eye, np.zeros(b), ue, Z)
-                dY[:, :, col[g["b"][0] + s * nu + j]] = Z @ Cb.T
+                dY[col[g["b"][0] + s * nu + j]] = Z @ Cb.T
             if s in x0_index:          # x0[s]: the block's free response from e_s
                 e = np.zeros(b)
                 e[s - s0] = 1.0
                 lsim_kernel(Adb, np.zeros((b, nue)), eye, e, ue, Z)
-                dY[:, :, col[x0_index[s]]] = Z @ Cb.T
+                dY[col[x0_index[s]]] = Z @ Cb.T
     if model.feedthrough:
         for i in range(ny):
             for j in range(nu):
-                dY[:, i, col[g["d"][0] + i * nu + j]] = uu[:, j]
+                dY[col[g["d"][0] + i * nu + j], :, i] = uu[:, j]
     if model.output_offsets:
         for i in range(ny):
-            dY[:, i, col[g["yoff"][0] + i]] = 1.0
+            dY[col[g["yoff"][0] + i], :, i] = 1.0
     idx = np.array(idx, int)
     return idx, dY

@@ -285,9 +285,9 @@ class StateSpaceModel(Model):
         return y + m["yoff"][None, :]
 
     def output_sensitivities(self, theta, data):
-        """(indices, ∂ŷ/∂θ[indices] (n, ny, k)) of :meth:`simulate` for the parameters
-        the output is linear in (:func:`rigd.ident.lti.sensitivity.output_sensitivities`):
-        the fit's Jacobian takes them exactly, differences only for the poles."""
+        """(indices, ∂ŷ/∂θ[indices] (k, n, ny)) of :meth:`simulate` for every parameter of
+        the simulation (:func:`rigd.ident.lti.sensitivity.output_sensitivities`: exact for
+        B, C, D, x0 and y_off, the sensitivity equations for the poles)."""
         from rigd.ident.lti.sensitivity import output_sensitivities
 
         return output_sensitivities(self, theta, data)
