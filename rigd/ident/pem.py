@@ -230,8 +230,8 @@ def fit(structure: Model, data: IdData, *, method: str = "pem",
                      np.where(np.isfinite(zhi), zhi - 1e-9, zhi))
     nfree = int(free.sum())
     bounded = bool(np.any(np.isfinite(zlo) | np.isfinite(zhi)))
-    # MINPACK Levenberg-Marquardt (QR) when unbounded: much cheaper than trf's SVD of the
-    # tall (n·ny × p) Jacobian; trust-region reflective when an effect brings bounds.
+    # MINPACK Levenberg-Marquardt when unbounded; trust-region reflective (on the Jacobian's
+    # QR factor: rigd.ident.trf) when an effect or the base brings bounds.
     zb = (zlo, zhi) if bounded else (-np.inf, np.inf)
     jac = "2-point"
     if method == "oe":  # exact columns where the output is linear in the parameter

@@ -122,8 +122,8 @@ def output_sensitivities(model, theta: np.ndarray, data) -> tuple[np.ndarray, np
         Cb = np.ascontiguousarray(C[:, sl])
         eye = np.eye(b)
         X = np.empty((n, b))    # the block's states in the model's own simulation
-        Bdb = np.ascontiguousarray(Bd[sl])
-        lsim_kernel(Adb, Bdb, eye, np.ascontiguousarray(x0[sl]), ue, X)
+        lsim_kernel(Adb, np.ascontiguousarray(Bd[sl]), eye, np.ascontiguousarray(x0[sl]),
+                    ue, X)
         if pole_of.get(s0):
             W = np.ascontiguousarray(np.hstack([X, ue]))
             Yp = np.empty((n, ny))
