@@ -264,6 +264,13 @@ class Effect:
         (``state_simulate``); False when, on this base, it has no state part."""
         return True
 
+    def base_columns_kept(self, base: Any, theta_e: np.ndarray) -> set[int] | None:
+        """Indices of ``base``'s parameters whose output sensitivities this effect, where it
+        simulates the model itself, leaves as the base's own (the model's output is the
+        base's plus a term that does not depend on them); None: none are kept (the
+        default), the composed model then has no exact columns."""
+        return None
+
     def warm_start(self, ctx: Context, sig: SignatureFit) -> np.ndarray | None:
         """Effect parameters to start the refit from (default: theta0_effect)."""
         return None

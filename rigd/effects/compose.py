@@ -248,7 +248,8 @@ class Composed(Model):
         effects leave the output linear in the base's linear parameters: each acts on the
         inputs (the base then sees the effects' inputs, in the order :meth:`simulate` applies
         them) or adds a path of its own parallel to the base (``additive_output``: y + g(u));
-        None otherwise, or when the base has none.
+        a mode-site effect keeps those of the parameters outside its mode
+        (:meth:`Effect.base_columns_kept`); None otherwise, or when the base has none.
 
         Returns
         -------
@@ -259,12 +260,18 @@ class Composed(Model):
         method = type(self.base).output_sensitivities
         if method is None:
             return None
-        for e in self.effect_list:
-            sites = set(e.sites)
-            if not sites <= {"input", "output"} or ("output" in sites
-                                                     and not e.additive_output):
-                return None
         tb, te = self.parts(theta)
+        kept = None          # base parameters a mode-site effect leaves to the base
+        for e, t in zip(self.effect_list, te):
+            sites = set(e.sites)
+            if sites == {"mode"}:
+                k = e.base_columns_kept(self.base, t)
+                if k is None:
+                    return None
+                kept = k if kept is None else kept & k
+            elif not sites <= {"input", "output"} or ("output" in sites
+                                                       and not e.additive_output):
+                return None
         d = data
         # simulate()'s nesting: the last effect added is the outermost, its input block first
         for e, t in reversed(list(zip(self.effect_list, te))):
@@ -273,7 +280,12 @@ class Composed(Model):
                 v = e.input_block(u, t, d)
                 if v is not u:
                     d = replace_inputs(d, v)
-        return method(self.base, tb, d)
+        out = method(self.base, tb, d)
+        if out is None or kept is None:
+            return out
+        idx, dY = out
+        keep = [k for k, p in enumerate(idx) if int(p) in kept]
+        return idx[keep], dY[keep]
 
     # --- linear part and read-outs -------------------------------------------------------
     def linear_ss(self, theta: np.ndarray, fs: float, G0: Any = None):

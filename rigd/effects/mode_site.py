@@ -274,6 +274,21 @@ class ModeEffect(Effect):
     def owns_state(self, base):
         return True
 
+    def base_columns_kept(self, base, theta_e):
+        """Every base parameter but the mode's own: the output is the base's linear
+        simulation plus C_k (x_k − x_k^lin) minus the force's direct share
+        (:func:`rigd.ident.lti.nonlinear_mode.simulate_nonlinear_mode`), and that term
+        depends only on the mode's block — its pole, its rows of B and x0, its columns of
+        C."""
+        s = NM.mode_states(base, int(round(float(theta_e[0]))))
+        states = {s, s + 1}
+        pair = sum(1 for t, q in base.block_states() if t == "pair" and q < s)
+        own = {f"p{pair + 1}_lnf", f"p{pair + 1}_zeta"}
+        own |= {f"b{q + 1}_{j + 1}" for q in states for j in range(base.nu)}
+        own |= {f"c{i + 1}_{q + 1}" for q in states for i in range(base.ny)}
+        own |= {f"x0_{q + 1}" for q in states}
+        return {i for i, v in enumerate(base.names) if v not in own}
+
     def state_simulate(self, base, theta_b, theta_e, fb, data):
         """Output (n, ny) of ``base`` with the law on the mode ``theta_e[0]``."""
         if fb is not None:

@@ -150,3 +150,43 @@ def test_identify_add_joint_fits_it_and_the_model_file_keeps_it(tmp_path):
     assert back.structure.effects == ["joint"]
     d = _data(g)
     assert np.allclose(back.structure.simulate(back.theta, d), sm.structure.simulate(sm.theta, d))
+
+
+@pytest.mark.parametrize("nm,te", [("joint", [2.0, 0.3, 0.4, 0.5, 0.02, -0.01]),
+                                   ("clearance", [2.0, 0.5, 0.3, 0.0, 0.01])])
+def test_a_mode_effect_keeps_the_exact_columns_of_the_other_modes(nm, te):
+    """With a law on mode 2 of a three-mode, two-output base, the output is the base's plus a
+    term of mode 2's block alone: the composed model gives the base's exact sensitivities
+    for every other parameter (each is the composed simulation's central difference) and
+    none for the mode's own pole, B, C or x0 (those are differenced by the fit)."""
+    from rigd.effects.compose import compose
+
+    m = StateSpaceModel(["u"], ["y1", "y2"], 200.0, n_complex=3, n_real=1, hold="foh",
+                        feedthrough=True)
+    m.set_record(1500)
+    wn = 2 * np.pi * np.array([4.0, 9.0, 23.0])
+    lam = [complex(-0.03 * w, w * np.sqrt(1 - 0.03 ** 2)) for w in wn] + [complex(-30.0, 0)]
+    rng = np.random.default_rng(7)
+    th = m.pack(lam, rng.standard_normal((7, 1)), rng.standard_normal((2, 7)),
+                D=0.1 * rng.standard_normal((2, 1)), x0=0.01 * rng.standard_normal(7))
+    d = IdData(rng.standard_normal((1500, 1)), np.zeros((1500, 2)), 200.0, ["u"],
+               ["y1", "y2"])
+    c = compose(m, [REGISTRY[nm]])
+    th_c = np.r_[th, te]
+    assert th_c.size == len(c.names)
+    idx, dY = c.output_sensitivities(th_c, d)
+    names = {m.names[i] for i in idx}
+    own = {"p2_lnf", "p2_zeta", "b3_1", "b4_1", "x0_3", "x0_4"} | {
+        f"c{i}_{q}" for i in (1, 2) for q in (3, 4)}
+    assert names == {v for v in m.names if v[0] != "k"} - own
+    assert {"p1_lnf", "p3_zeta", "r1_lnf", "b1_1", "d2_1"} <= names
+    # the law is not idle at this size: mode 2's block does change the output
+    assert np.max(np.abs(c.simulate(th_c, d) - m.simulate(th, d))) > 1e-3 * np.std(
+        m.simulate(th, d))
+    for k, p in enumerate(idx):
+        h = 1e-5 * max(1.0, abs(th_c[p]))
+        t1, t2 = th_c.copy(), th_c.copy()
+        t1[p] += h
+        t2[p] -= h
+        fd = (c.simulate(t1, d) - c.simulate(t2, d)) / (2 * h)
+        assert np.max(np.abs(fd - dY[k])) <= 1e-6 * max(np.max(np.abs(fd)), 1.0), m.names[p]
