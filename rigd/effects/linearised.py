@@ -11,11 +11,19 @@ on the context) and a constant per output, on the estimation part; the share is 
 effect's regressors add to the sensitivities alone, with an F test on an
 autocorrelation-corrected sample size. The share is in-sample (a strong effect moves the
 linear parameters further than a first-order step extrapolates); the refit then decides out
-of sample. Used by ``friction`` (promoted from the dry-friction probe) and
-``static_nonlinearity``.
+of sample. Used by ``friction`` (promoted from the dry-friction probe),
+``static_nonlinearity`` and the delay scan.
+
+The sensitivities are the same for every regressor tried on one context, so their column
+space is factored once (:class:`_Basis`, an SVD truncated as ``numpy.linalg.lstsq`` truncates)
+and each regressor is fitted to what that space leaves (Frisch–Waugh–Lovell: the regressors'
+coefficients and the residual of the joint least-squares fit are those of the projected
+regressors on the projected residual).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
@@ -29,11 +37,11 @@ def joint_signature(ctx: Context, regs: list[np.ndarray]) -> SignatureFit:
     """The linearised refit of the regressors ``regs`` (each (n, ny)) on ``ctx``: share and
     F test beyond the base model's sensitivities, ``beta`` the regressors' coefficients
     (score = score_est = the in-sample share)."""
-    J = sensitivities(ctx)
-    if J is None or not regs:
+    basis = _basis(ctx)
+    if basis is None or not regs:
         return SignatureFit(0.0, np.zeros(len(regs)), 1.0, len(regs))
-    share, p, beta = joint_share(ctx, np.stack(regs, axis=-1), J)
-    return SignatureFit(share, beta[:len(regs)], p, len(regs), share)
+    share, p, beta = joint_share(basis, np.stack(regs, axis=-1)[ctx.est])
+    return SignatureFit(share, beta, p, len(regs), share)
 
 
 def sensitivities(ctx: Context) -> np.ndarray | None:
@@ -55,27 +63,85 @@ def sensitivities(ctx: Context) -> np.ndarray | None:
     return np.stack(cols, axis=-1)
 
 
-def joint_share(ctx: Context, G: np.ndarray, J: np.ndarray) -> tuple[float, float, np.ndarray]:
-    """(share, F-test p, coefficients): the share of the base residual's energy (estimation
-    part, outputs weighted 1/std as the fit) that the regressors ``G`` (n, ny, k) add to the
-    sensitivities ``J`` (n, ny, q), and the joint least-squares coefficients [G, J]."""
-    w = 1.0 / np.maximum(np.std(ctx.y[ctx.est], axis=0), 1e-300)
-    re = (ctx.residual[ctx.est] * w).reshape(-1)
-    X = np.concatenate([G, J], axis=-1)[ctx.est] * w[None, :, None]
-    k, q = G.shape[-1], X.shape[-1]
-    Xe = X.reshape(-1, q)
+@dataclass(frozen=True)
+class _Basis:
+    """The base's sensitivities on the estimation part of one context, factored once.
+
+    Attributes
+    ----------
+    w : ndarray (ny,)
+        Output weights, 1/std of the measured output (as the fit weights them).
+    Q : ndarray (m, r)
+        Orthonormal basis of the weighted sensitivities' column space (m = n_est·ny).
+    r0 : ndarray (m,)
+        The weighted residual less its projection on that space.
+    sse0, ree : float
+        ``r0 · r0`` (the sensitivities' fit) and the weighted residual's energy.
+    q : int
+        Columns of the sensitivities (the F test's degrees of freedom count them).
+    tol : float
+        Singular values below this are dropped (numpy.linalg.lstsq's default cut-off).
+    neff : float
+        Effective sample size of the residual (autocorrelation-corrected, all outputs).
+    """
+
+    w: np.ndarray
+    Q: np.ndarray
+    r0: np.ndarray
+    sse0: float
+    ree: float
+    q: int
+    tol: float
+    neff: float
+
+
+def _basis(ctx: Context) -> _Basis | None:
+    """The factored sensitivities of ``ctx`` (cached on it); None without them."""
+    if "linearised_basis" not in ctx.cache:
+        J = sensitivities(ctx)
+        ctx.cache["linearised_basis"] = None if J is None else factor(
+            J[ctx.est], ctx.residual[ctx.est], ctx.y[ctx.est])
+    return ctx.cache["linearised_basis"]
+
+
+def factor(J: np.ndarray, residual: np.ndarray, y: np.ndarray) -> _Basis | None:
+    """:class:`_Basis` of the sensitivities ``J`` (n, ny, q) for the base residual
+    (n, ny) of the measured output ``y`` (n, ny), all on the estimation part; None when a
+    sensitivity is not finite."""
+    w = 1.0 / np.maximum(np.std(y, axis=0), 1e-300)
+    re = (residual * w).reshape(-1)
+    Xe = (J * w[None, :, None]).reshape(re.size, -1)
     if not np.all(np.isfinite(Xe)):
-        return 0.0, 1.0, np.zeros(q)
+        return None
     nrm = np.linalg.norm(Xe, axis=0)
     nrm[nrm == 0] = 1.0
-    fits = []
-    for cols in (slice(0, q), slice(k, q)):        # with the forces, and without
-        b = np.linalg.lstsq(Xe[:, cols] / nrm[cols], re, rcond=None)[0] / nrm[cols]
-        e = re - Xe[:, cols] @ b
-        fits.append((float(e @ e), b))
-    (sse1, beta), (sse0, _) = fits
-    share = max(0.0, (sse0 - sse1) / (float(re @ re) or 1e-300))
-    neff = min(effective_n(ctx.residual[ctx.est, i]) for i in range(ctx.ny)) * ctx.ny
-    dof = max(neff - q, 1.0)
-    F = ((sse0 - max(sse1, 1e-300)) / k) / (max(sse1, 1e-300) / dof)
+    U, s, _ = np.linalg.svd(Xe / nrm, full_matrices=False)
+    tol = np.finfo(float).eps * max(Xe.shape) * (s[0] if s.size else 0.0)
+    Q = U[:, s > tol]
+    r0 = re - Q @ (Q.T @ re)
+    neff = min(effective_n(residual[:, i]) for i in range(residual.shape[1]))
+    return _Basis(w, Q, r0, float(r0 @ r0), float(re @ re), Xe.shape[1], tol,
+                  neff * residual.shape[1])
+
+
+def joint_share(basis: _Basis, G: np.ndarray) -> tuple[float, float, np.ndarray]:
+    """(share, F-test p, coefficients): the share of the base residual's energy (estimation
+    part, outputs weighted 1/std as the fit) that the regressors ``G`` (n_est, ny, k) add to
+    the sensitivities, and the regressors' coefficients in the joint least-squares fit."""
+    k = G.shape[-1]
+    Ge = (G * basis.w[None, :, None]).reshape(-1, k)
+    if not np.all(np.isfinite(Ge)):
+        return 0.0, 1.0, np.zeros(k)
+    nrm = np.linalg.norm(Ge, axis=0)
+    nrm[nrm == 0] = 1.0
+    Gp = Ge / nrm
+    Gp -= basis.Q @ (basis.Q.T @ Gp)              # what the sensitivities leave of G
+    U, s, Vt = np.linalg.svd(Gp, full_matrices=False)
+    keep = s > basis.tol
+    beta = Vt[keep].T @ ((U[:, keep].T @ basis.r0) / s[keep]) / nrm
+    e = basis.r0 - Gp @ (beta * nrm)
+    sse1 = float(e @ e)
+    share = max(0.0, (basis.sse0 - sse1) / (basis.ree or 1e-300))
+    dof = max(basis.neff - (k + basis.q), 1.0)
+    F = ((basis.sse0 - max(sse1, 1e-300)) / k) / (max(sse1, 1e-300) / dof)
     return share, float(stats.f.sf(max(F, 0.0), k, dof)), beta
