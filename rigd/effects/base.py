@@ -264,11 +264,13 @@ class Effect:
         (``state_simulate``); False when, on this base, it has no state part."""
         return True
 
-    def base_columns_kept(self, base: Any, theta_e: np.ndarray) -> set[int] | None:
-        """Indices of ``base``'s parameters whose output sensitivities this effect, where it
-        simulates the model itself, leaves as the base's own (the model's output is the
-        base's plus a term that does not depend on them); None: none are kept (the
-        default), the composed model then has no exact columns."""
+    def sensitivities(self, base: Any, theta_b: np.ndarray, theta_e: np.ndarray, data: Any,
+                      idx: np.ndarray, dY: np.ndarray) -> tuple | None:
+        """Where this effect simulates the model itself (a mode-site law): from the base's
+        exact output sensitivities ``(idx, dY)`` (k, n, ny) on ``data``, the composed
+        model's, ``(base indices, own indices, dY)`` — the base's parameters whose columns
+        it gives, its own (indices into ``theta_e``) and their columns, in that order; None
+        (the default): it gives none, every column is then differenced."""
         return None
 
     def warm_start(self, ctx: Context, sig: SignatureFit) -> np.ndarray | None:

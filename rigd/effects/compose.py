@@ -248,27 +248,25 @@ class Composed(Model):
         effects leave the output linear in the base's linear parameters: each acts on the
         inputs (the base then sees the effects' inputs, in the order :meth:`simulate` applies
         them) or adds a path of its own parallel to the base (``additive_output``: y + g(u));
-        a mode-site effect keeps those of the parameters outside its mode
-        (:meth:`Effect.base_columns_kept`); None otherwise, or when the base has none.
+        a mode-site effect gives those it can from them (:meth:`Effect.sensitivities`: the
+        base's outside its mode, its own that enter linearly); None otherwise, or when the
+        base has none.
 
         Returns
         -------
         (indices, dY) or None
-            As the base's: ``indices`` of the base's parameters (the first of ``theta``),
+            ``indices`` into ``theta`` (the base's parameters first, then the effects'),
             ``dY[k]`` = ∂ŷ/∂θ[indices[k]] (k, n, ny).
         """
         method = type(self.base).output_sensitivities
         if method is None:
             return None
         tb, te = self.parts(theta)
-        kept = None          # base parameters a mode-site effect leaves to the base
-        for e, t in zip(self.effect_list, te):
+        site = None          # the mode-site effect and its first index in theta
+        for e, t, sl in zip(self.effect_list, te, self._slices):
             sites = set(e.sites)
             if sites == {"mode"}:
-                k = e.base_columns_kept(self.base, t)
-                if k is None:
-                    return None
-                kept = k if kept is None else kept & k
+                site = (e, t, sl.start)
             elif not sites <= {"input", "output"} or ("output" in sites
                                                        and not e.additive_output):
                 return None
@@ -281,11 +279,14 @@ class Composed(Model):
                 if v is not u:
                     d = replace_inputs(d, v)
         out = method(self.base, tb, d)
-        if out is None or kept is None:
+        if out is None or site is None:
             return out
-        idx, dY = out
-        keep = [k for k, p in enumerate(idx) if int(p) in kept]
-        return idx[keep], dY[keep]
+        e, t, start = site
+        got = e.sensitivities(self.base, tb, t, d, *out)
+        if got is None:
+            return None
+        base_idx, own_idx, dY = got
+        return np.concatenate([base_idx, start + own_idx]).astype(int), dY
 
     # --- linear part and read-outs -------------------------------------------------------
     def linear_ss(self, theta: np.ndarray, fs: float, G0: Any = None):

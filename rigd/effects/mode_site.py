@@ -274,20 +274,43 @@ class ModeEffect(Effect):
     def owns_state(self, base):
         return True
 
-    def base_columns_kept(self, base, theta_e):
-        """Every base parameter but the mode's own: the output is the base's linear
-        simulation plus C_k (x_k − x_k^lin) minus the force's direct share
-        (:func:`rigd.ident.lti.nonlinear_mode.simulate_nonlinear_mode`), and that term
-        depends only on the mode's block — its pole, its rows of B and x0, its columns of
-        C."""
-        s = NM.mode_states(base, int(round(float(theta_e[0]))))
-        states = {s, s + 1}
+    def sensitivities(self, base, theta_b, theta_e, data, idx, dY):
+        """Exact columns of the model with the law on its mode, from the base's ``(idx,
+        dY)`` on ``data``. The output is the base's plus ``(x_k − x_k^lin) C_kᵀ − φ·d``
+        (:func:`rigd.ident.lti.nonlinear_mode.simulate_nonlinear_mode`), a term of the
+        mode's block alone: every other base column is the base's; a column of ``C_k``
+        is the base's plus the departure of its state; a direct share's is −φ. The mode's
+        pole, its rows of B and its x0 move the law's response: none is returned."""
+        te = np.asarray(theta_e, float)
+        k = int(round(te[0]))
+        s = NM.mode_states(base, k)
+        w2 = float(abs(np.linalg.det(base.matrices(theta_b)["A"][s:s + 2, s:s + 2])))
+        nl = len(self.law_names())
+        p, nel, extra = self.law_params(te[1:1 + nl], w2)
+        dx, fn, _ = NM.mode_departure(base, theta_b, data, k, self.law, p, nel, extra)
         pair = sum(1 for t, q in base.block_states() if t == "pair" and q < s)
-        own = {f"p{pair + 1}_lnf", f"p{pair + 1}_zeta"}
-        own |= {f"b{q + 1}_{j + 1}" for q in states for j in range(base.nu)}
-        own |= {f"c{i + 1}_{q + 1}" for q in states for i in range(base.ny)}
-        own |= {f"x0_{q + 1}" for q in states}
-        return {i for i, v in enumerate(base.names) if v not in own}
+        moved = {f"p{pair + 1}_lnf", f"p{pair + 1}_zeta"}
+        moved |= {f"b{q + 1}_{j + 1}" for q in (s, s + 1) for j in range(base.nu)}
+        moved |= {f"x0_{q + 1}" for q in (s, s + 1)}
+        c_cols = {f"c{i + 1}_{q + 1}": (i, q - s) for q in (s, s + 1) for i in range(base.ny)}
+        keep, cols = [], []
+        for r, par in enumerate(np.asarray(idx, int)):
+            name = base.names[par]
+            if name in moved:
+                continue
+            col = dY[r]
+            if name in c_cols:
+                i, j = c_cols[name]
+                col = col.copy()
+                col[:, i] += dx[:, j]
+            keep.append(par)
+            cols.append(col)
+        own = list(range(1 + nl, 1 + nl + base.ny))
+        for i in range(base.ny):
+            col = np.zeros((fn.size, base.ny))
+            col[:, i] = -fn
+            cols.append(col)
+        return np.asarray(keep, int), np.asarray(own, int), np.stack(cols)
 
     def state_simulate(self, base, theta_b, theta_e, fb, data):
         """Output (n, ny) of ``base`` with the law on the mode ``theta_e[0]``."""

@@ -104,11 +104,13 @@ def linear_jacobian(structure, data, fun, free: np.ndarray, scale: np.ndarray,
         # built as its transpose (p × m): each column a contiguous row, written once
         Jt = np.empty((z.size, r0.size))
         ny = wy.size
+        done = np.zeros(z.size, bool)
         for c, k in lin:
             np.multiply(out[1][k, skip:], wy * -scale[free_idx[c]], out=Jt[c].reshape(-1, ny))
-        done = np.zeros(z.size, bool)
-        done[[c for c, _ in lin]] = True
-        if not np.all(np.isfinite(Jt[done])):
+            done[c] = True
+        # a sensitivity that is not finite: every column by differences (checked row by
+        # row, without copying the rows)
+        if not all(np.isfinite(Jt[c]).all() for c, _ in lin):
             done[:] = False
         rest = np.flatnonzero(~done)
         if rest.size:

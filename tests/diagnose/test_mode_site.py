@@ -154,11 +154,12 @@ def test_identify_add_joint_fits_it_and_the_model_file_keeps_it(tmp_path):
 
 @pytest.mark.parametrize("nm,te", [("joint", [2.0, 0.3, 0.4, 0.5, 0.02, -0.01]),
                                    ("clearance", [2.0, 0.5, 0.3, 0.0, 0.01])])
-def test_a_mode_effect_keeps_the_exact_columns_of_the_other_modes(nm, te):
+def test_a_mode_effect_gives_exact_columns_outside_the_law(nm, te):
     """With a law on mode 2 of a three-mode, two-output base, the output is the base's plus a
-    term of mode 2's block alone: the composed model gives the base's exact sensitivities
-    for every other parameter (each is the composed simulation's central difference) and
-    none for the mode's own pole, B, C or x0 (those are differenced by the fit)."""
+    term of mode 2's block alone: the composed model gives exact sensitivities (each is the
+    composed simulation's central difference) for every parameter of the other modes, for
+    mode 2's output columns C and for the law's direct shares, and none for mode 2's pole,
+    B or x0 or the law's own sizes (those are differenced by the fit)."""
     from rigd.effects.compose import compose
 
     m = StateSpaceModel(["u"], ["y1", "y2"], 200.0, n_complex=3, n_real=1, hold="foh",
@@ -175,11 +176,11 @@ def test_a_mode_effect_keeps_the_exact_columns_of_the_other_modes(nm, te):
     th_c = np.r_[th, te]
     assert th_c.size == len(c.names)
     idx, dY = c.output_sensitivities(th_c, d)
-    names = {m.names[i] for i in idx}
-    own = {"p2_lnf", "p2_zeta", "b3_1", "b4_1", "x0_3", "x0_4"} | {
-        f"c{i}_{q}" for i in (1, 2) for q in (3, 4)}
-    assert names == {v for v in m.names if v[0] != "k"} - own
+    names = {c.names[i] for i in idx}
+    moved = {"p2_lnf", "p2_zeta", "b3_1", "b4_1", "x0_3", "x0_4"}
+    assert names == ({v for v in m.names if v[0] != "k"} - moved) | {f"{nm}_d1", f"{nm}_d2"}
     assert {"p1_lnf", "p3_zeta", "r1_lnf", "b1_1", "d2_1"} <= names
+    assert any(v.startswith("c") and v.endswith(("_3", "_4")) for v in names)
     # the law is not idle at this size: mode 2's block does change the output
     assert np.max(np.abs(c.simulate(th_c, d) - m.simulate(th, d))) > 1e-3 * np.std(
         m.simulate(th, d))
@@ -189,4 +190,4 @@ def test_a_mode_effect_keeps_the_exact_columns_of_the_other_modes(nm, te):
         t1[p] += h
         t2[p] -= h
         fd = (c.simulate(t1, d) - c.simulate(t2, d)) / (2 * h)
-        assert np.max(np.abs(fd - dY[k])) <= 1e-6 * max(np.max(np.abs(fd)), 1.0), m.names[p]
+        assert np.max(np.abs(fd - dY[k])) <= 1e-6 * max(np.max(np.abs(fd)), 1.0), c.names[p]

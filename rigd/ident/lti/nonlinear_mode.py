@@ -202,16 +202,25 @@ def simulate_nonlinear_mode(base, theta_b, data, mode: int, law: str, p: np.ndar
     ``direct`` (ny,): the force's direct share in each output, y −= direct·φ (a sensor of
     the mode's acceleration q̈ sees the force at once: its share of the base's D)."""
     y = np.asarray(base.simulate(theta_b, data), float)
+    dx, fn, Ck = mode_departure(base, theta_b, data, mode, law, p, nel, w_extra)
+    y = y + dx @ Ck.T
+    if direct is not None:
+        y = y - fn[:, None] * np.asarray(direct, float)[None, :]
+    return y
+
+
+def mode_departure(base, theta_b, data, mode: int, law: str, p: np.ndarray, nel: int = 0,
+                   w_extra: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x_k − x_k^lin (n, 2), φ (n,), C_k (ny, 2)): how far the law moves the ``mode``-th
+    pair's states from the linear ones, the law's force and the pair's output columns
+    (:func:`simulate_nonlinear_mode` adds ``(x_k − x_k^lin) C_kᵀ`` to the base's output)."""
     s, Ak, bu, b, w, wa, x0, Ck = _parts(base, theta_b, data, mode)
     wn = float(np.sqrt(abs(np.linalg.det(Ak)) + max(w_extra, 0.0)))
     fs = float(data.fs)
     xn, xl, fn = mode_kernel(np.ascontiguousarray(Ak), bu, b, w, wa, x0, LAWS[law],
                              np.ascontiguousarray(p, dtype=float), int(nel),
                              substeps(wn, fs), 1.0 / fs, base.hold == "foh")
-    y = y + (xn - xl) @ Ck.T
-    if direct is not None:
-        y = y - fn[:, None] * np.asarray(direct, float)[None, :]
-    return y
+    return xn - xl, fn, Ck
 
 
 def mode_force(base, theta_b, data, mode: int) -> dict[str, np.ndarray]:
